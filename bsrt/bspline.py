@@ -1,0 +1,300 @@
+"""Tensor-product B-spline surfaces (optionally rational) in pure NumPy.
+
+A surface of degree (p, q) has nu x nv control points P[i, j] (i along u, j
+along v), knot vectors of length nu + p + 1 and nv + q + 1, and an optional
+grid of positive weights. Its parameter domain is
+[knots_u[p], knots_u[nu]] x [knots_v[q], knots_v[nv]]; knot vectors need not be
+clamped or uniform. Everything is float64.
+
+This module is the reference evaluator (Cox-de Boor, any knot vector) and owns
+knot insertion and Bezier extraction; the fast per-pixel evaluator built on
+the extracted Bezier patches lives in ``patches.py``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+
+@dataclass(frozen=True, eq=False)
+class BSplineSurface:
+    """One B-spline (or NURBS) surface: geometry only, no material.
+
+    degree: (p, q), each >= 1.
+    knots_u: (nu + p + 1,) float64, non-decreasing.
+    knots_v: (nv + q + 1,) float64, non-decreasing.
+    points: (nu, nv, 3) float64, points[i, j] = P(i, j).
+    weights: (nu, nv) float64, all > 0, or None for a non-rational surface.
+
+    Construct through :func:`make_surface`, which validates; the messages of
+    its :class:`InputError` name the offending key (``knots_u: ...``), and
+    callers prefix the file and table.
+    """
+
+    degree: tuple[int, int]
+    knots_u: np.ndarray
+    knots_v: np.ndarray
+    points: np.ndarray
+    weights: np.ndarray | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(nu, nv), the number of control points along u and v."""
+        return self.points.shape[0], self.points.shape[1]
+
+    @property
+    def domain_u(self) -> tuple[float, float]:
+        p, nu = self.degree[0], self.shape[0]
+        return float(self.knots_u[p]), float(self.knots_u[nu])
+
+    @property
+    def domain_v(self) -> tuple[float, float]:
+        q, nv = self.degree[1], self.shape[1]
+        return float(self.knots_v[q]), float(self.knots_v[nv])
+
+    @property
+    def is_rational(self) -> bool:
+        return self.weights is not None
+
+    def homogeneous(self) -> np.ndarray:
+        """(nu, nv, 4) float64: (w x, w y, w z, w); w = 1 when non-rational."""
+        w = np.ones(self.shape) if self.weights is None else self.weights
+        return np.concatenate([self.points * w[..., None], w[..., None]], axis=-1)
+
+    def transformed(self, world_from_local: np.ndarray) -> "BSplineSurface":
+        """The same surface with its control points mapped by a 4x4 affine matrix.
+
+        Affine maps commute with (rational) B-spline evaluation, so the
+        weights and knots are unchanged.
+        """
+        m = np.asarray(world_from_local, dtype=np.float64)
+        pts = self.points @ m[:3, :3].T + m[:3, 3]
+        return BSplineSurface(self.degree, self.knots_u, self.knots_v, pts, self.weights)
+
+
+def _check_knots(key: str, knots: np.ndarray, n: int, p: int) -> None:
+    if knots.ndim != 1 or knots.size != n + p + 1:
+        raise InputError(
+            f"{key}: expected {n + p + 1} values ({n} points + degree {p} + 1), got {knots.size}"
+        )
+    if not np.all(np.isfinite(knots)):
+        raise InputError(f"{key}: values must be finite numbers")
+    if np.any(np.diff(knots) < 0):
+        i = int(np.argmax(np.diff(knots) < 0))
+        raise InputError(
+            f"{key}: knots must not decrease, but value {i + 1} ({knots[i + 1]:g}) is less than value {i} ({knots[i]:g})"
+        )
+    a, b = knots[p], knots[n]
+    if not a < b:
+        raise InputError(f"{key}: the parameter domain [{a:g}, {b:g}] (knots {p} and {n}) is empty")
+    inner = knots[(knots > a) & (knots < b)]
+    if inner.size:
+        values, counts = np.unique(inner, return_counts=True)
+        if counts.max() > p:
+            x = values[np.argmax(counts)]
+            raise InputError(
+                f"{key}: interior knot {x:g} is repeated {counts.max()} times, more than the degree {p}"
+            )
+
+
+def make_surface(degree, knots_u, knots_v, points, weights=None) -> BSplineSurface:
+    """Validate and build a :class:`BSplineSurface` from array-likes.
+
+    Raises InputError with a message that starts with the offending key.
+    """
+    try:
+        p, q = (int(d) for d in degree)
+        if [p, q] != [d for d in degree]:
+            raise ValueError
+    except (TypeError, ValueError):
+        raise InputError(f"degree: expected two whole numbers [p, q], got {degree!r}") from None
+    if p < 1 or q < 1:
+        raise InputError(f"degree: each degree must be >= 1, got [{p}, {q}]")
+    try:
+        pts = np.array(points, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError("points: expected a grid of [x, y, z] numbers (nu rows of nv points)") from None
+    if pts.ndim != 3 or pts.shape[2] != 3:
+        raise InputError(
+            f"points: expected nu rows of nv [x, y, z] points, got an array of shape {pts.shape}"
+        )
+    nu, nv = pts.shape[:2]
+    if nu < p + 1 or nv < q + 1:
+        raise InputError(
+            f"points: degree [{p}, {q}] needs at least {p + 1} x {q + 1} points, got {nu} x {nv}"
+        )
+    if not np.all(np.isfinite(pts)):
+        i, j, _ = np.argwhere(~np.isfinite(pts))[0]
+        raise InputError(f"points: point [{i}][{j}] has a non-finite coordinate")
+    ku = _as_vector("knots_u", knots_u)
+    kv = _as_vector("knots_v", knots_v)
+    _check_knots("knots_u", ku, nu, p)
+    _check_knots("knots_v", kv, nv, q)
+    w = None
+    if weights is not None:
+        try:
+            w = np.array(weights, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError("weights: expected nu rows of nv numbers") from None
+        if w.shape != (nu, nv):
+            raise InputError(f"weights: expected {nu} x {nv} values (one per point), got shape {w.shape}")
+        if not np.all(np.isfinite(w)) or np.any(w <= 0):
+            raise InputError("weights: every weight must be a finite number > 0")
+        if np.all(w == 1.0):
+            w = None
+    for a in (ku, kv, pts) + (() if w is None else (w,)):
+        a.setflags(write=False)
+    return BSplineSurface((p, q), ku, kv, pts, w)
+
+
+def _as_vector(key: str, values) -> np.ndarray:
+    try:
+        knots = np.array(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        knots = None
+    if knots is None or knots.ndim != 1:
+        raise InputError(f"{key}: expected a list of numbers")
+    return knots
+
+
+# ---------------------------------------------------------------------------
+# Basis functions
+
+
+def find_span(knots: np.ndarray, p: int, n: int, u: np.ndarray) -> np.ndarray:
+    """Knot span index i with knots[i] <= u < knots[i+1], clamped to [p, n-1].
+
+    knots: (n + p + 1,); u: (N,) -> (N,) int64. Parameters outside the domain
+    get the first/last span, i.e. the polynomial of that span is extended.
+    """
+    span = np.searchsorted(knots, u, side="right") - 1
+    return np.clip(span, p, n - 1)
+
+
+def basis_functions(knots: np.ndarray, p: int, span: np.ndarray, u: np.ndarray):
+    """The p + 1 non-zero basis functions at u and their first derivatives.
+
+    span, u: (N,). Returns (values, derivatives), each (N, p + 1); column k is
+    N_{span - p + k, p}(u). Cox-de Boor's triangular scheme, vectorised over N.
+    """
+    u = np.asarray(u, dtype=np.float64)
+    n_pts = u.shape[0]
+    left = np.empty((n_pts, p + 1))
+    right = np.empty((n_pts, p + 1))
+    vals = np.zeros((n_pts, p + 1))
+    vals[:, 0] = 1.0
+    prev = vals[:, :1].copy()
+    for j in range(1, p + 1):
+        left[:, j] = u - knots[span + 1 - j]
+        right[:, j] = knots[span + j] - u
+        saved = np.zeros(n_pts)
+        for r in range(j):
+            denom = right[:, r + 1] + left[:, j - r]
+            temp = np.divide(vals[:, r], denom, out=np.zeros(n_pts), where=denom != 0)
+            vals[:, r] = saved + right[:, r + 1] * temp
+            saved = left[:, j - r] * temp
+        vals[:, j] = saved
+        if j == p - 1:
+            prev = vals[:, :p].copy()
+    # dN_{i,p} = p (N_{i,p-1} / (k[i+p] - k[i]) - N_{i+1,p-1} / (k[i+p+1] - k[i+1]))
+    ders = np.zeros((n_pts, p + 1))
+    for k in range(p + 1):
+        i = span - p + k
+        if k >= 1:
+            d = knots[i + p] - knots[i]
+            ders[:, k] += np.divide(prev[:, k - 1], d, out=np.zeros(n_pts), where=d != 0)
+        if k <= p - 1:
+            d = knots[i + p + 1] - knots[i + 1]
+            ders[:, k] -= np.divide(prev[:, k], d, out=np.zeros(n_pts), where=d != 0)
+    return vals, p * ders
+
+
+def evaluate(surface: BSplineSurface, u, v):
+    """S, S_u, S_v at paired parameters.
+
+    u, v: (N,) float64 in the surface's knot domain (values outside extend the
+    end spans). Returns three (N, 3) float64 arrays. Rational surfaces use the
+    quotient rule on the homogeneous point.
+    """
+    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+    v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+    (p, q), (nu, nv) = surface.degree, surface.shape
+    su = find_span(surface.knots_u, p, nu, u)
+    sv = find_span(surface.knots_v, q, nv, v)
+    bu, dbu = basis_functions(surface.knots_u, p, su, u)
+    bv, dbv = basis_functions(surface.knots_v, q, sv, v)
+    ii = (su - p)[:, None, None] + np.arange(p + 1)[None, :, None]
+    jj = (sv - q)[:, None, None] + np.arange(q + 1)[None, None, :]
+    ctrl = surface.homogeneous()[ii, jj]  # (N, p+1, q+1, 4)
+    h = np.einsum("na,nb,nabk->nk", bu, bv, ctrl)
+    hu = np.einsum("na,nb,nabk->nk", dbu, bv, ctrl)
+    hv = np.einsum("na,nb,nabk->nk", bu, dbv, ctrl)
+    return rational_quotient(h, hu, hv)
+
+
+def rational_quotient(h, hu, hv):
+    """Project homogeneous (N, 4) values and derivatives to (N, 3) S, S_u, S_v."""
+    w = h[:, 3:4]
+    s = h[:, :3] / w
+    su = (hu[:, :3] - s * hu[:, 3:4]) / w
+    sv = (hv[:, :3] - s * hv[:, 3:4]) / w
+    return s, su, sv
+
+
+# ---------------------------------------------------------------------------
+# Knot insertion and Bezier extraction
+
+
+def insert_knot(knots: np.ndarray, ctrl: np.ndarray, p: int, x: float):
+    """Insert the value x once into a knot vector (Boehm's algorithm).
+
+    knots: (n + p + 1,); ctrl: (n, ...) homogeneous control points, the first
+    axis being the direction of the knots. Returns (knots', ctrl') with one
+    more knot and one more control point; the curve (surface) is unchanged.
+    """
+    n = ctrl.shape[0]
+    k = int(np.clip(np.searchsorted(knots, x, side="right") - 1, p, n - 1))
+    new = np.empty((n + 1,) + ctrl.shape[1:])
+    new[: k - p + 1] = ctrl[: k - p + 1]
+    new[k + 1 :] = ctrl[k:]
+    for i in range(k - p + 1, k + 1):
+        denom = knots[i + p] - knots[i]
+        a = (x - knots[i]) / denom if denom != 0 else 0.0
+        new[i] = a * ctrl[i] + (1.0 - a) * ctrl[i - 1]
+    return np.insert(knots, k + 1, x), new
+
+
+def _saturate(knots: np.ndarray, ctrl: np.ndarray, p: int, n: int):
+    """Insert knots until every distinct knot in the domain has multiplicity >= p."""
+    a, b = knots[p], knots[n]
+    for x in np.unique(knots[(knots >= a) & (knots <= b)]):
+        while np.count_nonzero(knots == x) < p:
+            knots, ctrl = insert_knot(knots, ctrl, p, x)
+    return knots, ctrl
+
+
+def bezier_patches(surface: BSplineSurface):
+    """Split a surface into its polynomial (rational) Bezier pieces.
+
+    Returns (ctrl, bounds): ctrl (K, p+1, q+1, 4) homogeneous Bezier control
+    points; bounds (K, 4) float64 rows (u0, u1, v0, v1), the piece's rectangle
+    in the surface's own knot domain. Pieces are ordered u-major.
+    """
+    (p, q) = surface.degree
+    ku, ctrl = _saturate(surface.knots_u, surface.homogeneous(), p, surface.shape[0])
+    ctrl_t = np.swapaxes(ctrl, 0, 1)
+    kv, ctrl_t = _saturate(surface.knots_v, ctrl_t, q, surface.shape[1])
+    ctrl = np.swapaxes(ctrl_t, 0, 1)
+    nu, nv = ctrl.shape[:2]
+    spans_u = [i for i in range(p, nu) if ku[i] < ku[i + 1]]
+    spans_v = [j for j in range(q, nv) if kv[j] < kv[j + 1]]
+    pieces, bounds = [], []
+    for i in spans_u:
+        for j in spans_v:
+            pieces.append(ctrl[i - p : i + 1, j - q : j + 1])
+            bounds.append((ku[i], ku[i + 1], kv[j], kv[j + 1]))
+    return np.array(pieces), np.array(bounds, dtype=np.float64)

@@ -1,0 +1,147 @@
+"""The one place that creates OpenGL contexts and loads shaders.
+
+Headless rendering uses EGL (``backend="egl"``; without it glcontext would try
+X11). EGL device 0 can be an unusable DRM node, so devices are tried in turn;
+``GLCONTEXT_DEVICE_INDEX`` (or ``BSRT_EGL_DEVICE``) picks one explicitly.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+from importlib import resources
+from pathlib import Path
+
+import moderngl
+
+from .errors import RenderError
+
+GL_VERSION = 330
+FIX_HINT = (
+    "install Mesa's EGL and OpenGL drivers (Debian/Ubuntu: apt-get install libegl1 libgl1 "
+    "libegl-mesa0 libgl1-mesa-dri), or pick a device with GLCONTEXT_DEVICE_INDEX=N; "
+    "`bsrt doctor` lists the devices"
+)
+
+
+def egl_devices() -> list[str]:
+    """Describe each EGL device (DRM node or 'software'), [] if EGL is missing.
+
+    Uses EGL_EXT_device_enumeration through ctypes; best effort, for
+    ``bsrt doctor`` only.
+    """
+    name = ctypes.util.find_library("EGL")
+    if not name:
+        return []
+    try:
+        egl = ctypes.CDLL(name)
+    except OSError:
+        return []
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    query_ptr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
+    string_ptr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
+    if not query_ptr or not string_ptr:
+        return []
+    query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int))(query_ptr)
+    device_string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(string_ptr)
+    count = ctypes.c_int(0)
+    if not query(0, None, ctypes.byref(count)) or count.value <= 0:
+        return []
+    devices = (ctypes.c_void_p * count.value)()
+    query(count.value, devices, ctypes.byref(count))
+    egl_extensions, egl_drm_device_file = 0x3055, 0x3233
+    out = []
+    for dev in devices[: count.value]:
+        ext = (device_string(dev, egl_extensions) or b"").decode(errors="replace")
+        drm = device_string(dev, egl_drm_device_file) if "EGL_EXT_device_drm" in ext else None
+        if drm:
+            out.append(drm.decode(errors="replace"))
+        elif "EGL_MESA_device_software" in ext:
+            out.append("software (Mesa llvmpipe)")
+        else:
+            out.append("unknown device")
+    return out
+
+
+def create_headless_context() -> moderngl.Context:
+    """A standalone OpenGL 3.3 core context through EGL.
+
+    Tries the device named by GLCONTEXT_DEVICE_INDEX / BSRT_EGL_DEVICE, else
+    each device in turn. Raises RenderError with a fix when none works.
+    """
+    chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
+    if chosen is not None:
+        candidates = [int(chosen)]
+    else:
+        candidates = list(range(max(1, len(egl_devices()))))
+    errors = []
+    for index in candidates:
+        try:
+            ctx = moderngl.create_context(standalone=True, backend="egl", require=GL_VERSION, device_index=index)
+        except Exception as exc:  # glcontext raises plain Exception subclasses
+            errors.append(f"device {index}: {exc}")
+            continue
+        return ctx
+    raise RenderError("no OpenGL context through EGL (" + "; ".join(errors) + "); " + FIX_HINT)
+
+
+def shader_source(name: str) -> str:
+    """The text of ``shaders/NAME.glsl``.
+
+    An installed wheel ships the top-level shaders/ as the package
+    bsrt.shaders; running from a source checkout (bsrt/ imported from the
+    working tree) reads the checkout's shaders/ directly.
+    """
+    try:
+        folder = resources.files("bsrt.shaders")
+    except ModuleNotFoundError:
+        folder = Path(__file__).resolve().parent.parent / "shaders"
+    return folder.joinpath(f"{name}.glsl").read_text(encoding="utf-8")
+
+
+def load_program(ctx: moderngl.Context, name: str) -> moderngl.Program:
+    """Compile shaders/NAME.glsl: one file, stages split by #if defined X_SHADER."""
+    source = shader_source(name)
+    version, _, body = source.partition("\n")
+
+    def stage(define: str) -> str:
+        return f"{version}\n#define {define}\n{body}"
+
+    return ctx.program(vertex_shader=stage("VERTEX_SHADER"), fragment_shader=stage("FRAGMENT_SHADER"))
+
+
+_headless: moderngl.Context | None = None
+
+
+def headless_context() -> moderngl.Context:
+    """The process's one standalone EGL context, created on first use."""
+    global _headless
+    if _headless is None:
+        _headless = create_headless_context()
+    return _headless
+
+
+def program(ctx: moderngl.Context, name: str) -> moderngl.Program:
+    """The compiled program NAME, cached on the context (released with it)."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    programs = ctx.extra.setdefault("bsrt_programs", {})
+    if name not in programs:
+        programs[name] = load_program(ctx, name)
+    return programs[name]
+
+
+def bind_default_framebuffer(ctx: moderngl.Context) -> None:
+    """Bind framebuffer 0 (the window, or none headless).
+
+    Call before releasing a bound framebuffer: moderngl otherwise keeps the
+    released one as current and the next framebuffer creation fails with
+    GL_INVALID_OPERATION.
+    """
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    if "bsrt_default_fbo" not in ctx.extra:
+        ctx.extra["bsrt_default_fbo"] = ctx.detect_framebuffer(0)
+    ctx.extra["bsrt_default_fbo"].use()

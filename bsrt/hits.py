@@ -1,0 +1,54 @@
+"""Ray-surface hit records shared by every root finder."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Hits:
+    """The nearest hit of each of N rays.
+
+    hit: (N,) bool. t: (N,) float64 distance along the unit direction, NaN
+    where no hit. surface: (N,) int64 surface index, -1 where no hit.
+    patch: (N,) int64 PatchSet patch id, -1 where no hit. u, v: (N,) float64
+    parameters in the surface's knot domain, NaN where no hit.
+    iterations: (N,) int32 root-finding iterations spent on the ray (all
+    attempts). residual: (N,) float64 distance between the ray and S(u, v),
+    NaN where no hit.
+    """
+
+    hit: np.ndarray
+    t: np.ndarray
+    surface: np.ndarray
+    patch: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    iterations: np.ndarray
+    residual: np.ndarray
+
+    @classmethod
+    def empty(cls, n: int) -> "Hits":
+        nan = np.full(n, np.nan)
+        return cls(
+            hit=np.zeros(n, dtype=bool),
+            t=nan.copy(),
+            surface=np.full(n, -1, dtype=np.int64),
+            patch=np.full(n, -1, dtype=np.int64),
+            u=nan.copy(),
+            v=nan.copy(),
+            iterations=np.zeros(n, dtype=np.int32),
+            residual=nan,
+        )
+
+    def __len__(self) -> int:
+        return self.hit.shape[0]
+
+    def assign(self, index: np.ndarray, other: "Hits") -> None:
+        """Overwrite the rays at ``index`` (M,) with ``other`` (M rays), keeping iteration counts summed."""
+        iterations = self.iterations[index] + other.iterations
+        for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):
+            getattr(self, name)[index] = getattr(other, name)
+        self.iterations[index] = iterations

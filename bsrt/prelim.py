@@ -1,0 +1,199 @@
+"""The preliminary map (paper 2.1): OpenGL seeds for every pixel's root finder.
+
+Each Bezier patch is tessellated into a grid fine enough that its chords stay
+within half a pixel of the surface (the second-difference bound of Filip,
+Magedson & Markot 1986, with the pixel footprint at the patch's nearest
+distance), capped at 64 x 64 quads per patch. OpenGL rasterises the
+triangles with a depth test into two targets: the map itself (red = surface
+index + 1, green/blue = u, v normalised over the surface's domain), either
+32-bit float or the paper's 8-bit RGBA decoded with eq. 6, and the distance
+from the eye (32-bit float). Arrays leave this module; no GL object does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from . import gl
+from .camera import Camera, clip_from_eye
+from .errors import InputError, RenderError
+from .patches import PatchSet
+
+MAP_MODES = ("float", "rgba8")
+MAX_SEGMENTS = 64
+
+
+@dataclass
+class PrelimMap:
+    """Per-pixel seeds, row 0 at the top.
+
+    surface: (H, W) int64 surface index, -1 where the map is empty.
+    u, v: (H, W) float64 starting parameters in the surface's knot domain
+      (NaN where empty). distance: (H, W) float64 eye distance of the
+      rasterised triangle (inf where empty). picture: (H, W, 3) uint8 the map
+      as the paper's Figure 1 shows it (r = index + 1, g, b = u, v in 0..255).
+    """
+
+    surface: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    distance: np.ndarray
+    picture: np.ndarray
+
+
+def segments_per_patch(patches: PatchSet, camera: Camera, width: int, height: int) -> np.ndarray:
+    """(P, 2) int64: quads along u and v for each patch (1..MAX_SEGMENTS)."""
+    _, ty = camera.half_extents(width, height)
+    pixel_at_unit_distance = 2.0 * ty / height
+    lo, hi = patches.box_min, patches.box_max
+    nearest = np.linalg.norm(np.maximum(np.maximum(lo - camera.eye, camera.eye - hi), 0.0), axis=1)
+    diag = max(patches.scene_diagonal(), 1e-300)
+    tolerance = 0.5 * pixel_at_unit_distance * np.maximum(nearest, 1e-3 * diag)
+    out = np.ones((patches.size, 2), dtype=np.int64)
+    for k, ctrl in enumerate(patches.bezier):
+        pts = ctrl[..., :3] / ctrl[..., 3:4]
+        p, q = pts.shape[0] - 1, pts.shape[1] - 1
+        m_uu = p * (p - 1) * _max_norm(pts[2:] - 2 * pts[1:-1] + pts[:-2]) if p > 1 else 0.0
+        m_vv = q * (q - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2]) if q > 1 else 0.0
+        m_uv = p * q * _max_norm(pts[1:, 1:] - pts[1:, :-1] - pts[:-1, 1:] + pts[:-1, :-1])
+        # chord error <= (m_uu / n_u^2 + 2 m_uv / (n_u n_v) + m_vv / n_v^2) / 8
+        n_u = np.sqrt((m_uu + m_uv) / (4.0 * tolerance[k]))
+        n_v = np.sqrt((m_vv + m_uv) / (4.0 * tolerance[k]))
+        out[k] = np.clip(np.ceil([n_u, n_v]), 1, MAX_SEGMENTS)
+    return out
+
+
+def _max_norm(a: np.ndarray) -> float:
+    return float(np.sqrt((a * a).sum(axis=-1)).max()) if a.size else 0.0
+
+
+def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):
+    """Watertight triangles of every surface.
+
+    Each surface gets one grid whose lines include all its knots, every span
+    cut into the largest segment count of that surface's patches, so patches
+    share their border vertices exactly (no T-junctions, no cracks).
+    segments: (P, 2) quads per patch. Returns (vertices (V, 6) float32 rows
+    (x, y, z eye-relative, u_norm, v_norm, surface index + 1), indices (T, 3)
+    uint32).
+    """
+    verts, tris, base = [], [], 0
+    for m in range(len(patches.surfaces)):
+        mine = patches.surface == m
+        n_u, n_v = segments[mine].max(axis=0)
+        b = patches.bounds[mine]
+        gu = _refined_breaks(np.unique(b[:, :2]), n_u)
+        gv = _refined_breaks(np.unique(b[:, 2:]), n_v)
+        u, v = np.meshgrid(gu, gv, indexing="ij")
+        u, v = u.ravel(), v.ravel()
+        sid = np.full(u.size, m)
+        S = patches.evaluate(patches.locate(sid, u, v), u, v, derivatives=False)
+        d = patches.domain[m]
+        block = np.empty((u.size, 6), dtype=np.float32)
+        block[:, :3] = (S.T - eye).astype(np.float32)
+        block[:, 3] = (u - d[0]) / (d[1] - d[0])
+        block[:, 4] = (v - d[2]) / (d[3] - d[2])
+        block[:, 5] = m + 1
+        verts.append(block)
+        i, j = np.meshgrid(np.arange(gu.size - 1), np.arange(gv.size - 1), indexing="ij")
+        corner = (i * gv.size + j).ravel()
+        quad = np.stack([corner, corner + gv.size, corner + gv.size + 1, corner + 1], axis=1)
+        tris.append(base + np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]))
+        base += u.size
+    return np.concatenate(verts), np.concatenate(tris).astype(np.uint32)
+
+
+def _refined_breaks(breaks: np.ndarray, n: int) -> np.ndarray:
+    """Every interval of the sorted breaks (K,) cut into n equal parts -> ((K-1) n + 1,)."""
+    steps = np.linspace(0.0, 1.0, n + 1)[:-1]
+    inner = (breaks[:-1, None] + np.diff(breaks)[:, None] * steps[None, :]).ravel()
+    return np.concatenate([inner, breaks[-1:]])
+
+
+def depth_range(patches: PatchSet, camera: Camera) -> tuple[float, float]:
+    """(near, far) planes enclosing every control point in front of the eye."""
+    lo, hi = patches.scene_box()
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    _, _, f = camera.basis()
+    depth = (corners - camera.eye) @ f
+    far = max(float(depth.max()), 1e-300) * 1.01 + 1e-9
+    near = max(float(depth.min()) * 0.99, far * 1e-5)
+    return near, far
+
+
+def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode: str = "float", ctx=None) -> PrelimMap:
+    """Rasterise the preliminary map for a width x height film.
+
+    mode: "float" (32-bit channels) or "rgba8" (the paper's 8-bit map, at
+    most 255 surfaces). ctx: a moderngl context (default: the process's
+    headless EGL context).
+    """
+    if mode not in MAP_MODES:
+        raise InputError(f"map: expected one of {', '.join(MAP_MODES)}, got {mode!r}")
+    if mode == "rgba8" and len(patches.surfaces) > 255:
+        raise InputError(
+            f"map: the 8-bit map (rgba8) holds at most 255 surfaces in its red channel, "
+            f"the scene has {len(patches.surfaces)}; use map = \"float\""
+        )
+    ctx = ctx or gl.headless_context()
+    near, far = depth_range(patches, camera)
+    vertices, indices = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
+    program = gl.program(ctx, "prelim")
+    program["clip_from_eye"].write(clip_from_eye(camera, width, height, near, far).T.astype("f4").tobytes())
+    program["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0
+    size = (width, height)
+    resources = []
+    try:
+        color = ctx.texture(size, 4, dtype="f4" if mode == "float" else "f1")
+        dist = ctx.texture(size, 1, dtype="f4")
+        depth = ctx.depth_renderbuffer(size)
+        fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
+        vbo = ctx.buffer(vertices.tobytes())
+        ibo = ctx.buffer(indices.tobytes())
+        vao = ctx.vertex_array(program, [(vbo, "3f 2f 1f", "position", "uv", "surface_id")], index_buffer=ibo, index_element_size=4)
+        resources = [vao, ibo, vbo, fbo, depth, dist, color]
+        fbo.use()
+        ctx.viewport = (0, 0, width, height)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        vao.render(moderngl.TRIANGLES)
+        dtype = "f4" if mode == "float" else "f1"
+        raw = np.frombuffer(fbo.read(components=4, dtype=dtype, attachment=0), dtype=np.float32 if mode == "float" else np.uint8)
+        raw = raw.reshape(height, width, 4)[::-1]
+        eye_distance = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype=np.float32)
+        eye_distance = eye_distance.reshape(height, width)[::-1]
+        error = ctx.error
+        if error != "GL_NO_ERROR":
+            raise RenderError(f"OpenGL reported {error} while rendering the preliminary map")
+    finally:
+        gl.bind_default_framebuffer(ctx)
+        for res in resources:
+            res.release()
+    return decode_map(patches, raw, eye_distance, mode)
+
+
+def decode_map(patches: PatchSet, raw: np.ndarray, eye_distance: np.ndarray, mode: str) -> PrelimMap:
+    """Seeds from the raw map pixels (eq. 6 for the 8-bit map).
+
+    raw: (H, W, 4) float32 (float mode: r = index + 1, g, b in [0, 1]) or
+    uint8 (rgba8: r = index + 1, g, b in 0..255).
+    """
+    if mode == "float":
+        ident = np.rint(raw[..., 0]).astype(np.int64) - 1
+        g, b = raw[..., 1].astype(np.float64), raw[..., 2].astype(np.float64)
+        picture = np.stack([np.clip(ident + 1, 0, 255), np.rint(g * 255), np.rint(b * 255)], axis=-1).astype(np.uint8)
+    else:
+        ident = raw[..., 0].astype(np.int64) - 1
+        g, b = raw[..., 1] / 255.0, raw[..., 2] / 255.0
+        picture = raw[..., :3].copy()
+    covered = ident >= 0
+    safe = np.where(covered, ident, 0)
+    d = patches.domain[safe]
+    u = np.where(covered, d[..., 0] + (d[..., 1] - d[..., 0]) * g, np.nan)  # eq. 6
+    v = np.where(covered, d[..., 2] + (d[..., 3] - d[..., 2]) * b, np.nan)
+    distance = np.where(covered, eye_distance.astype(np.float64), np.inf)
+    return PrelimMap(np.where(covered, ident, -1), u, v, distance, picture)
