@@ -1,0 +1,369 @@
+"""Scene files (TOML, format version 1) into frozen dataclasses.
+
+Every problem is an InputError naming the file, the table and the key, e.g.
+``column.toml: surface[3].knots_u: expected 12 values (8 points + degree 3 +
+1), got 11``. Unknown keys are errors: nothing is silently ignored.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .bspline import BSplineSurface, make_surface
+from .camera import Camera
+from .errors import InputError
+
+METHODS = ("gradient", "fast", "newton", "martin")
+MAP_MODES = ("float", "rgba8")
+
+
+@dataclass(frozen=True)
+class Film:
+    width: int = 512
+    height: int = 512
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)  # linear RGB
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    method: str = "newton"
+    map: str = "float"
+    tolerance: float = 1e-9  # fraction of the scene's bounding-box diagonal
+    max_iterations: int = 64
+    spp: int = 1
+
+
+@dataclass(frozen=True)
+class Material:
+    name: str
+    color: tuple[float, float, float] = (0.8, 0.8, 0.8)  # linear RGB albedo
+    specular: float = 0.2
+    shininess: float = 32.0
+    reflectance: float = 0.0
+
+
+@dataclass(frozen=True)
+class Light:
+    """kind: "point" (position, inverse-square falloff), "directional"
+    (direction the light travels) or "ambient"; color * intensity is the
+    light's linear RGB strength."""
+
+    kind: str
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    intensity: float = 1.0
+    position: tuple[float, float, float] | None = None
+    direction: tuple[float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class SceneSurface:
+    """A surface in world space (transform applied), its material index and name."""
+
+    geometry: BSplineSurface
+    material: int
+    name: str
+
+
+@dataclass(frozen=True)
+class Scene:
+    film: Film
+    camera: Camera
+    render: RenderSettings
+    materials: tuple[Material, ...]
+    lights: tuple[Light, ...]
+    surfaces: tuple[SceneSurface, ...]
+    path: str = "<scene>"
+    notes: tuple[str, ...] = field(default=())  # warnings from imports
+
+
+DEFAULT_MATERIAL = Material("default")
+
+
+class _Table:
+    """Typed access to one TOML table; every error names file, table and key."""
+
+    def __init__(self, where: str, data, name: str):
+        if not isinstance(data, dict):
+            raise InputError(f"{where}: {name}: expected a table")
+        self.where, self.data, self.name, self.used = where, data, name, set()
+
+    def fail(self, key: str, message: str):
+        raise InputError(f"{self.where}: {self.name}.{key}: {message}")
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def raw(self, key: str, default=None, required: bool = False):
+        self.used.add(key)
+        if key not in self.data:
+            if required:
+                self.fail(key, "missing (required)")
+            return default
+        return self.data[key]
+
+    def number(self, key: str, default=None, lo=None, hi=None, lo_open=False, hi_open=False, required=False):
+        value = self.raw(key, default, required)
+        if value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(key, f"expected a number, got {_show(value)}")
+        value = float(value)
+        if not math.isfinite(value):
+            self.fail(key, f"expected a finite number, got {value}")
+        if lo is not None and (value < lo or (lo_open and value == lo)):
+            self.fail(key, f"must be {'>' if lo_open else '>='} {lo:g}, got {value:g}")
+        if hi is not None and (value > hi or (hi_open and value == hi)):
+            self.fail(key, f"must be {'<' if hi_open else '<='} {hi:g}, got {value:g}")
+        return value
+
+    def integer(self, key: str, default=None, lo=None, required=False):
+        value = self.raw(key, default, required)
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(key, f"expected a whole number, got {_show(value)}")
+        if lo is not None and value < lo:
+            self.fail(key, f"must be >= {lo}, got {value}")
+        return value
+
+    def string(self, key: str, default=None, choices=None, required=False):
+        value = self.raw(key, default, required)
+        if value is None:
+            return None
+        if not isinstance(value, str):
+            self.fail(key, f"expected a string, got {_show(value)}")
+        if choices and value not in choices:
+            self.fail(key, f"expected one of {', '.join(repr(c) for c in choices)}, got {value!r}")
+        return value
+
+    def vector(self, key: str, default=None, length=3, required=False, lo=None):
+        value = self.raw(key, default, required)
+        if value is None:
+            return None
+        if (
+            not isinstance(value, (list, tuple))
+            or len(value) != length
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)
+        ):
+            self.fail(key, f"expected {length} numbers, got {_show(value)}")
+        if not all(math.isfinite(x) for x in value):
+            self.fail(key, "values must be finite numbers")
+        if lo is not None and any(x < lo for x in value):
+            self.fail(key, f"values must be >= {lo:g}")
+        return tuple(float(x) for x in value)
+
+    def finish(self):
+        unknown = [k for k in self.data if k not in self.used]
+        if unknown:
+            self.fail(unknown[0], "unknown key")
+
+
+def _show(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene file (see the README for the format)."""
+    path = Path(path)
+    where = path.name
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, not a scene file") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{where}: not a text (UTF-8) file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{where}: invalid TOML: {exc}") from None
+    order = re.findall(r"(?m)^[ \t]*\[\[[ \t]*(surface|import)[ \t]*\]\]", text)
+    return parse_scene(data, where, path.parent, order)
+
+
+def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, order=None) -> Scene:
+    """Validate an already-parsed TOML document.
+
+    folder resolves [[import]] files; order: the kinds ("surface" or
+    "import") of the surface-producing tables as they appear in the text,
+    which tomllib does not keep (None: surfaces first, then imports).
+    """
+    known = {"film", "camera", "render", "material", "light", "surface", "import"}
+    for key in data:
+        if key not in known:
+            raise InputError(f"{where}: {key}: unknown table (expected one of {', '.join(sorted(known))})")
+
+    film_t = _Table(where, data.get("film", {}), "film")
+    film = Film(
+        width=film_t.integer("width", 512, lo=1),
+        height=film_t.integer("height", 512, lo=1),
+        background=film_t.vector("background", (0.0, 0.0, 0.0), lo=0.0),
+    )
+    film_t.finish()
+
+    if "camera" not in data:
+        raise InputError(f"{where}: camera: missing table [camera]")
+    cam_t = _Table(where, data["camera"], "camera")
+    eye = np.array(cam_t.vector("eye", required=True))
+    look_at = np.array(cam_t.vector("look_at", required=True))
+    up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
+    fov = cam_t.number("fov", 40.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
+    cam_t.finish()
+    view = look_at - eye
+    if np.linalg.norm(view) == 0:
+        cam_t.fail("look_at", "must differ from eye")
+    if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / np.linalg.norm(view), up / np.linalg.norm(up))) < 1e-9:
+        cam_t.fail("up", "must not be parallel to the view direction (look_at - eye)")
+    camera = Camera(eye, look_at, up, fov, fov_axis)
+
+    ren_t = _Table(where, data.get("render", {}), "render")
+    render = RenderSettings(
+        method=ren_t.string("method", "newton", choices=METHODS),
+        map=ren_t.string("map", "float", choices=MAP_MODES),
+        tolerance=ren_t.number("tolerance", 1e-9, lo=0.0, lo_open=True, hi=1.0),
+        max_iterations=ren_t.integer("max_iterations", 64, lo=1),
+        spp=ren_t.integer("spp", 1, lo=1),
+    )
+    if render.spp != 1:
+        ren_t.fail("spp", "more than one sample per pixel is not supported yet")
+    ren_t.finish()
+
+    materials, by_name = [], {}
+    for i, raw in enumerate(_array_of_tables(where, data, "material")):
+        t = _Table(where, raw, f"material[{i}]")
+        name = t.string("name", required=True)
+        if name in by_name:
+            t.fail("name", f"duplicate material name {name!r}")
+        mat = Material(
+            name=name,
+            color=t.vector("color", DEFAULT_MATERIAL.color, lo=0.0),
+            specular=t.number("specular", DEFAULT_MATERIAL.specular, lo=0.0, hi=1.0),
+            shininess=t.number("shininess", DEFAULT_MATERIAL.shininess, lo=0.0),
+            reflectance=t.number("reflectance", 0.0, lo=0.0, hi=1.0),
+        )
+        if mat.reflectance != 0.0:
+            t.fail("reflectance", "mirror reflection is not supported yet (needs secondary rays); use 0")
+        t.finish()
+        by_name[name] = len(materials)
+        materials.append(mat)
+
+    lights = []
+    for i, raw in enumerate(_array_of_tables(where, data, "light")):
+        t = _Table(where, raw, f"light[{i}]")
+        kind = t.string("kind", required=True, choices=("point", "directional", "ambient"))
+        light = Light(
+            kind=kind,
+            color=t.vector("color", (1.0, 1.0, 1.0), lo=0.0),
+            intensity=t.number("intensity", 1.0, lo=0.0),
+            position=t.vector("position", required=True) if kind == "point" else None,
+            direction=t.vector("direction", required=True) if kind == "directional" else None,
+        )
+        if kind == "directional" and not any(light.direction):
+            t.fail("direction", "must not be the zero vector")
+        t.finish()
+        lights.append(light)
+
+    surfaces = []
+    entries = _surface_entries(data, order)
+    for kind, i, raw in entries:
+        if kind == "import":
+            t = _Table(where, raw, f"import[{i}]")
+            t.fail("file", "[[import]] is not supported yet (model importers come with the importer work)")
+        t = _Table(where, raw, f"surface[{i}]")
+        name = t.string("name", f"surface-{i}")
+        material = _material_for(t, materials, by_name)
+        try:
+            geometry = make_surface(
+                t.raw("degree", required=True),
+                t.raw("knots_u", required=True),
+                t.raw("knots_v", required=True),
+                t.raw("points", required=True),
+                t.raw("weights"),
+            )
+        except InputError as exc:
+            raise InputError(f"{where}: surface[{i}].{exc}") from None
+        if geometry.is_rational or t.has("weights"):
+            t.fail("weights", "rational surfaces (weights) are not supported yet")
+        if t.has("transform"):
+            geometry = geometry.transformed(_transform(t, "transform"))
+        t.finish()
+        surfaces.append(SceneSurface(geometry, material, name))
+    if not surfaces:
+        raise InputError(f"{where}: the scene has no [[surface]] (nothing to render)")
+    return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where)
+
+
+def _array_of_tables(where: str, data: dict, key: str) -> list:
+    value = data.get(key, [])
+    if not isinstance(value, list):
+        raise InputError(f"{where}: {key}: expected an array of tables [[{key}]]")
+    return value
+
+
+def _surface_entries(data: dict, order):
+    """(kind, index within its kind, table) for [[surface]] and [[import]] in file order."""
+    tables = {key: _array_of_tables("", data, key) for key in ("surface", "import")}
+    if order is None or [order.count(k) for k in tables] != [len(v) for v in tables.values()]:
+        order = ["surface"] * len(tables["surface"]) + ["import"] * len(tables["import"])
+    seen = {"surface": 0, "import": 0}
+    out = []
+    for kind in order:
+        out.append((kind, seen[kind], tables[kind][seen[kind]]))
+        seen[kind] += 1
+    return out
+
+
+def _material_for(t: _Table, materials: list, by_name: dict) -> int:
+    if t.has("material") and t.has("color"):
+        t.fail("color", "give either material or color, not both")
+    if t.has("material"):
+        name = t.string("material")
+        if name not in by_name:
+            t.fail("material", f"no [[material]] named {name!r}")
+        return by_name[name]
+    if t.has("color"):
+        materials.append(Material(name=f"{t.name}.color", color=t.vector("color", lo=0.0)))
+        return len(materials) - 1
+    if "__default__" not in by_name:
+        by_name["__default__"] = len(materials)
+        materials.append(DEFAULT_MATERIAL)
+    return by_name["__default__"]
+
+
+def _transform(parent: _Table, key: str) -> np.ndarray:
+    """world_from_local (4, 4): scale, then rotate (axis, degrees), then translate."""
+    t = _Table(parent.where, parent.raw(key), f"{parent.name}.{key}")
+    scale_raw = t.raw("scale", 1.0)
+    if isinstance(scale_raw, list):
+        scale = np.array(t.vector("scale"))
+    else:
+        scale = np.full(3, t.number("scale", 1.0))
+    if np.any(scale == 0):
+        t.fail("scale", "must not be zero")
+    rot = t.vector("rotate", (0.0, 0.0, 1.0, 0.0), length=4)
+    translate = np.array(t.vector("translate", (0.0, 0.0, 0.0)))
+    t.finish()
+    axis = np.array(rot[:3])
+    if np.linalg.norm(axis) == 0:
+        t.fail("rotate", "the rotation axis must not be the zero vector")
+    m = np.eye(4)
+    m[:3, :3] = rotation_matrix(axis, rot[3]) @ np.diag(scale)
+    m[:3, 3] = translate
+    return m
+
+
+def rotation_matrix(axis: np.ndarray, degrees: float) -> np.ndarray:
+    """(3, 3) right-handed rotation about ``axis`` (Rodrigues)."""
+    k = axis / np.linalg.norm(axis)
+    a = np.radians(degrees)
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(a) * kx + (1 - np.cos(a)) * kx @ kx
