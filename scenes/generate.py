@@ -236,7 +236,7 @@ def column_scene() -> dict:
         "comment": "Column: Attic base, entasis shaft, Doric capital; 9 profile pieces x 4 quarters.",
         "film": {"width": 512, "height": 512, "background": [0.02, 0.02, 0.03]},
         "camera": {"eye": [13.0, -17.0, 10.0], "look_at": [0.0, 0.0, 4.75], "up": [0.0, 0.0, 1.0],
-                   "fov": 35.0},
+                   "fov": 32.0},
         "render": {"method": "newton"},
         "materials": [
             material_table("marble", [0.93, 0.87, 0.78], 0.35, 60.0),
@@ -244,7 +244,7 @@ def column_scene() -> dict:
         ],
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
-            {"kind": "point", "position": [14.0, -9.0, 16.0], "color": [1.0, 0.96, 0.9], "intensity": 1.0},
+            {"kind": "point", "position": [14.0, -9.0, 16.0], "color": [1.0, 0.96, 0.9], "intensity": 400.0},
             {"kind": "directional", "direction": [1.0, 1.2, -0.6], "color": [0.75, 0.82, 1.0],
              "intensity": 0.35},
         ],
@@ -343,7 +343,7 @@ def water_lily_scene() -> dict:
         "comment": "Water-lily: 22 petals in three rings, seed pod, stamens, 4 lily pads on z = 0.",
         "film": {"width": 512, "height": 512, "background": [0.01, 0.03, 0.05]},
         "camera": {"eye": [5.3, -9.3, 9.4], "look_at": [0.0, -0.3, 0.1], "up": [0.0, 0.0, 1.0],
-                   "fov": 40.0},
+                   "fov": 30.0},
         "render": {"method": "newton"},
         "materials": [
             material_table("petal", [0.96, 0.82, 0.87], 0.25, 30.0),
@@ -352,7 +352,7 @@ def water_lily_scene() -> dict:
         ],
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
-            {"kind": "point", "position": [6.0, -5.0, 10.0], "color": [1.0, 0.97, 0.92], "intensity": 1.0},
+            {"kind": "point", "position": [6.0, -5.0, 10.0], "color": [1.0, 0.97, 0.92], "intensity": 160.0},
             {"kind": "directional", "direction": [1.0, 1.0, -1.0], "color": [0.8, 0.85, 1.0],
              "intensity": 0.35},
         ],
@@ -388,7 +388,7 @@ def bench_scene() -> dict:
         ],
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
-            {"kind": "point", "position": [5.0, -3.0, 7.0], "color": [1.0, 0.97, 0.92], "intensity": 1.0},
+            {"kind": "point", "position": [5.0, -3.0, 7.0], "color": [1.0, 0.97, 0.92], "intensity": 90.0},
             {"kind": "directional", "direction": [-1.0, 1.0, -1.0], "color": [0.8, 0.85, 1.0],
              "intensity": 0.3},
         ],
@@ -408,7 +408,7 @@ def quad_scene() -> dict:
         ],
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
-            {"kind": "point", "position": [1.0, -4.0, 2.0], "color": [1.0, 1.0, 1.0], "intensity": 1.0},
+            {"kind": "point", "position": [1.0, -4.0, 2.0], "color": [1.0, 1.0, 1.0], "intensity": 20.0},
             {"kind": "directional", "direction": [0.5, 1.0, -0.5], "color": [1.0, 1.0, 1.0],
              "intensity": 0.3},
         ],
