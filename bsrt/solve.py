@@ -172,7 +172,8 @@ def find_roots(
                     st.step_v[worse] = 0.0
                     st.fresh[worse] = True
         if it > 1:  # clipped at the domain's border with nowhere to go
-            failed |= ~done & (st.step_u == 0.0) & (st.step_v == 0.0) & ~st.fresh
+            stuck = ~done & (st.step_u == 0.0) & (st.step_v == 0.0)
+            failed |= stuck & ~st.fresh if method == "fast" else stuck
         finished = done | failed | (it >= max_iterations)
         out.iterations[st.idx] = it
         if np.any(finished):

@@ -1,0 +1,126 @@
+"""The command line: outputs, exit codes, and one clear message for bad input."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from bsrt.cli import main
+
+SCENES = Path(__file__).resolve().parents[1] / "scenes"
+QUAD = (SCENES / "quad.toml").read_text()
+
+
+def test_render_writes_png_stats_and_aov(tmp_path, capsys):
+    out, aov = tmp_path / "quad.png", tmp_path / "quad.npz"
+    code = main(["render", str(SCENES / "quad.toml"), "-o", str(out), "--aov", str(aov), "--stats"])
+    assert code == 0
+    img = np.asarray(Image.open(out))
+    assert img.shape == (64, 64, 3) and img.dtype == np.uint8
+    stats = json.loads(capsys.readouterr().out)
+    for stage in ("map", "solve", "shade", "write"):
+        assert stats["seconds"][stage] >= 0
+    assert stats["hits"] == stats["covered_by_map"] or stats["hits"] > 0
+    assert {"iterations_mean", "iterations_max", "non_converged"} <= stats.keys()
+    with np.load(aov) as data:
+        assert data["hit"].sum() == stats["hits"]
+        # background where there is no hit: film background in sRGB
+        bg = (np.array([0.05, 0.05, 0.08]) ** (1 / 2.4) * 1.055 - 0.055) * 255
+        assert np.all(np.abs(img[~data["hit"]] - np.rint(bg)) <= 1)
+
+
+def test_overrides_and_map_command(tmp_path):
+    out = tmp_path / "small.png"
+    assert main(["render", str(SCENES / "quad.toml"), "-o", str(out), "--width", "40", "--height", "30",
+                 "--method", "gradient", "--map", "rgba8"]) == 0
+    assert Image.open(out).size == (40, 30)
+    fig = tmp_path / "map.png"
+    assert main(["map", str(SCENES / "quad.toml"), "-o", str(fig)]) == 0
+    pic = np.asarray(Image.open(fig))
+    assert set(np.unique(pic[..., 0])) == {0, 1}  # red = surface index + 1
+
+
+def _write(tmp_path, text, name="bad.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _replace(old, new):
+    assert old in QUAD, old
+    return QUAD.replace(old, new, 1)
+
+
+BAD_SCENES = [
+    ("malformed TOML", "[film\nwidth = 3", "bad.toml: invalid TOML"),
+    ("wrong knot count", _replace("knots_u = [0.0, 0.0, 1.0, 1.0]", "knots_u = [0.0, 0.0, 1.0]"),
+     "bad.toml: surface[0].knots_u: expected 4 values (2 points + degree 1 + 1), got 3"),
+    ("decreasing knots", _replace("knots_v = [0.0, 0.0, 1.0, 1.0]", "knots_v = [0.0, 1.0, 0.5, 1.0]"),
+     "bad.toml: surface[0].knots_v: knots must not decrease"),
+    ("degree 0", _replace("degree = [1, 1]", "degree = [0, 1]"), "bad.toml: surface[0].degree: each degree must be >= 1"),
+    ("NaN coordinate", _replace("[-1.0, 0.0, -1.0]", "[nan, 0.0, -1.0]"),
+     "bad.toml: surface[0].points: point [0][0] has a non-finite coordinate"),
+    ("0x0 film", _replace("width = 64\nheight = 64", "width = 0\nheight = 0"), "bad.toml: film.width: must be >= 1, got 0"),
+    ("up parallel to view", _replace("up = [0.0, 0.0, 1.0]", "up = [0.0, 2.0, 0.0]"),
+     "bad.toml: camera.up: must not be parallel to the view direction"),
+    ("unknown key", _replace("fov = 40.0", "fov = 40.0\nzoom = 2"), "bad.toml: camera.zoom: unknown key"),
+    ("unknown table", QUAD + "\n[lens]\nf = 1\n", "bad.toml: lens: unknown table"),
+    ("unknown method", _replace('method = "newton"', 'method = "bisection"'),
+     "bad.toml: render.method: expected one of 'gradient', 'fast', 'newton', 'martin', got 'bisection'"),
+    ("unknown material", _replace('material = "white"', 'material = "gold"'),
+     "bad.toml: surface[0].material: no [[material]] named 'gold'"),
+    ("string for a number", _replace("fov = 40.0", 'fov = "wide"'), "bad.toml: camera.fov: expected a number"),
+    ("weights not yet", _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 1.0], [1.0, 2.0]]"),
+     "bad.toml: surface[0].weights: rational surfaces"),
+    ("fov out of range", _replace("fov = 40.0", "fov = 180.0"), "bad.toml: camera.fov: must be < 180"),
+]
+
+
+@pytest.mark.parametrize("label,text,message", BAD_SCENES, ids=[b[0] for b in BAD_SCENES])
+def test_bad_scenes_exit_2_with_one_message_and_no_output(tmp_path, capsys, label, text, message):
+    scene = _write(tmp_path, text)
+    out = tmp_path / "out.png"
+    assert main(["render", str(scene), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err, err
+    assert len(err.strip().splitlines()) == 1
+    assert "Traceback" not in err
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == [scene]  # no temporary files left either
+
+
+def test_usage_errors_exit_2(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "x.png"), "--method", "nope"])
+    assert exc.value.code == 2
+    assert main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "x.jpg")]) == 2
+    assert main(["render", str(tmp_path / "missing.toml"), "-o", str(tmp_path / "x.png")]) == 2
+    assert "no such file" in capsys.readouterr().err
+    assert main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "nodir" / "x.png")]) == 2
+
+
+def test_console_script_runs_in_a_fresh_process(tmp_path):
+    """The installed entry point, stderr quiet when not a terminal, no traceback on errors."""
+    out = tmp_path / "q.png"
+    ok = subprocess.run([sys.executable, "-m", "bsrt.cli", "render", str(SCENES / "quad.toml"), "-o", str(out)],
+                        capture_output=True, text=True, timeout=120)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stderr == "" and out.exists()
+    bad = _write(tmp_path, "[camera]\neye = [0, 0, 0]\n")
+    fail = subprocess.run([sys.executable, "-m", "bsrt.cli", "render", str(bad), "-o", str(tmp_path / "b.png")],
+                          capture_output=True, text=True, timeout=120)
+    assert fail.returncode == 2
+    assert fail.stderr.startswith("bsrt: error: bad.toml: camera.look_at: missing")
+    assert "Traceback" not in fail.stderr
+
+
+def test_doctor_reports_the_gl_renderer(capsys):
+    assert main(["doctor"]) == 0
+    out = capsys.readouterr().out
+    assert "OpenGL renderer:" in out and "OK" in out
