@@ -1,0 +1,270 @@
+"""Model-file importers: one module per format, one entry point.
+
+``load_model(path)`` reads a file of B-spline / Bezier surfaces and returns a
+:class:`Model`. Every reader validates each surface with
+:func:`bsrt.bspline.make_surface` and raises :class:`bsrt.errors.InputError`
+for any malformed input, with one sentence of the form
+``FILE:LINE: what is wrong``.
+
+Supported formats (extension -> name): see :data:`FORMATS`. STEP is refused.
+
+This module also holds the small helpers the readers share: decoding the file
+(:func:`read_text`), strict number parsing, error formatting, building a
+surface with a located error (:func:`build_surface`) and cutting a surface to
+a sub-rectangle of its domain (:func:`cut`, :func:`restrict`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..bspline import BSplineSurface, insert_knot, make_surface
+from ..errors import InputError
+
+__all__ = ["Model", "FORMATS", "load_model"]
+
+
+@dataclass
+class Model:
+    """The drawable content of one model file.
+
+    path: the file as given to :func:`load_model`.
+    surfaces: the surfaces, in file order.
+    names: one label per surface (``"teapot.bez#3"``, an IGES label, ...).
+    skipped: description of something bsrt cannot draw -> how many there are.
+    warnings: full sentences about approximations (e.g. trimming ignored).
+    untrimmed: how many of the surfaces are trimmed in the file but drawn whole.
+    """
+
+    path: str
+    surfaces: list[BSplineSurface]
+    names: list[str]
+    skipped: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    untrimmed: int = 0
+
+
+#: extension (lower case, with dot) -> format name
+FORMATS: dict[str, str] = {
+    ".bez": "bez",
+    ".bpt": "bpt",
+    ".g2": "g2",
+    ".igs": "iges",
+    ".iges": "iges",
+    ".obj": "obj",
+    ".nurbs": "nurbs",
+}
+
+_STEP_EXTENSIONS = (".stp", ".step", ".p21")
+
+
+def load_model(path, format: str = "auto") -> Model:
+    """Read a model file.
+
+    format: "auto" (by extension, case-insensitive) or one of the names in
+    :data:`FORMATS` ("bez", "bpt", "g2", "iges", "obj", "nurbs").
+    """
+    path = os.fspath(path)
+    format = format.lower()
+    names = sorted(set(FORMATS.values()))
+    if format == "auto":
+        ext = os.path.splitext(path)[1].lower()
+        if ext in _STEP_EXTENSIONS:
+            format = "step"
+        elif ext in FORMATS:
+            format = FORMATS[ext]
+        else:
+            exts = ", ".join(FORMATS)
+            raise InputError(
+                f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}"
+            )
+    if format == "step":
+        raise InputError(
+            f"{path}: STEP files are not supported; convert the model to IGES (.igs) and load that instead"
+        )
+    if format not in names:
+        raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
+    reader = importlib.import_module(f".{format}", __name__)
+    return reader.read(path)
+
+
+# ---------------------------------------------------------------------------
+# Helpers shared by the readers
+
+
+def fail(path: str, line: int | None, message: str) -> InputError:
+    """An InputError ``path:line: message`` (``path: message`` if line is None)."""
+    where = path if line is None else f"{path}:{line}"
+    return InputError(f"{where}: {message}")
+
+
+def read_text(path: str) -> str:
+    """The file's text; InputError if it is missing, binary or not UTF-8."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as e:
+        raise fail(path, None, f"cannot read the file ({e.strerror or e})") from None
+    if b"\0" in data:
+        line = data.count(b"\n", 0, data.index(b"\0")) + 1
+        raise fail(path, line, "this is a binary file, not a text model file")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        raise fail(path, line, f"byte {e.start} is not valid UTF-8 text") from None
+
+
+def split_lines(text: str) -> list[str]:
+    """The lines of a text split at \\n, \\r\\n or \\r only (unlike str.splitlines, which
+    also splits at form feeds and other separators and would shift line numbers)."""
+    lines = re.split(r"\r\n|\r|\n", text)
+    return lines[:-1] if lines and lines[-1] == "" else lines
+
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+_INTEGER = re.compile(r"[+-]?\d+")
+
+
+def parse_float(path: str, line: int, token: str, what: str) -> float:
+    """A finite decimal number (no nan/inf, no Python-only spellings)."""
+    if _NUMBER.fullmatch(token) is None:
+        raise fail(path, line, f"expected {what} (a number), got {token!r}")
+    value = float(token)
+    if not np.isfinite(value):
+        raise fail(path, line, f"{what} {token} is too large")
+    return value
+
+
+def parse_int(path: str, line: int, token: str, what: str, minimum: int | None = None) -> int:
+    """A whole number, optionally at least ``minimum``."""
+    if _INTEGER.fullmatch(token) is None:
+        raise fail(path, line, f"expected {what} (a whole number), got {token!r}")
+    value = int(token)
+    if minimum is not None and value < minimum:
+        raise fail(path, line, f"{what} must be at least {minimum}, got {value}")
+    return value
+
+
+class Tokens:
+    """Whitespace-separated tokens of a text, each with its 1-based line number."""
+
+    def __init__(self, path: str, text: str, separators: str = r"\s+"):
+        self.path = path
+        self.items: list[tuple[str, int]] = []
+        lines = split_lines(text)
+        for number, line in enumerate(lines, start=1):
+            self.items.extend((t, number) for t in re.split(separators, line) if t)
+        self.pos = 0
+        self.last_line = max(1, len(lines))
+
+    def at_end(self) -> bool:
+        return self.pos >= len(self.items)
+
+    def peek(self) -> tuple[str, int] | None:
+        return None if self.at_end() else self.items[self.pos]
+
+    def next(self, what: str) -> tuple[str, int]:
+        if self.at_end():
+            raise fail(self.path, self.last_line, f"the file ends early, expected {what}")
+        item = self.items[self.pos]
+        self.pos += 1
+        return item
+
+    def int(self, what: str, minimum: int | None = None) -> int:
+        token, line = self.next(what)
+        return parse_int(self.path, line, token, what, minimum)
+
+    def float(self, what: str) -> float:
+        token, line = self.next(what)
+        return parse_float(self.path, line, token, what)
+
+    def floats(self, count: int, what: str) -> np.ndarray:
+        """(count,) float64; reads one token at a time so a huge count just hits the end."""
+        return np.array([self.float(what) for _ in range(count)], dtype=np.float64)
+
+    def line(self) -> int:
+        """Line of the next token (or the last line at the end)."""
+        return self.last_line if self.at_end() else self.items[self.pos][1]
+
+
+def build_surface(path: str, line: int, which: str, degree, knots_u, knots_v, points, weights=None):
+    """make_surface, with its InputError prefixed by ``path:line: which: ``."""
+    try:
+        return make_surface(degree, knots_u, knots_v, points, weights)
+    except InputError as e:
+        raise fail(path, line, f"{which}: {e}") from None
+
+
+def bezier_knots(degree: int, breaks) -> np.ndarray:
+    """Knots of a piecewise Bezier spline: end breaks repeated degree+1 times, inner ones degree times."""
+    breaks = list(breaks)
+    knots = [breaks[0]] * (degree + 1)
+    for b in breaks[1:-1]:
+        knots += [b] * degree
+    return np.array(knots + [breaks[-1]] * (degree + 1), dtype=np.float64)
+
+
+def cut(path: str, line: int, which: str, surface: BSplineSurface, ranges, labels) -> BSplineSurface:
+    """Check that each (a, b) in ``ranges`` lies in the knot domain and cut the surface to them.
+
+    labels: how the file names the two ranges, e.g. ("U0 U1", "V0 V1").
+    Ends within 1e-9 (relative) of the domain's ends count as equal to them.
+    """
+    clean = []
+    for (a, b), (lo, hi), label in zip(ranges, (surface.domain_u, surface.domain_v), labels):
+        tol = 1e-9 * max(1.0, abs(lo), abs(hi))
+        if not (lo - tol <= a < b <= hi + tol):
+            raise fail(
+                path, line,
+                f"{which}: the range {label} = [{a:g}, {b:g}] is not inside the knot domain [{lo:g}, {hi:g}]",
+            )
+        clean.append((lo if a - lo <= tol else a, hi if hi - b <= tol else b))
+    try:
+        return restrict(surface, *clean)
+    except InputError as e:
+        raise fail(path, line, f"{which}: {e}") from None
+
+
+def restrict(surface: BSplineSurface, range_u, range_v) -> BSplineSurface:
+    """The part of ``surface`` over [u0, u1] x [v0, v1], by knot insertion.
+
+    Each range is clipped to the knot domain; one that covers the domain
+    leaves that direction as is. Callers check that the clipped ranges are
+    non-empty. The result is the same geometry with fewer control points.
+    """
+    ctrl = surface.homogeneous()  # (nu, nv, 4)
+    knots = [surface.knots_u, surface.knots_v]
+    for axis, (a, b) in enumerate((range_u, range_v)):
+        p = surface.degree[axis]
+        k = knots[axis]
+        c = np.moveaxis(ctrl, axis, 0)
+        lo, hi = k[p], k[c.shape[0]]
+        a, b = max(a, lo), min(b, hi)
+        if a == lo and b == hi:
+            continue
+        for x in (a, b):
+            if lo < x < hi:
+                while np.count_nonzero(k == x) < p:
+                    k, c = insert_knot(k, c, p, x)
+        # keep the control points whose basis functions are non-zero on [a, b]
+        first = int(np.searchsorted(k, a, side="right")) - 1 - p
+        last = int(np.searchsorted(k, b, side="left"))
+        c = c[first:last]
+        k = k[first : last + p + 1]
+        # clamp the new ends so the domain is exactly [a, b]
+        k = k.copy()
+        k[: p + 1] = np.maximum(k[: p + 1], a)
+        k[-(p + 1) :] = np.minimum(k[-(p + 1) :], b)
+        knots[axis] = k
+        ctrl = np.moveaxis(c, 0, axis)
+    w = ctrl[..., 3]
+    weights = None if surface.weights is None else w
+    with np.errstate(all="ignore"):  # extreme weights give non-finite points, which make_surface reports
+        pts = ctrl[..., :3] / w[..., None]
+    return make_surface(surface.degree, knots[0], knots[1], pts, weights)

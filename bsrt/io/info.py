@@ -1,0 +1,40 @@
+"""``bsrt info FILE``: a human-readable summary of a loaded :class:`~bsrt.io.Model`."""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import numpy as np
+
+from . import Model
+
+
+def describe(model: Model) -> str:
+    """Multi-line summary: surface count, degrees, rational and trimmed counts,
+    skipped entities, the bounding box of all control points, and warnings."""
+    surfaces = model.surfaces
+    lines = [f"{model.path}: {len(surfaces)} surface{'s' if len(surfaces) != 1 else ''}"]
+    degrees = Counter(s.degree for s in surfaces)
+    lines.append("  degrees (u,v): " + ", ".join(f"({p},{q}) x {n}" for (p, q), n in degrees.most_common()))
+    shapes = Counter(s.shape for s in surfaces)
+    lines.append("  control nets:  " + ", ".join(f"{a}x{b} x {n}" for (a, b), n in shapes.most_common(5))
+                 + (f", ... ({len(shapes)} kinds)" if len(shapes) > 5 else ""))
+    lines.append(f"  rational:      {sum(s.is_rational for s in surfaces)}")
+    lines.append(f"  rendered untrimmed although trimmed in the file: {model.untrimmed}")
+    pts = np.concatenate([s.points.reshape(-1, 3) for s in surfaces]) if surfaces else np.zeros((1, 3))
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lines.append(f"  bounding box of the control points: min ({_xyz(lo)}), max ({_xyz(hi)}), "
+                 f"diagonal {np.linalg.norm(hi - lo):.6g}")
+    if model.skipped:
+        lines.append(f"  skipped (not drawable), {sum(model.skipped.values())} in all:")
+        lines.extend(f"    {n:6d}  {what}" for what, n in sorted(model.skipped.items(), key=lambda kv: -kv[1]))
+    else:
+        lines.append("  skipped: nothing")
+    if model.warnings:
+        lines.append("  warnings:")
+        lines.extend(f"    {w}" for w in model.warnings)
+    return "\n".join(lines)
+
+
+def _xyz(v: np.ndarray) -> str:
+    return ", ".join(f"{x:.6g}" for x in v)
