@@ -1,4 +1,4 @@
-"""Command line: ``bsrt render | map | doctor``.
+"""Command line: ``bsrt render | map | info | doctor | bench``.
 
 Exit codes: 0 success, 2 bad usage or bad input (scene, model, options),
 1 a render failure (e.g. no OpenGL context). Errors are one line on stderr,
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -33,25 +34,90 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bsrt", description="Ray-trace B-spline surfaces directly.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    r = sub.add_parser("render", help="render a scene to a PNG image")
-    r.add_argument("scene", help="scene file (.toml)")
+    r = sub.add_parser("render", help="render a scene or a model file to a PNG image")
+    r.add_argument("scene", help="scene file (.toml) or model file (.bez .bpt .g2 .igs .iges .obj .nurbs)")
     r.add_argument("-o", "--output", required=True, help="output image (.png)")
     r.add_argument("--width", type=_positive_int, help="film width in pixels (overrides [film])")
     r.add_argument("--height", type=_positive_int, help="film height in pixels (overrides [film])")
+    _camera_options(r)
     r.add_argument("--method", choices=METHODS, help="root finder (overrides [render].method)")
     r.add_argument("--map", choices=MAP_MODES, dest="map_mode", help="preliminary map precision")
     r.add_argument("--aov", metavar="FILE.npz", help="also write per-pixel arrays (hit, t, surface, u, v, ...)")
     r.add_argument("--stats", action="store_true", help="print timings and counters as JSON on stdout")
 
     m = sub.add_parser("map", help="write the preliminary map as a picture (paper's Figure 1)")
-    m.add_argument("scene", help="scene file (.toml)")
+    m.add_argument("scene", help="scene file (.toml) or model file")
     m.add_argument("-o", "--output", required=True, help="output image (.png)")
     m.add_argument("--width", type=_positive_int)
     m.add_argument("--height", type=_positive_int)
     m.add_argument("--map", choices=MAP_MODES, dest="map_mode")
+    _camera_options(m)
+
+    i = sub.add_parser("info", help="what a model or scene file holds")
+    i.add_argument("file", help="model file (.bez .bpt .g2 .igs .iges .obj .nurbs) or scene (.toml)")
+    i.add_argument("--format", default="auto", help="model format (default: by extension)")
 
     sub.add_parser("doctor", help="check the OpenGL set-up (EGL devices, renderer)")
+
+    b = sub.add_parser("bench", help="time the methods on the paper's scenes (Tables 1 and 2)")
+    b.add_argument("--scenes", nargs="+", help="scene names under scenes/ or paths (default: column water-lily)")
+    b.add_argument("--methods", default="gradient,fast,newton", help="comma-separated (default: %(default)s)")
+    b.add_argument("--size", type=_positive_int, default=512, help="film width and height (default 512)")
+    b.add_argument("--repeat", type=_positive_int, default=3, help="timed runs per method; the median is shown")
+    b.add_argument("--json", metavar="FILE", help="also write the results as JSON")
     return parser
+
+
+def _vector(text: str):
+    try:
+        values = [float(x) for x in text.replace(",", " ").split()]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(map(math.isfinite, values)):
+        raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}")
+    return values
+
+
+def _camera_options(parser) -> None:
+    parser.add_argument("--camera-eye", type=_vector, metavar="X,Y,Z", help="camera position (overrides)")
+    parser.add_argument("--camera-look-at", type=_vector, metavar="X,Y,Z", help="point the camera looks at")
+    parser.add_argument("--fov", type=float, help="vertical field of view in degrees, 0 < fov < 180")
+
+
+def _load_input(args):
+    """A Scene from a scene file, or from a model file with an automatic camera.
+
+    Import warnings and what a model holds but cannot be drawn go to stderr once.
+    """
+    from dataclasses import replace
+
+    import numpy as np
+
+    from .scene import load_scene, scene_for_model
+
+    if args.fov is not None and not 0.0 < args.fov < 180.0:
+        raise InputError(f"--fov: must be between 0 and 180 degrees, got {args.fov:g}")
+    path = Path(args.scene)
+    if path.suffix.lower() == ".toml":
+        scene = load_scene(path)
+        cam = scene.camera
+        eye = np.array(args.camera_eye) if args.camera_eye else cam.eye
+        look = np.array(args.camera_look_at) if args.camera_look_at else cam.look_at
+        camera = replace(cam, eye=eye, look_at=look, fov=args.fov if args.fov is not None else cam.fov)
+        view = camera.look_at - camera.eye
+        if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, camera.up)) < 1e-9 * np.linalg.norm(view):
+            raise InputError("--camera-eye / --camera-look-at: the view direction must not be zero or parallel to up")
+        scene = replace(scene, camera=camera)
+    else:
+        from .io import load_model
+
+        if not path.is_file():
+            raise InputError(f"{path}: no such file")
+        model = load_model(path)
+        scene = scene_for_model(model, args.width or 512, args.height or 512, args.camera_eye, args.camera_look_at, args.fov)
+    for note in scene.notes:
+        print(f"bsrt: warning: {note}", file=sys.stderr)
+    return scene
 
 
 def _check_output(path: str, suffix: str) -> Path:
@@ -77,11 +143,10 @@ def _progress():
 def _cmd_render(args) -> int:
     from .image import write_npz, write_png
     from .render import render
-    from .scene import load_scene
 
     out = _check_output(args.output, ".png")
     aov = _check_output(args.aov, ".npz") if args.aov else None
-    scene = load_scene(args.scene)
+    scene = _load_input(args)
     progress = _progress()
     result = render(scene, method=args.method, map_mode=args.map_mode, width=args.width, height=args.height, progress=progress)
     clock = time.perf_counter()
@@ -108,13 +173,34 @@ def _cmd_map(args) -> int:
     from .image import write_png
     from .prelim import render_map
     from .render import Geometry
-    from .scene import load_scene
 
     out = _check_output(args.output, ".png")
-    scene = load_scene(args.scene)
+    scene = _load_input(args)
     width, height = args.width or scene.film.width, args.height or scene.film.height
     prelim = render_map(Geometry(scene).patches, scene.camera, width, height, args.map_mode or scene.render.map)
     write_png(out, prelim.picture)
+    return 0
+
+
+def _cmd_info(args) -> int:
+    path = Path(args.file)
+    if path.suffix.lower() == ".toml":
+        from .scene import load_scene
+
+        scene = load_scene(path)
+        degrees = sorted({s.geometry.degree for s in scene.surfaces})
+        rational = sum(s.geometry.is_rational for s in scene.surfaces)
+        print(f"{path}: scene, {len(scene.surfaces)} surfaces, degrees {degrees}, {rational} rational, "
+              f"{len(scene.lights)} lights, {len(scene.materials)} materials, film {scene.film.width}x{scene.film.height}")
+        for note in scene.notes:
+            print(f"  {note}")
+        return 0
+    from .io import load_model
+    from .io.info import describe
+
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    print(describe(load_model(path, args.format)))
     return 0
 
 
@@ -142,7 +228,16 @@ def _cmd_doctor(args) -> int:
     return 0
 
 
-COMMANDS = {"render": _cmd_render, "map": _cmd_map, "doctor": _cmd_doctor}
+def _cmd_bench(args) -> int:
+    from . import bench
+
+    unknown = [m for m in args.methods.split(",") if m.strip() and m.strip() not in METHODS]
+    if unknown:
+        raise InputError(f"--methods: unknown method {unknown[0]!r} (expected {', '.join(METHODS)})")
+    return bench.main(args)
+
+
+COMMANDS = {"render": _cmd_render, "map": _cmd_map, "info": _cmd_info, "doctor": _cmd_doctor, "bench": _cmd_bench}
 
 
 def main(argv=None) -> int:

@@ -106,13 +106,17 @@ def render(
     geometry: Geometry | None = None,
     camera=None,
     ctx=None,
+    prelim: PrelimMap | None = None,
     progress=None,
 ) -> RenderResult:
     """Render a scene. Keyword arguments override the scene's settings.
 
     camera: a camera.Camera to use instead of the scene's; ctx: a moderngl
-    context (default: the process's headless EGL context); progress: called
-    with a stage name ("map", "solve", "shade") as each stage starts.
+    context for the map (default: the process's headless EGL context);
+    prelim: a map already rendered for this camera and size (the preview
+    window rasterises it on its own context, then solves elsewhere);
+    progress: called with a stage name ("map", "solve", "shade") as each
+    stage starts.
     """
     settings = scene.render
     method = method or settings.method
@@ -144,7 +148,10 @@ def render(
     else:
         report("map")
         clock = time.perf_counter()
-        prelim = render_map(patches, camera, width, height, map_mode, ctx=ctx)
+        if prelim is None:
+            prelim = render_map(patches, camera, width, height, map_mode, ctx=ctx)
+        elif prelim.surface.shape != (height, width):
+            raise ValueError(f"prelim map is {prelim.surface.shape[::-1]}, the film {width}x{height}")
         stats["seconds"]["map"] = time.perf_counter() - clock
         report("solve")
         clock = time.perf_counter()

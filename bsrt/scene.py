@@ -272,12 +272,18 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         t.finish()
         lights.append(light)
 
-    surfaces = []
-    entries = _surface_entries(data, order)
-    for kind, i, raw in entries:
+    surfaces, notes = [], []
+    for kind, i, raw in _surface_entries(data, order):
         if kind == "import":
             t = _Table(where, raw, f"import[{i}]")
-            t.fail("file", "[[import]] is not supported yet (model importers come with the importer work)")
+            model = _load_import(t, folder)
+            material = _material_for(t, materials, by_name)
+            matrix = _transform(t, "transform") if t.has("transform") else None
+            t.finish()
+            notes += [f"{model.path}: {w}" for w in model.warnings] + _skipped_notes(model)
+            for geometry, name in zip(model.surfaces, model.names):
+                surfaces.append(SceneSurface(geometry if matrix is None else geometry.transformed(matrix), material, name))
+            continue
         t = _Table(where, raw, f"surface[{i}]")
         name = t.string("name", f"surface-{i}")
         material = _material_for(t, materials, by_name)
@@ -291,15 +297,31 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             )
         except InputError as exc:
             raise InputError(f"{where}: surface[{i}].{exc}") from None
-        if geometry.is_rational or t.has("weights"):
-            t.fail("weights", "rational surfaces (weights) are not supported yet")
         if t.has("transform"):
             geometry = geometry.transformed(_transform(t, "transform"))
         t.finish()
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
-        raise InputError(f"{where}: the scene has no [[surface]] (nothing to render)")
-    return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where)
+        raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
+    return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes))
+
+
+def _load_import(t: _Table, folder: Path | None):
+    from .io import FORMATS, load_model
+
+    file = t.string("file", required=True)
+    fmt = t.string("format", "auto", choices=("auto",) + tuple(sorted(set(FORMATS.values()))))
+    path = Path(file) if folder is None or Path(file).is_absolute() else folder / file
+    if not path.is_file():
+        t.fail("file", f"no such file: {path}")
+    return load_model(path, fmt)
+
+
+def _skipped_notes(model) -> list[str]:
+    if not model.skipped:
+        return []
+    items = ", ".join(f"{n} x {what}" for what, n in sorted(model.skipped.items(), key=lambda kv: -kv[1]))
+    return [f"{model.path}: not drawable, left out: {items}"]
 
 
 def _array_of_tables(where: str, data: dict, key: str) -> list:
@@ -367,3 +389,51 @@ def rotation_matrix(axis: np.ndarray, degrees: float) -> np.ndarray:
     a = np.radians(degrees)
     kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + np.sin(a) * kx + (1 - np.cos(a)) * kx @ kx
+
+
+MODEL_MATERIAL = Material("model", color=(0.72, 0.70, 0.66), specular=0.3, shininess=48.0)
+
+
+def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=None, up=(0.0, 0.0, 1.0)) -> Scene:
+    """A scene that shows a model file with no scene file.
+
+    The camera frames the bounding box of the control points from a
+    three-quarter view above (+z up): the box's bounding sphere fills the
+    narrower field of view. A key point light (from the upper right, as
+    bright as 1 at the model), a dimmer directional fill from the other side
+    and a little ambient light; one neutral material. eye / look_at / fov
+    override the automatic choice.
+    """
+    pts = np.concatenate([s.points.reshape(-1, 3) for s in model.surfaces])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    centre = (lo + hi) / 2.0
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)
+    fov = 35.0 if fov is None else float(fov)
+    look = centre if look_at is None else np.asarray(look_at, dtype=np.float64)
+    if eye is None:
+        half = np.radians(fov) / 2.0 * min(1.0, width / height)
+        direction = np.array([0.55, -0.75, 0.42])
+        eye = look + direction / np.linalg.norm(direction) * radius / np.sin(half) * 1.05
+    eye = np.asarray(eye, dtype=np.float64)
+    up = np.asarray(up, dtype=np.float64)
+    view = look - eye
+    if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
+        raise InputError("--camera-eye / --camera-look-at: the view direction must not be zero or parallel to +z")
+    key_pos = centre + np.array([2.0, -1.5, 3.0]) * radius
+    lights = (
+        Light("ambient", intensity=0.12),
+        Light("point", color=(1.0, 0.97, 0.92), intensity=float(np.sum((key_pos - centre) ** 2)), position=tuple(key_pos)),
+        Light("directional", color=(0.8, 0.85, 1.0), intensity=0.35, direction=(-1.0, 0.8, -0.6)),
+    )
+    surfaces = tuple(SceneSurface(g, 0, n) for g, n in zip(model.surfaces, model.names))
+    notes = tuple(f"{model.path}: {w}" for w in model.warnings) + tuple(_skipped_notes(model))
+    return Scene(
+        Film(width, height, (0.03, 0.03, 0.04)),
+        Camera(eye, look, up, fov, "y"),
+        RenderSettings(),
+        (MODEL_MATERIAL,),
+        lights,
+        surfaces,
+        str(model.path),
+        notes,
+    )

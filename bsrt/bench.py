@@ -1,0 +1,146 @@
+"""``bsrt bench``: time every method on the paper's scenes, shaped like its tables.
+
+Each (scene, method) is rendered ``repeat`` times in this process after one
+untimed warm-up (the GL context, caches); the median of each stage is
+reported. All methods run to the scene's tolerance (default 1e-9 of the scene
+diagonal), so they do the same job: the paper's eps is not given, and a
+looser one would favour gradient descent, which converges linearly.
+Disagreements are counted against ``newton`` at the same size.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .render import Geometry, render
+from .scene import load_scene
+
+PAPER = {  # Sisojevs & Glazs, 512x512, 1 ray/pixel, 3.2 GHz Xeon: seconds
+    "column": {"gradient": 74.9, "fast": 31.2, "martin": 60.8},
+    "water-lily": {"gradient": 180.2, "fast": 98.3, "martin": 205.6},
+}
+DEFAULT_SCENES = ("column", "water-lily")
+DEFAULT_METHODS = ("gradient", "fast", "newton")
+
+
+def scene_path(name: str) -> Path:
+    """A bundled scene name (scenes/NAME.toml under the current folder) or a path."""
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        return path
+    bundled = Path("scenes") / f"{name}.toml"
+    if not bundled.exists():
+        raise InputError(f"{name}: no such scene (looked for {bundled}; run bsrt bench from the repository root or give a path)")
+    return bundled
+
+
+def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=print) -> dict:
+    """Benchmark; returns a JSON-serialisable dict (see format_tables)."""
+    results = {"size": size, "repeat": repeat, "scenes": {}}
+    for name in scenes:
+        path = scene_path(name)
+        scene = load_scene(path)
+        clock = time.perf_counter()
+        geometry = Geometry(scene)
+        setup = time.perf_counter() - clock
+        label = path.stem
+        entry = {"surfaces": len(scene.surfaces), "patches": geometry.patches.size, "setup_seconds": setup, "methods": {}}
+        reference = None
+        for method in sorted(methods, key=lambda m: m != "newton"):
+            render(scene, method=method, width=size, height=size, geometry=geometry)  # warm-up
+            runs = []
+            for _ in range(repeat):
+                clock = time.perf_counter()
+                res = render(scene, method=method, width=size, height=size, geometry=geometry)
+                total = time.perf_counter() - clock
+                runs.append((res.stats["seconds"], total))
+            med = {k: statistics.median(r[0][k] for r in runs) for k in runs[0][0]}
+            med["map+solve"] = statistics.median(r[0]["map"] + r[0]["solve"] for r in runs)
+            med["total"] = statistics.median(r[1] for r in runs)
+            hits = res.hits
+            work = hits.iterations[hits.iterations > 0]
+            row = {
+                "seconds": med,
+                "iterations_per_pixel": float(work.mean()) if work.size else 0.0,
+                "hits": int(hits.hit.sum()),
+                "covered_by_map": res.stats.get("covered_by_map"),
+                "non_converged": res.stats.get("non_converged"),
+                "suspect": res.stats.get("suspect"),
+                "repaired": res.stats.get("repaired"),
+            }
+            if method == "newton":
+                reference = hits
+            elif reference is not None:
+                tol = 1e3 * scene.render.tolerance * geometry.patches.scene_diagonal()
+                both = hits.hit & reference.hit
+                row["disagree"] = {
+                    "hit": int((hits.hit != reference.hit).sum()),
+                    "surface": int((hits.surface[both] != reference.surface[both]).sum()),
+                    "t": int((np.abs(hits.t[both] - reference.t[both]) > tol).sum()),
+                }
+            entry["methods"][method] = row
+            log(f"{label:12s} {method:9s} map+solve {med['map+solve']:7.3f} s  total {med['total']:7.3f} s")
+        results["scenes"][label] = entry
+    results["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return results
+
+
+def format_tables(results: dict) -> str:
+    """Table 1 (seconds) and Table 2 (percent of martin, or of newton without it)."""
+    scenes = results["scenes"]
+    methods = list(dict.fromkeys(m for e in scenes.values() for m in e["methods"]))
+    base = "martin" if "martin" in methods else "newton"
+    lines = [f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets)"]
+    lines.append(f"{'scene':12s}" + "".join(f"{m:>20s}" for m in methods) + f"{'paper (grad/fast/martin)':>30s}")
+    for name, e in scenes.items():
+        cells = "".join(
+            f"{e['methods'][m]['seconds']['map+solve']:>10.3f} ({e['methods'][m]['seconds']['total']:6.3f})" if m in e["methods"] else f"{'-':>20s}"
+            for m in methods
+        )
+        paper = PAPER.get(name)
+        ptxt = " / ".join(f"{paper[m]:.1f}" for m in ("gradient", "fast", "martin")) if paper else "-"
+        lines.append(f"{name:12s}{cells}{ptxt:>30s}")
+    lines.append("")
+    lines.append(f"Table 2: percent of {base} (map + solve)")
+    lines.append(f"{'scene':12s}" + "".join(f"{m:>12s}" for m in methods) + f"{'paper grad/fast':>20s}")
+    for name, e in scenes.items():
+        ref = e["methods"].get(base)
+        if not ref:
+            continue
+        cells = "".join(
+            f"{100 * e['methods'][m]['seconds']['map+solve'] / ref['seconds']['map+solve']:>11.0f}%" if m in e["methods"] else f"{'-':>12s}"
+            for m in methods
+        )
+        paper = PAPER.get(name)
+        ptxt = f"{100 * paper['gradient'] / paper['martin']:.0f}% / {100 * paper['fast'] / paper['martin']:.0f}%" if paper else "-"
+        lines.append(f"{name:12s}{cells}{ptxt:>20s}")
+    lines.append("")
+    lines.append("Per method: iterations per pixel, hits, map-covered, non-converged, suspect, repaired; disagreements with newton (hit/surface/t)")
+    for name, e in scenes.items():
+        for m, row in e["methods"].items():
+            dis = row.get("disagree")
+            dtxt = f"{dis['hit']}/{dis['surface']}/{dis['t']}" if dis else "-"
+            lines.append(
+                f"  {name:12s} {m:9s} {row['iterations_per_pixel']:6.2f} it/px  hits {row['hits']:7d}  map {row['covered_by_map'] if row['covered_by_map'] is not None else '-':>7}"
+                f"  non-conv {row['non_converged']:5d}  suspect {row['suspect']:6d}  repaired {row['repaired']:5d}  disagree {dtxt}"
+            )
+    lines.append(f"peak RSS of the process: {results['peak_rss_mb']:.0f} MB")
+    return "\n".join(lines)
+
+
+def main(args) -> int:
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    results = run(args.scenes or DEFAULT_SCENES, methods, args.size, args.repeat,
+                  log=lambda text: print(text, flush=True))
+    print()
+    print(format_tables(results))
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=2))
+    return 0
