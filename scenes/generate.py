@@ -380,8 +380,8 @@ def bench_scene() -> dict:
     return {
         "comment": "Benchmark: one bicubic surface with 8 x 8 knot spans (64 patches), 11 x 11 points.",
         "film": {"width": 512, "height": 512, "background": [0.02, 0.02, 0.03]},
-        "camera": {"eye": [4.9, -5.9, 6.4], "look_at": [0.05, -0.2, -0.3], "up": [0.0, 0.0, 1.0],
-                   "fov": 35.0},
+        "camera": {"eye": [0.0, -1.2, 6.2], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 0.0, 1.0],
+                   "fov": 36.0},
         "render": {"method": "newton"},
         "materials": [
             material_table("clay", [0.78, 0.55, 0.42], 0.3, 40.0),
