@@ -40,27 +40,31 @@ class Camera:
         return ty * aspect, ty
 
 
-def pixel_rays(camera: Camera, width: int, height: int, offsets=(0.5, 0.5)):
-    """Unit directions through each pixel, row-major.
+def pixel_rays(camera: Camera, width: int, height: int, rows=None):
+    """Unit directions through the centre of each pixel, row-major.
 
-    offsets: sub-pixel position (0.5, 0.5 = the centre) along (column, row).
-    Returns directions (height * width, 3) float64; every ray starts at
-    camera.eye.
+    rows: (first, stop) to get only the film rows first..stop-1 (a band of a
+    tiled render); default all. Returns (n_rows * width, 3) float64; every
+    ray starts at camera.eye.
     """
+    first, stop = rows if rows is not None else (0, height)
     r, u, f = camera.basis()
     tx, ty = camera.half_extents(width, height)
-    x = (2.0 * (np.arange(width) + offsets[0]) / width - 1.0) * tx
-    y = (1.0 - 2.0 * (np.arange(height) + offsets[1]) / height) * ty
+    x = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * tx
+    y = (1.0 - 2.0 * (np.arange(first, stop) + 0.5) / height) * ty
     d = f[None, None, :] + x[None, :, None] * r[None, None, :] + y[:, None, None] * u[None, None, :]
     d = d.reshape(-1, 3)
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: float) -> np.ndarray:
+def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: float, rows=None) -> np.ndarray:
     """(4, 4) float64 projection of eye-relative world points (p - eye) to clip space.
 
-    Vertices are sent eye-relative so float32 keeps precision far from the
-    origin. The GL image comes out bottom row first: flip it to row 0 = top.
+    rows: (first, stop) film rows: the viewport then holds only that band
+    (an off-centre projection), so a tiled map sees exactly the rays of
+    pixel_rays(..., rows). Vertices are sent eye-relative so float32 keeps
+    precision far from the origin. The GL image comes out bottom row first:
+    flip it to row 0 = top.
     """
     r, u, f = camera.basis()
     tx, ty = camera.half_extents(width, height)
@@ -71,4 +75,8 @@ def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: flo
     clip_from_camera = np.array(
         [[1.0 / tx, 0, 0, 0], [0, 1.0 / ty, 0, 0], [0, 0, a, b], [0, 0, 1.0, 0]]
     )
+    if rows is not None:
+        top, bottom = 1.0 - 2.0 * rows[0] / height, 1.0 - 2.0 * rows[1] / height
+        centre, half = (top + bottom) / 2.0, (top - bottom) / 2.0
+        clip_from_camera[1] = (clip_from_camera[1] - centre * clip_from_camera[3]) / half
     return clip_from_camera @ camera_from_eye

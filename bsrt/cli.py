@@ -41,6 +41,7 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--height", type=_positive_int, help="film height in pixels (overrides [film])")
     _camera_options(r)
     r.add_argument("--method", choices=METHODS, help="root finder (overrides [render].method)")
+    r.add_argument("--spp", type=_positive_int, help="samples per pixel (overrides [render].spp)")
     r.add_argument("--map", choices=MAP_MODES, dest="map_mode", help="preliminary map precision")
     r.add_argument("--aov", metavar="FILE.npz", help="also write per-pixel arrays (hit, t, surface, u, v, ...)")
     r.add_argument("--stats", action="store_true", help="print timings and counters as JSON on stdout")
@@ -148,7 +149,8 @@ def _cmd_render(args) -> int:
     aov = _check_output(args.aov, ".npz") if args.aov else None
     scene = _load_input(args)
     progress = _progress()
-    result = render(scene, method=args.method, map_mode=args.map_mode, width=args.width, height=args.height, progress=progress)
+    result = render(scene, method=args.method, map_mode=args.map_mode, width=args.width, height=args.height,
+                    spp=args.spp, progress=progress)
     clock = time.perf_counter()
     written = []
     try:

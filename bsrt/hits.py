@@ -46,9 +46,12 @@ class Hits:
     def __len__(self) -> int:
         return self.hit.shape[0]
 
-    def assign(self, index: np.ndarray, other: "Hits") -> None:
-        """Overwrite the rays at ``index`` (M,) with ``other`` (M rays), keeping iteration counts summed."""
-        iterations = self.iterations[index] + other.iterations
-        for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):
-            getattr(self, name)[index] = getattr(other, name)
-        self.iterations[index] = iterations
+    FIELDS = ("hit", "t", "surface", "patch", "u", "v", "iterations", "residual")
+
+    def take(self, index) -> "Hits":
+        """The rays at ``index`` (a slice or an index array)."""
+        return Hits(*(getattr(self, name)[index] for name in self.FIELDS))
+
+    @classmethod
+    def concatenate(cls, parts: list["Hits"]) -> "Hits":
+        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))

@@ -124,12 +124,14 @@ def depth_range(patches: PatchSet, camera: Camera) -> tuple[float, float]:
     return near, far
 
 
-def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode: str = "float", ctx=None) -> PrelimMap:
+def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode: str = "float", ctx=None,
+               rows=None) -> PrelimMap:
     """Rasterise the preliminary map for a width x height film.
 
     mode: "float" (32-bit channels) or "rgba8" (the paper's 8-bit map, at
     most 255 surfaces). ctx: a moderngl context (default: the process's
-    headless EGL context).
+    headless EGL context). rows: (first, stop) to rasterise only that band
+    of film rows (the arrays are then (stop - first, width)).
     """
     if mode not in MAP_MODES:
         raise InputError(f"map: expected one of {', '.join(MAP_MODES)}, got {mode!r}")
@@ -142,8 +144,10 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
     near, far = depth_range(patches, camera)
     vertices, indices = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
     program = gl.program(ctx, "prelim")
-    program["clip_from_eye"].write(clip_from_eye(camera, width, height, near, far).T.astype("f4").tobytes())
+    program["clip_from_eye"].write(clip_from_eye(camera, width, height, near, far, rows).T.astype("f4").tobytes())
     program["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0
+    first, stop = rows if rows is not None else (0, height)
+    height = stop - first
     size = (width, height)
     resources = []
     try:

@@ -96,6 +96,15 @@ class Geometry:
         return self._bvh
 
 
+MAX_BAND_SAMPLES = 1 << 20  # primary samples solved at once (memory ~ 0.5 KB per sample)
+
+
+def sample_grid(spp: int) -> tuple[int, int]:
+    """(columns, rows) of the stratified sub-pixel grid: columns * rows = spp, as square as possible."""
+    rows = max(d for d in range(1, int(np.sqrt(spp)) + 1) if spp % d == 0)
+    return spp // rows, rows
+
+
 def render(
     scene: Scene,
     *,
@@ -103,6 +112,7 @@ def render(
     map_mode: str | None = None,
     width: int | None = None,
     height: int | None = None,
+    spp: int | None = None,
     geometry: Geometry | None = None,
     camera=None,
     ctx=None,
@@ -114,78 +124,144 @@ def render(
     camera: a camera.Camera to use instead of the scene's; ctx: a moderngl
     context for the map (default: the process's headless EGL context);
     prelim: a map already rendered for this camera and size (the preview
-    window rasterises it on its own context, then solves elsewhere);
-    progress: called with a stage name ("map", "solve", "shade") as each
-    stage starts.
+    window rasterises it on its own context, then solves elsewhere; only
+    with spp = 1 and a film small enough for one band); progress: called
+    with a stage name ("map", "solve", "shade") as each stage starts.
+
+    Anti-aliasing: spp samples per pixel sit at the centres of a stratified
+    columns x rows grid (sample_grid), which is exactly the pixel-centre grid
+    of a film spp times larger; that film is traced band by band (each band
+    with its own preliminary map, so every sample is seeded) and box-filtered
+    down. The AOVs always describe the pixel-centre rays (a second pass when
+    spp > 1).
     """
     settings = scene.render
     method = method or settings.method
     map_mode = map_mode or settings.map
     width = width or scene.film.width
     height = height or scene.film.height
+    spp = spp or settings.spp
     camera = camera or scene.camera
     if width < 1 or height < 1:
         raise InputError(f"film size must be at least 1x1, got {width}x{height}")
     report = progress or (lambda stage: None)
-    stats: dict = {"method": method, "map": map_mode if method != "martin" else None,
-                   "width": width, "height": height, "seconds": {}}
+    stats: dict = {"method": method, "map": map_mode if method != "martin" else None, "width": width,
+                   "height": height, "spp": spp, "seconds": {"setup": 0.0, "map": 0.0, "solve": 0.0, "shade": 0.0}}
     clock = time.perf_counter()
     geometry = geometry or Geometry(scene)
-    patches = geometry.patches
-    tolerance = settings.tolerance * max(patches.scene_diagonal(), 1e-300)
-    directions = pixel_rays(camera, width, height)
-    rays = Rays.from_arrays(camera.eye[None, :], directions)
     stats["seconds"]["setup"] = time.perf_counter() - clock
+    trace = _Tracer(scene, geometry, camera, method, map_mode, ctx, stats, report)
 
-    prelim = None
-    if method == "martin":
-        report("solve")
+    cols, rows = sample_grid(spp)
+    sample_w, sample_h = width * cols, height * rows
+    band = max(rows, (MAX_BAND_SAMPLES // sample_w) // rows * rows)
+    if prelim is not None and (spp != 1 or band < height):
+        raise ValueError("a precomputed map needs spp = 1 and a film of at most one band")
+    linear = np.zeros((height, width, 3))
+    primary = []
+    for first in range(0, sample_h, band):
+        stop = min(sample_h, first + band)
+        hits, directions = trace.primary(sample_w, sample_h, (first, stop), prelim)
+        report("shade")
         clock = time.perf_counter()
-        hits = _intersect_all(geometry, rays, tolerance, settings.max_iterations)
-        stats["seconds"]["map"] = 0.0
-        stats["seconds"]["solve"] = time.perf_counter() - clock
-        stats.update(covered_by_map=None, non_converged=0, suspect=0, repaired=0)
-    else:
-        report("map")
-        clock = time.perf_counter()
-        if prelim is None:
-            prelim = render_map(patches, camera, width, height, map_mode, ctx=ctx)
-        elif prelim.surface.shape != (height, width):
-            raise ValueError(f"prelim map is {prelim.surface.shape[::-1]}, the film {width}x{height}")
-        stats["seconds"]["map"] = time.perf_counter() - clock
-        report("solve")
-        clock = time.perf_counter()
-        hits = _solve_from_map(geometry, rays, prelim, method, tolerance, settings.max_iterations, camera, stats)
-        stats["seconds"]["solve"] = time.perf_counter() - clock
-
-    report("shade")
-    clock = time.perf_counter()
-    n = width * height
-    position = np.full((n, 3), np.nan)
-    normal = np.full((n, 3), np.nan)
-    linear = np.empty((n, 3))
-    linear[:] = scene.film.background
-    hit = np.flatnonzero(hits.hit)
-    if hit.size:
-        pos, nrm = surface_frames(patches, hits, hit)
-        view = directions[hit]
-        flip = np.einsum("ij,ij->i", nrm, view) > 0
-        nrm[flip] *= -1.0
-        position[hit], normal[hit] = pos, nrm
-        linear[hit] = shade(scene, pos, nrm, view, geometry.material[hits.surface[hit]])
-    linear = linear.reshape(height, width, 3)
+        colour, position, normal = trace.shade(hits, np.broadcast_to(camera.eye, directions.shape), directions)
+        block = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
+        linear[first // rows : stop // rows] = block
+        stats["seconds"]["shade"] += time.perf_counter() - clock
+        if spp == 1:
+            primary.append((hits, position, normal))
+    if spp > 1:  # the AOVs: pixel-centre rays
+        band = max(1, MAX_BAND_SAMPLES // width)
+        for first in range(0, height, band):
+            hits, directions = trace.primary(width, height, (first, min(height, first + band)), None)
+            position, normal = trace.frames(hits, directions)
+            primary.append((hits, position, normal))
+    hits = Hits.concatenate([p[0] for p in primary])
+    position = np.concatenate([p[1] for p in primary])
+    normal = np.concatenate([p[2] for p in primary])
     from .image import srgb_encode
 
     pixels = srgb_encode(linear)
-    stats["seconds"]["shade"] = time.perf_counter() - clock
-    covered_iters = hits.iterations[hits.iterations > 0]
+    work = hits.iterations[hits.iterations > 0]
     stats.update(
-        pixels=n,
+        pixels=width * height,
         hits=int(hits.hit.sum()),
-        iterations_mean=float(covered_iters.mean()) if covered_iters.size else 0.0,
-        iterations_max=int(hits.iterations.max()) if n else 0,
+        iterations_mean=float(work.mean()) if work.size else 0.0,
+        iterations_max=int(hits.iterations.max()),
     )
-    return RenderResult(pixels, linear, hits, position, normal, prelim, stats)
+    return RenderResult(pixels, linear, hits, position, normal, trace.last_map, stats)
+
+
+class _Tracer:
+    """Traces and shades rays for one render (holds the settings and accumulates stats)."""
+
+    def __init__(self, scene, geometry, camera, method, map_mode, ctx, stats, report):
+        self.scene, self.geometry, self.camera = scene, geometry, camera
+        self.method, self.map_mode, self.ctx = method, map_mode, ctx
+        self.stats, self.report = stats, report
+        self.tolerance = scene.render.tolerance * max(geometry.patches.scene_diagonal(), 1e-300)
+        self.max_iterations = scene.render.max_iterations
+        self.last_map = None
+        for key in ("covered_by_map", "non_converged", "suspect", "wrong_layer", "repaired"):
+            stats[key] = None if method == "martin" and key == "covered_by_map" else 0
+
+    def primary(self, width, height, rows, prelim):
+        """Nearest hits of the pixel-centre rays of film rows rows[0]..rows[1]-1.
+
+        The map is rasterised (and solved) with one extra row above and below
+        the band, so the neighbour tests of the hard pixels see across band
+        borders. Returns (Hits, directions (K, 3)) for the band's pixels only.
+        """
+        first, stop = rows
+        lo, hi = max(0, first - 1), min(height, stop + 1)
+        directions = pixel_rays(self.camera, width, height, (lo, hi))
+        rays = Rays.from_arrays(self.camera.eye[None, :], directions)
+        stats, seconds = self.stats, self.stats["seconds"]
+        if self.method == "martin":
+            self.report("solve")
+            clock = time.perf_counter()
+            hits = _intersect_all(self.geometry, rays, self.tolerance, self.max_iterations)
+            seconds["solve"] += time.perf_counter() - clock
+        else:
+            self.report("map")
+            clock = time.perf_counter()
+            if prelim is None:
+                prelim = render_map(self.geometry.patches, self.camera, width, height, self.map_mode, ctx=self.ctx,
+                                    rows=(lo, hi))
+            elif prelim.surface.shape != (height, width):
+                raise ValueError(f"prelim map is {prelim.surface.shape[::-1]}, the film {width}x{height}")
+            self.last_map = prelim
+            seconds["map"] += time.perf_counter() - clock
+            self.report("solve")
+            clock = time.perf_counter()
+            hits = _solve_from_map(self.geometry, rays, prelim, self.method, self.tolerance, self.max_iterations,
+                                   self.camera, height, stats)
+            seconds["solve"] += time.perf_counter() - clock
+        keep = slice((first - lo) * width, (stop - lo) * width)
+        return hits.take(keep), directions[keep]
+
+    def frames(self, hits: Hits, directions: np.ndarray):
+        """Position and eye-facing unit normal (K, 3) of each hit; NaN where no hit."""
+        position = np.full((len(hits), 3), np.nan)
+        normal = np.full((len(hits), 3), np.nan)
+        hit = np.flatnonzero(hits.hit)
+        if hit.size:
+            pos, nrm = surface_frames(self.geometry.patches, hits, hit)
+            flip = np.einsum("ij,ij->i", nrm, directions[hit]) > 0
+            nrm[flip] *= -1.0
+            position[hit], normal[hit] = pos, nrm
+        return position, normal
+
+    def shade(self, hits: Hits, origins: np.ndarray, directions: np.ndarray):
+        """Linear RGB (K, 3) seen along each ray, with the hits' positions and normals."""
+        position, normal = self.frames(hits, directions)
+        colour = np.empty((len(hits), 3))
+        colour[:] = self.scene.film.background
+        hit = np.flatnonzero(hits.hit)
+        if hit.size:
+            colour[hit] = shade(self.scene, position[hit], normal[hit], directions[hit],
+                                self.geometry.material[hits.surface[hit]])
+        return colour, position, normal
 
 
 def _intersect_all(geometry: Geometry, rays: Rays, tolerance: float, max_iterations: int) -> Hits:
@@ -206,7 +282,7 @@ def _record(hits: Hits, pixels: np.ndarray, res: RootResult, patches: PatchSet, 
     hits.residual[pixels] = res.residual[take]
 
 
-def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, camera, stats) -> Hits:
+def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, camera, film_height, stats) -> Hits:
     patches = geometry.patches
     h, w = prelim.surface.shape
     n = h * w
@@ -229,8 +305,8 @@ def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, c
         border |= padded[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] != sid
     suspect = border.ravel()
     suspect[covered[~ok]] = True
-    _, ty = camera.half_extents(w, h)
-    footprint = 2.0 * ty / h
+    _, ty = camera.half_extents(w, film_height)
+    footprint = 2.0 * ty / film_height
     map_distance = prelim.distance.ravel()
     t = hits.t
     layer = hits.hit & (np.abs(t - map_distance) > LAYER_SLACK_PIXELS * footprint * map_distance + tolerance)
@@ -241,13 +317,9 @@ def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, c
     changed = (before[0] != hits.hit[suspects]) | (before[1] != hits.surface[suspects]) | (
         np.abs(np.nan_to_num(before[2]) - np.nan_to_num(hits.t[suspects])) > tolerance * 10
     )
-    stats.update(
-        covered_by_map=int(covered.size),
-        non_converged=int((~res.converged).sum()),
-        suspect=int(suspects.size),
-        wrong_layer=int(layer.sum()),
-        repaired=int(changed.sum()),
-    )
+    for key, value in (("covered_by_map", covered.size), ("non_converged", (~res.converged).sum()),
+                       ("suspect", suspects.size), ("wrong_layer", layer.sum()), ("repaired", changed.sum())):
+        stats[key] += int(value)
     return hits
 
 

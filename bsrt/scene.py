@@ -233,8 +233,6 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         max_iterations=ren_t.integer("max_iterations", 64, lo=1),
         spp=ren_t.integer("spp", 1, lo=1),
     )
-    if render.spp != 1:
-        ren_t.fail("spp", "more than one sample per pixel is not supported yet")
     ren_t.finish()
 
     materials, by_name = [], {}

@@ -76,8 +76,10 @@ BAD_SCENES = [
     ("unknown material", _replace('material = "white"', 'material = "gold"'),
      "bad.toml: surface[0].material: no [[material]] named 'gold'"),
     ("string for a number", _replace("fov = 40.0", 'fov = "wide"'), "bad.toml: camera.fov: expected a number"),
-    ("weights not yet", _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 1.0], [1.0, 2.0]]"),
-     "bad.toml: surface[0].weights: rational surfaces"),
+    ("weights of the wrong shape", _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 1.0, 1.0], [1.0, 2.0, 1.0]]"),
+     "bad.toml: surface[0].weights: expected 2 x 2 values (one per point), got shape (2, 3)"),
+    ("zero weight", _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 0.0], [1.0, 2.0]]"),
+     "bad.toml: surface[0].weights: every weight must be a finite number > 0"),
     ("fov out of range", _replace("fov = 40.0", "fov = 180.0"), "bad.toml: camera.fov: must be < 180"),
 ]
 
