@@ -202,7 +202,7 @@ class _Tracer:
         self.tolerance = scene.render.tolerance * max(geometry.patches.scene_diagonal(), 1e-300)
         self.max_iterations = scene.render.max_iterations
         self.last_map = None
-        for key in ("covered_by_map", "non_converged", "suspect", "wrong_layer", "repaired"):
+        for key in ("covered_by_map", "non_converged", "suspect", "wrong_layer", "repaired", "hierarchy"):
             stats[key] = None if method == "martin" and key == "covered_by_map" else 0
 
     def primary(self, width, height, rows, prelim):
@@ -313,20 +313,27 @@ def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, c
     suspect |= layer
     suspects = np.flatnonzero(suspect)
     before = (hits.hit[suspects].copy(), hits.surface[suspects].copy(), hits.t[suspects].copy())
-    _repair(geometry, rays, prelim, hits, suspects, tolerance, max_iterations)
+    traced = _repair(geometry, rays, prelim, hits, suspects, layer, tolerance, max_iterations)
     changed = (before[0] != hits.hit[suspects]) | (before[1] != hits.surface[suspects]) | (
         np.abs(np.nan_to_num(before[2]) - np.nan_to_num(hits.t[suspects])) > tolerance * 10
     )
     for key, value in (("covered_by_map", covered.size), ("non_converged", (~res.converged).sum()),
-                       ("suspect", suspects.size), ("wrong_layer", layer.sum()), ("repaired", changed.sum())):
+                       ("suspect", suspects.size), ("wrong_layer", layer.sum()), ("repaired", changed.sum()),
+                       ("hierarchy", traced)):
         stats[key] += int(value)
     return hits
 
 
-def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, tolerance, max_iterations) -> None:
-    """Re-solve suspect pixels from their neighbours' starts (and the hierarchy)."""
+def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, layer: np.ndarray, tolerance,
+            max_iterations) -> int:
+    """Re-solve suspect pixels from their neighbours' starts, then with the hierarchy.
+
+    layer: (N,) bool, pixels whose root disagreed with the map's distance.
+    Suspects still without a hit, or on a wrong layer, go to the exact
+    intersector (Martin et al.'s hierarchy): the nearest valid root wins.
+    """
     if not suspects.size:
-        return
+        return 0
     patches = geometry.patches
     h, w = prelim.surface.shape
     row, col = np.divmod(suspects, w)
@@ -353,22 +360,31 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, tolerance,
     )
     np.add.at(hits.iterations, item_pixel, res.iterations)
     valid = res.converged & (res.t > 0)
-    candidates = [(item_pixel[valid], res, np.flatnonzero(valid))]
-    _keep_nearest(hits, patches, candidates, suspects)
+    _keep_nearest(hits, patches, item_pixel[valid], res, np.flatnonzero(valid))
+    hard = suspects[~hits.hit[suspects] | layer[suspects]]
+    if hard.size:
+        from .bvh import intersect
+
+        exact = intersect(geometry.bvh, rays.origin[:, hard].T, rays.direction[:, hard].T, tolerance=tolerance,
+                          max_iterations=max_iterations)
+        hits.iterations[hard] += exact.iterations
+        better = exact.hit & (~hits.hit[hard] | (exact.t < hits.t[hard]))
+        for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):
+            getattr(hits, name)[hard[better]] = getattr(exact, name)[better]
+    return int(hard.size)
 
 
-def _keep_nearest(hits: Hits, patches: PatchSet, candidates, suspects: np.ndarray) -> None:
-    """For each suspect pixel keep the nearest of its current hit and the candidate roots.
+def _keep_nearest(hits: Hits, patches: PatchSet, pixel: np.ndarray, res: RootResult, take: np.ndarray) -> None:
+    """Keep, for each pixel, the nearest of its current hit and the roots ``take`` of ``res``.
 
-    candidates: list of (pixel (K,), RootResult, item index (K,)).
+    pixel, take: (K,) the pixel of each candidate root and its item in res.
     """
-    for pixel, res, take in candidates:
-        if not pixel.size:
-            continue
-        t = res.t[take]
-        order = np.lexsort((t, pixel))  # nearest first within each pixel
-        pixel, take, t = pixel[order], take[order], t[order]
-        first = np.concatenate([[True], pixel[1:] != pixel[:-1]])
-        pixel, take, t = pixel[first], take[first], t[first]
-        better = ~hits.hit[pixel] | (t < hits.t[pixel])
-        _record(hits, pixel[better], res, patches, take[better])
+    if not pixel.size:
+        return
+    t = res.t[take]
+    order = np.lexsort((t, pixel))  # nearest first within each pixel
+    pixel, take, t = pixel[order], take[order], t[order]
+    first = np.concatenate([[True], pixel[1:] != pixel[:-1]])
+    pixel, take, t = pixel[first], take[first], t[first]
+    better = ~hits.hit[pixel] | (t < hits.t[pixel])
+    _record(hits, pixel[better], res, patches, take[better])
