@@ -141,6 +141,11 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
             f"the scene has {len(patches.surfaces)}; use map = \"float\""
         )
     ctx = ctx or gl.headless_context()
+    with ctx:  # current on this thread for the duration (another context may be current)
+        return _rasterise(patches, camera, width, height, mode, ctx, rows)
+
+
+def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
     near, far = depth_range(patches, camera)
     vertices, indices = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
     program = gl.program(ctx, "prelim")
