@@ -498,7 +498,7 @@ def _solve_pairs(bvh, rays, ray, leaf, t_min, t_max, tolerance, max_iterations, 
                      max_iterations=max_iterations, stop_on_growth=True)
     u, v, t, patch, resid = res.u, res.v, res.t, res.patch, res.residual
     iters = res.iterations.astype(np.int64)
-    ok = _accept(bvh, leaf, ray, res.converged, u, v, t, t_min, t_max, exclude)
+    ok, start = _accept(bvh, leaf, ray, res.converged, u, v, t, t_min, t_max, exclude)
     if not retry_depth:
         return ok, t, u, v, patch, resid, iters
     # A grazing ray can cross a leaf twice; Newton may have found the far root.
@@ -507,7 +507,10 @@ def _solve_pairs(bvh, rays, ray, leaf, t_min, t_max, tolerance, max_iterations, 
     normal = np.cross(su.T, sv.T)
     cos = np.abs(np.einsum("mk,km->m", normal, rays.direction[:, ray[acc]]))
     grazing = acc[cos < GRAZING_COSINE * np.linalg.norm(normal, axis=1)]
-    bad = np.union1d(np.flatnonzero(~ok), grazing)
+    # A leaf whose root is the secondary ray's own start is not retried: a
+    # leaf flat to 2e-3 of the scene meets a ray leaving it again only at
+    # grazing angles, where the light it would block contributes cos ~ 0.
+    bad = np.union1d(np.flatnonzero(~ok & ~start), grazing)
     if not bad.size:
         return ok, t, u, v, patch, resid, iters
     deg = bvh.leaf_degree[leaf[bad]]
@@ -541,7 +544,7 @@ def _solve_pairs(bvh, rays, ray, leaf, t_min, t_max, tolerance, max_iterations, 
                             0.5 * (rects[:, 2] + rects[:, 3]), tolerance=tolerance,
                             max_iterations=max_iterations, stop_on_growth=True)
             np.add.at(iters, item, r2.iterations)
-            acc = _accept(bvh, leaf[item], r, r2.converged, r2.u, r2.v, r2.t, t_min, t_max, exclude)
+            acc, _ = _accept(bvh, leaf[item], r, r2.converged, r2.u, r2.v, r2.t, t_min, t_max, exclude)
             if np.any(acc):
                 a = np.flatnonzero(acc)
                 a = a[np.lexsort((r2.t[a], item[a]))]
@@ -555,15 +558,17 @@ def _solve_pairs(bvh, rays, ray, leaf, t_min, t_max, tolerance, max_iterations, 
 
 
 def _accept(bvh, leaf, ray, converged, u, v, t, t_min, t_max, exclude):
+    """(ok, start): ok, the pair's root is a hit; start, its root is the excluded one."""
     rect = bvh.leaf_rect[leaf]
     su = RECT_SLACK * (rect[:, 1] - rect[:, 0])
     sv = RECT_SLACK * (rect[:, 3] - rect[:, 2])
     inside = (u >= rect[:, 0] - su) & (u <= rect[:, 1] + su) & (v >= rect[:, 2] - sv) & (v <= rect[:, 3] + sv)
-    ok = converged & inside & (t > t_min[ray]) & (t < t_max[ray])
+    ok = converged & inside
+    start = np.zeros_like(ok)
     if exclude is not None:
         surface, eu, ev, ru, rv = (a[ray] for a in exclude)
-        ok &= ~((bvh.leaf_surface[leaf] == surface) & (np.abs(u - eu) <= ru) & (np.abs(v - ev) <= rv))
-    return ok
+        start = ok & (bvh.leaf_surface[leaf] == surface) & (np.abs(u - eu) <= ru) & (np.abs(v - ev) <= rv)
+    return ok & ~start & (t > t_min[ray]) & (t < t_max[ray]), start
 
 
 def intersect(

@@ -35,7 +35,7 @@ from .hits import Hits
 from .patches import PatchSet
 from .prelim import PrelimMap, render_map
 from .scene import Scene
-from .shade import shade, surface_frames
+from .shade import light_directions, shade, surface_frames
 from .solve import RootResult, Rays, find_roots
 
 # A root farther than this many pixel footprints from the map's rasterised
@@ -164,7 +164,7 @@ def render(
         hits, directions = trace.primary(sample_w, sample_h, (first, stop), prelim)
         report("shade")
         clock = time.perf_counter()
-        colour, position, normal = trace.shade(hits, np.broadcast_to(camera.eye, directions.shape), directions)
+        colour, position, normal = trace.shade(hits, directions)
         block = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
         linear[first // rows : stop // rows] = block
         stats["seconds"]["shade"] += time.perf_counter() - clock
@@ -174,7 +174,7 @@ def render(
         band = max(1, MAX_BAND_SAMPLES // width)
         for first in range(0, height, band):
             hits, directions = trace.primary(width, height, (first, min(height, first + band)), None)
-            position, normal = trace.frames(hits, directions)
+            position, normal, _ = trace.frames(hits, directions)
             primary.append((hits, position, normal))
     hits = Hits.concatenate([p[0] for p in primary])
     position = np.concatenate([p[1] for p in primary])
@@ -220,7 +220,7 @@ class _Tracer:
         if self.method == "martin":
             self.report("solve")
             clock = time.perf_counter()
-            hits = _intersect_all(self.geometry, rays, self.tolerance, self.max_iterations)
+            hits = _intersect_all(self.geometry, rays, self.tolerance)
             seconds["solve"] += time.perf_counter() - clock
         else:
             self.report("map")
@@ -241,35 +241,91 @@ class _Tracer:
         return hits.take(keep), directions[keep]
 
     def frames(self, hits: Hits, directions: np.ndarray):
-        """Position and eye-facing unit normal (K, 3) of each hit; NaN where no hit."""
+        """Position and viewer-facing unit normal (K, 3) of each hit, NaN where no hit,
+        and |S_u|, |S_v| (K, 2)."""
         position = np.full((len(hits), 3), np.nan)
         normal = np.full((len(hits), 3), np.nan)
+        speed = np.full((len(hits), 2), np.nan)
         hit = np.flatnonzero(hits.hit)
         if hit.size:
-            pos, nrm = surface_frames(self.geometry.patches, hits, hit)
+            pos, nrm, speed[hit] = surface_frames(self.geometry.patches, hits, hit)
             flip = np.einsum("ij,ij->i", nrm, directions[hit]) > 0
             nrm[flip] *= -1.0
             position[hit], normal[hit] = pos, nrm
-        return position, normal
+        return position, normal, speed
 
-    def shade(self, hits: Hits, origins: np.ndarray, directions: np.ndarray):
-        """Linear RGB (K, 3) seen along each ray, with the hits' positions and normals."""
-        position, normal = self.frames(hits, directions)
+    def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0):
+        """Linear RGB (K, 3) seen along each ray (ending at ``hits``), with the
+        hits' positions and normals (K, 3). Shadow rays to every point and
+        directional light; mirror reflection up to render.max_depth bounces."""
+        position, normal, speed = self.frames(hits, directions)
         colour = np.empty((len(hits), 3))
         colour[:] = self.scene.film.background
         hit = np.flatnonzero(hits.hit)
-        if hit.size:
-            colour[hit] = shade(self.scene, position[hit], normal[hit], directions[hit],
-                                self.geometry.material[hits.surface[hit]])
+        if not hit.size:
+            return colour, position, normal
+        pos, nrm, dirs = position[hit], normal[hit], directions[hit]
+        material = self.geometry.material[hits.surface[hit]]
+        exclude = self._exclusion(hits, hit, speed[hit])
+        visibility = self._visibility(pos, nrm, exclude)
+        colour[hit] = shade(self.scene, pos, nrm, dirs, material, visibility)
+        reflectance = np.array([m.reflectance for m in self.scene.materials])[material]
+        mirror = np.flatnonzero(reflectance > 0)
+        if mirror.size and depth < self.scene.render.max_depth:
+            d = dirs[mirror]
+            n = nrm[mirror]
+            r = d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
+            self.stats["reflection_rays"] = self.stats.get("reflection_rays", 0) + int(mirror.size)
+            seen = self._trace(pos[mirror], r, tuple(a[mirror] for a in exclude))
+            reflected, _, _ = self.shade(seen, r, depth + 1)
+            k = reflectance[mirror][:, None]
+            colour[hit[mirror]] = (1.0 - k) * colour[hit[mirror]] + k * reflected
         return colour, position, normal
 
+    def _exclusion(self, hits: Hits, hit: np.ndarray, speed: np.ndarray):
+        """The parameter box around each hit that its secondary rays must not hit again.
 
-def _intersect_all(geometry: Geometry, rays: Rays, tolerance: float, max_iterations: int) -> Hits:
+        Half-widths: 1e-6 of the scene diagonal in scene units, converted with
+        |S_u|, |S_v| (a thousand times the root finder's tolerance), at most a
+        quarter of the patch (where S_u or S_v vanishes, at poles).
+        """
+        eps = 1e-6 * self.geometry.patches.scene_diagonal()
+        bounds = self.geometry.patches.bounds[hits.patch[hit]]
+        with np.errstate(divide="ignore"):
+            ru = np.minimum(eps / speed[:, 0], 0.25 * (bounds[:, 1] - bounds[:, 0]))
+            rv = np.minimum(eps / speed[:, 1], 0.25 * (bounds[:, 3] - bounds[:, 2]))
+        return hits.surface[hit], hits.u[hit], hits.v[hit], ru, rv
+
+    def _trace(self, origins, directions, exclude, t_max=np.inf, any_hit=False) -> Hits:
+        from .bvh import intersect
+
+        clock = time.perf_counter()
+        out = intersect(self.geometry.bvh, origins, directions, t_min=0.0, t_max=t_max, tolerance=self.tolerance,
+                        any_hit=any_hit, exclude=exclude)
+        self.stats["seconds"]["secondary"] = self.stats["seconds"].get("secondary", 0.0) + time.perf_counter() - clock
+        return out
+
+    def _visibility(self, position, normal, exclude) -> np.ndarray:
+        """(K, L) 1.0 where light L reaches the point, 0.0 in shadow (any-hit shadow rays)."""
+        visibility = np.ones((position.shape[0], len(self.scene.lights)))
+        for index, light in enumerate(self.scene.lights):
+            if light.kind == "ambient":
+                continue
+            to_light, dist = light_directions(light, position)
+            facing = np.flatnonzero(np.einsum("ij,ij->i", normal, to_light) > 0)
+            if not facing.size:
+                continue
+            self.stats["shadow_rays"] = self.stats.get("shadow_rays", 0) + int(facing.size)
+            blocked = self._trace(position[facing], to_light[facing], tuple(a[facing] for a in exclude),
+                                  t_max=dist[facing], any_hit=True)
+            visibility[facing[blocked.hit], index] = 0.0
+        return visibility
+
+
+def _intersect_all(geometry: Geometry, rays: Rays, tolerance: float) -> Hits:
     from .bvh import intersect
 
-    return intersect(
-        geometry.bvh, rays.origin.T, rays.direction.T, tolerance=tolerance, max_iterations=max_iterations
-    )
+    return intersect(geometry.bvh, rays.origin.T, rays.direction.T, tolerance=tolerance)
 
 
 def _record(hits: Hits, pixels: np.ndarray, res: RootResult, patches: PatchSet, take: np.ndarray) -> None:
@@ -365,8 +421,7 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, layer: np.
     if hard.size:
         from .bvh import intersect
 
-        exact = intersect(geometry.bvh, rays.origin[:, hard].T, rays.direction[:, hard].T, tolerance=tolerance,
-                          max_iterations=max_iterations)
+        exact = intersect(geometry.bvh, rays.origin[:, hard].T, rays.direction[:, hard].T, tolerance=tolerance)
         hits.iterations[hard] += exact.iterations
         better = exact.hit & (~hits.hit[hard] | (exact.t < hits.t[hard]))
         for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):

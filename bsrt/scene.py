@@ -37,6 +37,7 @@ class RenderSettings:
     tolerance: float = 1e-9  # fraction of the scene's bounding-box diagonal
     max_iterations: int = 64
     spp: int = 1
+    max_depth: int = 3  # mirror-reflection bounces
 
 
 @dataclass(frozen=True)
@@ -232,6 +233,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         tolerance=ren_t.number("tolerance", 1e-9, lo=0.0, lo_open=True, hi=1.0),
         max_iterations=ren_t.integer("max_iterations", 64, lo=1),
         spp=ren_t.integer("spp", 1, lo=1),
+        max_depth=ren_t.integer("max_depth", 3, lo=0),
     )
     ren_t.finish()
 
@@ -248,8 +250,6 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             shininess=t.number("shininess", DEFAULT_MATERIAL.shininess, lo=0.0),
             reflectance=t.number("reflectance", 0.0, lo=0.0, hi=1.0),
         )
-        if mat.reflectance != 0.0:
-            t.fail("reflectance", "mirror reflection is not supported yet (needs secondary rays); use 0")
         t.finish()
         by_name[name] = len(materials)
         materials.append(mat)

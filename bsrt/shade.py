@@ -12,16 +12,18 @@ from .scene import Scene
 def surface_frames(patches: PatchSet, hits: Hits, index: np.ndarray):
     """Position and unit normal at the hits ``index`` (K,).
 
-    Returns (position (K, 3), normal (K, 3)) float64. The normal is
+    Returns (position (K, 3), normal (K, 3), speed (K, 2)) float64, speed
+    being |S_u|, |S_v| (scene units per unit of u, v). The normal is
     S_u x S_v normalised; where it vanishes (a pole or collapsed edge, a
     repeated control point) the limit normal is taken a step of 1e-7 of the
     patch size toward the patch centre, so no NaN reaches the image.
     """
     patch, u, v = hits.patch[index], hits.u[index], hits.v[index]
     S, Su, Sv = patches.evaluate(patch, u, v)
+    speed = np.stack([np.linalg.norm(Su, axis=0), np.linalg.norm(Sv, axis=0)], axis=1)
     n = np.cross(Su.T, Sv.T)
     length = np.linalg.norm(n, axis=1)
-    scale = np.linalg.norm(Su, axis=0) * np.linalg.norm(Sv, axis=0)
+    scale = speed[:, 0] * speed[:, 1]
     bad = ~(length > 1e-12 * scale) | ~np.isfinite(length)
     for step in (1e-7, 1e-5, 1e-3):
         if not np.any(bad):
@@ -38,36 +40,43 @@ def surface_frames(patches: PatchSet, hits: Hits, index: np.ndarray):
     length[bad] = 1.0
     n = n / length[:, None]
     n[bad] = 0.0
-    return S.T, n
+    return S.T, n, speed
 
 
-def shade(scene: Scene, position: np.ndarray, normal: np.ndarray, view: np.ndarray, material: np.ndarray) -> np.ndarray:
-    """Blinn-Phong radiance toward the eye.
+def light_directions(light, position: np.ndarray):
+    """Unit directions (K, 3) from each point toward the light, distances (K,) (inf if directional)."""
+    if light.kind == "point":
+        to_light = np.array(light.position) - position
+        dist = np.linalg.norm(to_light, axis=1)
+        return to_light / np.maximum(dist, 1e-300)[:, None], dist
+    d = np.array(light.direction)
+    return np.broadcast_to(-d / np.linalg.norm(d), position.shape), np.full(position.shape[0], np.inf)
+
+
+def shade(scene: Scene, position: np.ndarray, normal: np.ndarray, view: np.ndarray, material: np.ndarray,
+          visibility: np.ndarray | None = None) -> np.ndarray:
+    """Blinn-Phong radiance toward the viewer.
 
     position, normal: (K, 3) (normal unit, facing the viewer); view: (K, 3)
-    unit directions from the eye to the point; material: (K,) int index into
-    scene.materials. Point lights fall off with the inverse square of the
-    distance. Returns (K, 3) float64 linear RGB.
+    unit directions from the viewer to the point; material: (K,) int index
+    into scene.materials; visibility: (K, L) float, 1 where light L reaches
+    the point (0 in its shadow), None for all lit. Point lights fall off with
+    the inverse square of the distance. Returns (K, 3) float64 linear RGB.
     """
     albedo = np.array([m.color for m in scene.materials])[material]
     spec = np.array([m.specular for m in scene.materials])[material][:, None]
     shininess = np.array([m.shininess for m in scene.materials])[material][:, None]
     out = np.zeros_like(position)
     to_eye = -view
-    for light in scene.lights:
+    for index, light in enumerate(scene.lights):
         strength = np.array(light.color) * light.intensity
         if light.kind == "ambient":
             out += albedo * strength
             continue
-        if light.kind == "point":
-            to_light = np.array(light.position) - position
-            dist2 = np.einsum("ij,ij->i", to_light, to_light)
-            to_light = to_light / np.sqrt(dist2)[:, None]
-            falloff = 1.0 / dist2
-        else:
-            d = np.array(light.direction)
-            to_light = np.broadcast_to(-d / np.linalg.norm(d), position.shape)
-            falloff = np.ones(position.shape[0])
+        to_light, dist = light_directions(light, position)
+        falloff = 1.0 / (dist * dist) if light.kind == "point" else np.ones(position.shape[0])
+        if visibility is not None:
+            falloff = falloff * visibility[:, index]
         cos_l = np.einsum("ij,ij->i", normal, to_light)
         lit = cos_l > 0
         half = to_light + to_eye

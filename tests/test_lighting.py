@@ -1,0 +1,126 @@
+"""Shadows, mirror reflections and anti-aliasing against answers worked out by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bsrt.camera import pixel_rays
+from bsrt.render import render
+from bsrt.scene import parse_scene
+from bsrt.shade import shade
+
+from conftest import flat_patch
+from test_models import exact_sphere
+
+
+def _horizontal(x0, x1, y0, y1, z, **extra):
+    """A bilinear square in the plane z = const, u along x, v along y."""
+    return {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+            "points": [[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]], **extra}
+
+
+def _scene(surfaces, lights, materials, size=96, eye=(0.0, -3.0, 6.0), look_at=(0.0, 0.0, 0.0), **render_keys):
+    return parse_scene({
+        "film": {"width": size, "height": size},
+        "camera": {"eye": list(eye), "look_at": list(look_at), "fov": 50.0},
+        "render": render_keys,
+        "material": materials,
+        "light": lights,
+        "surface": surfaces,
+    })
+
+
+def test_shadow_of_a_flat_patch_on_a_parallel_plane_has_its_exact_shape():
+    light = np.array([0.3, 0.2, -1.0])
+    scene = _scene(
+        [_horizontal(-3, 3, -3, 3, 0.0, material="ground"), _horizontal(-0.5, 0.7, -0.4, 0.5, 1.0, material="ground")],
+        [{"kind": "directional", "direction": light.tolist(), "intensity": 1.0}],
+        [{"name": "ground", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
+    )
+    res = render(scene)
+    on_ground = res.hits.hit & (res.hits.surface == 0)
+    p = res.position[on_ground]
+    # walk from the ground point toward the light up to z = 1: inside the occluder?
+    to_light = -light / np.linalg.norm(light)
+    q = p + (1.0 / to_light[2]) * to_light
+    margin = np.minimum.reduce([q[:, 0] + 0.5, 0.7 - q[:, 0], q[:, 1] + 0.4, 0.5 - q[:, 1]])
+    colour = res.linear.reshape(-1, 3)[on_ground, 0]
+    shadowed, lit = margin > 1e-6, margin < -1e-6
+    assert shadowed.sum() > 50 and lit.sum() > 1000
+    assert np.all(colour[shadowed] == 0.0)
+    np.testing.assert_allclose(colour[lit], to_light[2], rtol=1e-9)  # Lambert: albedo 1 x cos
+
+
+def test_mirror_shows_the_surface_geometry_says_it_must():
+    scene = _scene(
+        [_horizontal(-3, 3, -3, 3, 0.0, material="mirror"), _horizontal(-0.6, 0.4, 0.2, 1.1, 1.5, material="red")],
+        [{"kind": "ambient", "intensity": 1.0}],
+        [{"name": "mirror", "color": [0.0, 0.0, 0.0], "specular": 0.0, "reflectance": 1.0},
+         {"name": "red", "color": [1.0, 0.0, 0.0], "specular": 0.0}],
+        eye=(0.0, -4.0, 3.0), look_at=(0.0, 0.5, 0.0),
+    )
+    res = render(scene)
+    film = scene.film
+    d = pixel_rays(scene.camera, film.width, film.height)
+    mirror = res.hits.hit & (res.hits.surface == 0)
+    p = res.position[mirror]
+    r = d[mirror] * [1.0, 1.0, -1.0]  # reflected off z = 0
+    q = p + ((1.5 - p[:, 2]) / r[:, 2])[:, None] * r
+    margin = np.minimum.reduce([q[:, 0] + 0.6, 0.4 - q[:, 0], q[:, 1] - 0.2, 1.1 - q[:, 1]])
+    colour = res.linear.reshape(-1, 3)[mirror]
+    sees_red, sees_sky = margin > 1e-6, margin < -1e-6
+    assert sees_red.sum() > 100 and sees_sky.sum() > 1000
+    np.testing.assert_allclose(colour[sees_red], [[1.0, 0.0, 0.0]] * sees_red.sum(), atol=1e-12)
+    np.testing.assert_allclose(colour[sees_sky], [[0.0, 0.0, 0.0]] * sees_sky.sum(), atol=1e-12)
+
+
+def test_max_depth_bounds_the_bounces_between_two_mirrors():
+    """Facing half-mirrors, white (A, in front) and black (B, behind the eye): the centre ray
+    sees c_k = 0.5 L_k + 0.5 c_(k+1) for bounces k < max_depth and c = L at the last one."""
+    materials = [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0, "reflectance": 0.5},
+                 {"name": "black", "color": [0.0, 0.0, 0.0], "specular": 0.0, "reflectance": 0.5}]
+    surfaces = [flat_patch(x0=-5, x1=5, z0=-5, z1=5, y=0.0, material="white"),
+                flat_patch(x0=-5, x1=5, z0=-5, z1=5, y=-2.0, material="black")]
+    for depth, expect in ((0, 1.0), (1, 0.5), (2, 0.75), (3, 0.625)):
+        scene = parse_scene({"film": {"width": 8, "height": 8, "background": [0.0, 0.0, 1.0]},
+                             "camera": {"eye": [0.0, -1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 10.0},
+                             "render": {"max_depth": depth}, "material": materials,
+                             "light": [{"kind": "ambient", "intensity": 1.0}], "surface": surfaces})
+        np.testing.assert_allclose(render(scene).linear[4, 4], [expect] * 3, atol=1e-12)
+
+
+def test_no_acne_on_a_lit_convex_surface():
+    """A sphere under a point light: every point facing the light is lit (no self-shadowing)."""
+    s = exact_sphere()
+    table = {"degree": list(s.degree), "knots_u": s.knots_u.tolist(), "knots_v": s.knots_v.tolist(),
+             "points": s.points.tolist(), "weights": s.weights.tolist(), "material": "m"}
+    scene = _scene([table], [{"kind": "point", "position": [2.0, -3.0, 4.0], "intensity": 29.0},
+                             {"kind": "directional", "direction": [1.0, 0.2, -0.3], "intensity": 0.5}],
+                   [{"name": "m", "color": [0.8, 0.8, 0.8], "specular": 0.0}], size=128, eye=(0.5, -4.0, 2.5))
+    res = render(scene)
+    hit = res.hits.hit
+    d = pixel_rays(scene.camera, 128, 128)[hit]
+    unshadowed = shade(scene, res.position[hit], res.normal[hit], d, np.zeros(hit.sum(), dtype=int))
+    got = res.linear.reshape(-1, 3)[hit]
+    assert hit.sum() > 2000
+    assert res.stats["shadow_rays"] > 1000
+    np.testing.assert_allclose(got, unshadowed, rtol=1e-12, atol=1e-15)
+
+
+def test_spp4_blends_a_high_contrast_edge_only():
+    white = flat_patch(x0=-1.0, x1=0.03, material="white")
+    base = {"film": {"width": 48, "height": 48, "background": [0.0, 0.0, 0.0]},
+            "camera": {"eye": [0.0, -4.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 30.0},
+            "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
+            "light": [{"kind": "ambient", "intensity": 1.0}], "surface": [white]}
+    one = render(parse_scene(base)).linear[..., 0]
+    four = render(parse_scene(base), spp=4).linear[..., 0]
+    # the edge x = 0.03 crosses column j where the pixel straddles it
+    x = (2 * (np.arange(48) + 0.5) / 48 - 1) * np.tan(np.radians(15)) * 4.0
+    pixel = 2 * np.tan(np.radians(15)) * 4.0 / 48
+    far = (np.abs(x - 0.03) > pixel) & (np.abs(x + 1.0) > pixel)  # both vertical edges
+    rows = slice(20, 28)  # well inside the patch vertically
+    np.testing.assert_array_equal(four[rows][:, far], one[rows][:, far])
+    edge = four[rows][:, ~far]
+    assert np.any((edge > 0.05) & (edge < 0.95))  # intermediate values at the edge
+    assert set(np.unique(one[rows])) <= {0.0, 1.0}
