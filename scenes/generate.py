@@ -145,9 +145,17 @@ def rot90(points: np.ndarray, k: int) -> np.ndarray:
     return out
 
 
-def material_table(name, color, specular, shininess) -> dict:
-    """A [[material]] table; no mirror reflection in the bundled scenes."""
-    return {"name": name, "color": color, "specular": specular, "shininess": shininess, "reflectance": 0.0}
+def material_table(name, color, specular, shininess, reflectance=0.0) -> dict:
+    """A [[material]] table."""
+    return {"name": name, "color": color, "specular": specular, "shininess": shininess, "reflectance": reflectance}
+
+
+def ground(name, material, half, z) -> dict:
+    """A flat square [-half, half]^2 at height z as a bicubic B-spline (4 x 4 points)."""
+    g = np.linspace(-half, half, 4)
+    pts = [[[x, y, z] for y in g] for x in g]
+    knots = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
+    return surface(name, material, knots, knots, pts)
 
 
 def surface(name, material, knots_u, knots_v, points, degree=(DEGREE, DEGREE)) -> dict:
@@ -232,8 +240,9 @@ def column_scene() -> dict:
     surfaces = []
     for name, material, poly in column_profile():
         surfaces += revolve(name, material, poly)
+    surfaces.append(ground("floor", "floor", 9.0, 0.0))
     return {
-        "comment": "Column: Attic base, entasis shaft, Doric capital; 9 profile pieces x 4 quarters.",
+        "comment": "Column: Attic base, entasis shaft, Doric capital (9 profile pieces x 4 quarters) on a polished floor.",
         "film": {"width": 512, "height": 512, "background": [0.02, 0.02, 0.03]},
         "camera": {"eye": [13.0, -17.0, 10.0], "look_at": [0.0, 0.0, 4.75], "up": [0.0, 0.0, 1.0],
                    "fov": 32.0},
@@ -241,6 +250,7 @@ def column_scene() -> dict:
         "materials": [
             material_table("marble", [0.93, 0.87, 0.78], 0.35, 60.0),
             material_table("marble-dark", [0.82, 0.74, 0.64], 0.3, 40.0),
+            material_table("floor", [0.30, 0.31, 0.34], 0.5, 80.0, reflectance=0.3),
         ],
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
@@ -339,8 +349,9 @@ def water_lily_scene() -> dict:
     ]
     for k, (centre, radius, notch, h, waves, phase) in enumerate(pads):
         surfaces.append(lily_pad(f"pad-{k + 1}", "leaf", centre, radius, notch, h, waves, phase))
+    surfaces.append(ground("water", "water", 9.0, -0.04))
     return {
-        "comment": "Water-lily: 22 petals in three rings, seed pod, stamens, 4 lily pads on z = 0.",
+        "comment": "Water-lily: 22 petals in three rings, seed pod, stamens, 4 lily pads on reflective water.",
         "film": {"width": 512, "height": 512, "background": [0.01, 0.03, 0.05]},
         "camera": {"eye": [5.3, -9.3, 9.4], "look_at": [0.0, -0.3, 0.1], "up": [0.0, 0.0, 1.0],
                    "fov": 30.0},
@@ -349,6 +360,7 @@ def water_lily_scene() -> dict:
             material_table("petal", [0.96, 0.82, 0.87], 0.25, 30.0),
             material_table("centre", [0.95, 0.74, 0.16], 0.2, 20.0),
             material_table("leaf", [0.16, 0.42, 0.13], 0.4, 50.0),
+            material_table("water", [0.02, 0.06, 0.08], 0.6, 120.0, reflectance=0.45),
         ],
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
