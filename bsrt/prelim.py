@@ -4,7 +4,8 @@ Each Bezier patch is tessellated into a grid fine enough that its chords stay
 within half a pixel of the surface (the second-difference bound of Filip,
 Magedson & Markot 1986, with the pixel footprint at the patch's nearest
 distance), capped at 64 x 64 quads per patch. OpenGL rasterises the
-triangles with a depth test into two targets: the map itself (red = surface
+triangles, then their edges as lines (so slivers thinner than a pixel still
+leave fragments), with a depth test into two targets: the map itself (red = surface
 index + 1, green/blue = u, v normalised over the surface's domain), either
 32-bit float or the paper's 8-bit RGBA decoded with eq. 6, and the distance
 from the eye (32-bit float). Arrays leave this module; no GL object does.
@@ -154,27 +155,25 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
     first, stop = rows if rows is not None else (0, height)
     height = stop - first
     size = (width, height)
+    dtype = "f4" if mode == "float" else "f1"
     resources = []
     try:
-        color = ctx.texture(size, 4, dtype="f4" if mode == "float" else "f1")
-        dist = ctx.texture(size, 1, dtype="f4")
-        depth = ctx.depth_renderbuffer(size)
-        fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
         vbo = ctx.buffer(vertices.tobytes())
         ibo = ctx.buffer(indices.tobytes())
-        vao = ctx.vertex_array(program, [(vbo, "3f 2f 1f", "position", "uv", "surface_id")], index_buffer=ibo, index_element_size=4)
-        resources = [vao, ibo, vbo, fbo, depth, dist, color]
-        fbo.use()
-        ctx.viewport = (0, 0, width, height)
+        edges = ctx.buffer(indices[:, [0, 1, 1, 2, 2, 0]].tobytes())
+        layout = [(vbo, "3f 2f 1f", "position", "uv", "surface_id")]
+        vao = ctx.vertex_array(program, layout, index_buffer=ibo, index_element_size=4)
+        lines = ctx.vertex_array(program, layout, index_buffer=edges, index_element_size=4)
+        resources = [lines, vao, edges, ibo, vbo]
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-        vao.render(moderngl.TRIANGLES)
-        dtype = "f4" if mode == "float" else "f1"
-        raw = np.frombuffer(fbo.read(components=4, dtype=dtype, attachment=0), dtype=np.float32 if mode == "float" else np.uint8)
-        raw = raw.reshape(height, width, 4)[::-1]
-        eye_distance = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype=np.float32)
-        eye_distance = eye_distance.reshape(height, width)[::-1]
+        raw, eye_distance = _draw(ctx, size, dtype, vao, moderngl.TRIANGLES, resources)
+        # Every triangle edge again as a line, in a pass of its own: a sliver
+        # thinner than a pixel covers no pixel centre, but its edges still
+        # leave fragments. They fill pixels the triangles left empty and win
+        # where they show a nearer other surface; elsewhere the triangles'
+        # exact pixel-centre values stay.
+        line_raw, line_distance = _draw(ctx, size, dtype, lines, moderngl.LINES, resources)
         error = ctx.error
         if error != "GL_NO_ERROR":
             raise RenderError(f"OpenGL reported {error} while rendering the preliminary map")
@@ -182,7 +181,29 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
         gl.bind_default_framebuffer(ctx)
         for res in resources:
             res.release()
+    tri_empty = raw[..., 0] == 0
+    other = line_raw[..., 0] != raw[..., 0]  # another surface: a sliver in front
+    nearer = (line_raw[..., 0] != 0) & (tri_empty | (other & (line_distance < eye_distance)))
+    raw = np.where(nearer[..., None], line_raw, raw)
+    eye_distance = np.where(nearer, line_distance, eye_distance)
     return decode_map(patches, raw, eye_distance, mode)
+
+
+def _draw(ctx, size, dtype, vao, mode, resources):
+    """One pass into a fresh framebuffer: (raw (H, W, 4), eye distance (H, W) float32), row 0 at the top."""
+    width, height = size
+    color = ctx.texture(size, 4, dtype=dtype)
+    dist = ctx.texture(size, 1, dtype="f4")
+    depth = ctx.depth_renderbuffer(size)
+    fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
+    resources += [fbo, depth, dist, color]
+    fbo.use()
+    ctx.viewport = (0, 0, width, height)
+    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+    vao.render(mode)
+    raw = np.frombuffer(fbo.read(components=4, dtype=dtype, attachment=0), dtype=np.float32 if dtype == "f4" else np.uint8)
+    distance = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype=np.float32)
+    return raw.reshape(height, width, 4)[::-1], distance.reshape(height, width)[::-1]
 
 
 def decode_map(patches: PatchSet, raw: np.ndarray, eye_distance: np.ndarray, mode: str) -> PrelimMap:

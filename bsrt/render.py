@@ -41,6 +41,9 @@ from .solve import RootResult, Rays, find_roots
 # A root farther than this many pixel footprints from the map's rasterised
 # distance is on another layer (or the map missed a nearer piece).
 LAYER_SLACK_PIXELS = 8.0
+# A second difference of the map's distance larger than this many pixel
+# footprints marks a fold (the surface's own silhouette) between neighbours.
+FOLD_PIXELS = 4.0
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
 
 
@@ -359,17 +362,26 @@ def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, c
     border = np.zeros((h, w), dtype=bool)
     for di, dj in NEIGHBOURS:
         border |= padded[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] != sid
-    suspect = border.ravel()
+    # A jump in the map's distance between neighbours on the same surface: a
+    # fold of the surface over itself (its own silhouette) runs there.
+    dist = np.where(np.isfinite(prelim.distance), prelim.distance, 0.0)
+    fold = np.zeros((h, w), dtype=bool)
+    for axis in (0, 1):
+        curve = np.abs(np.diff(dist, 2, axis=axis))
+        jump = curve > FOLD_PIXELS * footprint_of(camera, w, film_height) * dist.take(range(1, dist.shape[axis] - 1), axis=axis)
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (1, 1)
+        fold |= np.pad(jump, pad)
+    suspect = (border | fold).ravel()
     suspect[covered[~ok]] = True
-    _, ty = camera.half_extents(w, film_height)
-    footprint = 2.0 * ty / film_height
+    footprint = footprint_of(camera, w, film_height)
     map_distance = prelim.distance.ravel()
     t = hits.t
     layer = hits.hit & (np.abs(t - map_distance) > LAYER_SLACK_PIXELS * footprint * map_distance + tolerance)
     suspect |= layer
     suspects = np.flatnonzero(suspect)
     before = (hits.hit[suspects].copy(), hits.surface[suspects].copy(), hits.t[suspects].copy())
-    traced = _repair(geometry, rays, prelim, hits, suspects, layer, tolerance, max_iterations)
+    traced = _repair(geometry, rays, prelim, hits, suspects, tolerance, max_iterations)
     changed = (before[0] != hits.hit[suspects]) | (before[1] != hits.surface[suspects]) | (
         np.abs(np.nan_to_num(before[2]) - np.nan_to_num(hits.t[suspects])) > tolerance * 10
     )
@@ -380,13 +392,12 @@ def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, c
     return hits
 
 
-def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, layer: np.ndarray, tolerance,
-            max_iterations) -> int:
+def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, tolerance, max_iterations) -> int:
     """Re-solve suspect pixels from their neighbours' starts, then with the hierarchy.
 
-    layer: (N,) bool, pixels whose root disagreed with the map's distance.
-    Suspects still without a hit, or on a wrong layer, go to the exact
-    intersector (Martin et al.'s hierarchy): the nearest valid root wins.
+    Then every suspect also goes to the exact intersector (Martin et al.'s
+    hierarchy): the nearest valid root of all wins, so a pixel is wrong only
+    if both the neighbour starts and the hierarchy miss its nearest root.
     """
     if not suspects.size:
         return 0
@@ -417,7 +428,7 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, layer: np.
     np.add.at(hits.iterations, item_pixel, res.iterations)
     valid = res.converged & (res.t > 0)
     _keep_nearest(hits, patches, item_pixel[valid], res, np.flatnonzero(valid))
-    hard = suspects[~hits.hit[suspects] | layer[suspects]]
+    hard = suspects
     if hard.size:
         from .bvh import intersect
 
@@ -427,6 +438,12 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, layer: np.
         for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):
             getattr(hits, name)[hard[better]] = getattr(exact, name)[better]
     return int(hard.size)
+
+
+def footprint_of(camera, width: int, film_height: int) -> float:
+    """Size of a pixel at unit distance from the eye (scene units)."""
+    _, ty = camera.half_extents(width, film_height)
+    return 2.0 * ty / film_height
 
 
 def _keep_nearest(hits: Hits, patches: PatchSet, pixel: np.ndarray, res: RootResult, take: np.ndarray) -> None:

@@ -222,11 +222,18 @@ def test_paraboloid_matches_quadratic():
     # Skip rays within 1e-7 of the patch border or tangent (ill-conditioned either way).
     p = origins + np.where(np.isfinite(expect), expect, 0)[:, None] * directions
     border = np.isfinite(expect) & (np.maximum(np.abs(p[:, 0]), np.abs(p[:, 1])) > 1 - 1e-7)
+    # A hit is within the tolerance eps of the ray, so t is within eps / cos of
+    # the exact root (cos between the ray and the normal); near tangency the
+    # root itself is ill-conditioned.
+    normal = np.stack([-2 * p[:, 0], -2 * p[:, 1], np.ones(n)], axis=1)
+    cos = np.abs(np.einsum("ij,ij->i", normal, directions)) / np.linalg.norm(normal, axis=1)
+    tangent = np.isfinite(expect) & (cos < 1e-3)
     assert np.isfinite(expect).sum() > n // 4
-    keep = ~border
+    keep = ~border & ~tangent
     np.testing.assert_array_equal(hits.hit[keep], np.isfinite(expect)[keep])
     h = hits.hit & keep
-    np.testing.assert_allclose(hits.t[h], expect[h], atol=1e-8)
+    eps = 1e-9 * bvh.patches.scene_diagonal()
+    assert np.all(np.abs(hits.t[h] - expect[h]) <= 1.01 * eps / cos[h] + 1e-12)
 
 
 # ---------------------------------------------------------------------------

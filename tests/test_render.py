@@ -112,7 +112,7 @@ def test_paraboloid_silhouette_and_self_occlusion(ctx, eye, look_at):
 @pytest.mark.parametrize("name", ["column", "water-lily"])
 def test_methods_agree_on_every_pixel(ctx, name):
     scene = load_scene(SCENES / f"{name}.toml")
-    results = {m: render(scene, method=m, width=128, height=128, ctx=ctx) for m in ("newton", "gradient", "fast")}
+    results = {m: render(scene, method=m, width=128, height=128, ctx=ctx) for m in ("newton", "gradient", "fast", "martin")}
     ref = results["newton"].hits
     tol = scene.render.tolerance * 1e3 * 20  # scene sizes are ~10: distances agree to ~1e-7
     for method, res in results.items():
