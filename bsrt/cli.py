@@ -66,6 +66,10 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--size", type=_positive_int, default=512, help="film width and height (default 512)")
     b.add_argument("--repeat", type=_positive_int, default=3, help="timed runs per method; the median is shown")
     b.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+
+    from .preview import add_arguments as _preview_arguments
+
+    _preview_arguments(sub.add_parser("preview", help="interactive window: orbit, pan, zoom; refines to the exact image"))
     return parser
 
 
@@ -216,7 +220,7 @@ def _cmd_doctor(args) -> int:
     if not devices:
         print("  none found: " + gl.FIX_HINT)
     try:
-        ctx = gl.create_headless_context()
+        ctx = gl.headless_context()
     except RenderError as exc:
         print(f"OpenGL: FAILED: {exc}")
         return 1
@@ -226,7 +230,6 @@ def _cmd_doctor(args) -> int:
     chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
     print(f"device chosen:   {chosen if chosen is not None else 'first that works'} (set GLCONTEXT_DEVICE_INDEX=N to pick)")
     print("OK: bsrt can render headless")
-    ctx.release()
     return 0
 
 
@@ -239,7 +242,13 @@ def _cmd_bench(args) -> int:
     return bench.main(args)
 
 
-COMMANDS = {"render": _cmd_render, "map": _cmd_map, "info": _cmd_info, "doctor": _cmd_doctor, "bench": _cmd_bench}
+def _cmd_preview(args) -> int:
+    from . import preview
+
+    return preview.main(args)
+
+
+COMMANDS = {"render": _cmd_render, "map": _cmd_map, "info": _cmd_info, "doctor": _cmd_doctor, "bench": _cmd_bench, "preview": _cmd_preview}
 
 
 def main(argv=None) -> int:

@@ -145,3 +145,31 @@ def bind_default_framebuffer(ctx: moderngl.Context) -> None:
     if "bsrt_default_fbo" not in ctx.extra:
         ctx.extra["bsrt_default_fbo"] = ctx.detect_framebuffer(0)
     ctx.extra["bsrt_default_fbo"].use()
+
+
+def create_window_context() -> moderngl.Context:
+    """A moderngl context for the OpenGL context current on this thread (the
+    preview's glfw window, which owns it). GLX first, then EGL. Raises
+    RenderError when the window's context cannot be used (not 3.3 core)."""
+    errors = []
+    for backend in (None, "egl"):
+        try:
+            if backend is None:
+                return moderngl.create_context(require=GL_VERSION)
+            return moderngl.create_context(require=GL_VERSION, backend=backend)
+        except Exception as exc:  # glcontext raises plain Exception subclasses
+            errors.append(f"{backend or 'default'}: {exc}")
+    raise RenderError("cannot use the window's OpenGL context (" + "; ".join(errors) + "); " + FIX_HINT)
+
+
+def release_cached(ctx: moderngl.Context) -> int:
+    """Release the programs :func:`program` cached on ctx. Call it before
+    releasing a window's context: that GL context belongs to glfw, so
+    releasing the moderngl wrapper frees nothing. Returns how many."""
+    if not isinstance(ctx.extra, dict):
+        return 0
+    programs = ctx.extra.pop("bsrt_programs", {})
+    for prog in programs.values():
+        prog.release()
+    ctx.extra.pop("bsrt_default_fbo", None)
+    return len(programs)

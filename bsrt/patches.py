@@ -63,6 +63,7 @@ class PatchSet:
 
     def __init__(self, surfaces: list[BSplineSurface]):
         self.surfaces = list(surfaces)
+        self.derived: dict = {}  # data other modules derive from the table, cached (prelim's tessellation)
         m_count = len(self.surfaces)
         self.domain = np.zeros((m_count, 4))
         pieces = []  # (group key, surface, natural index, bezier, bounds)

@@ -146,9 +146,20 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
         return _rasterise(patches, camera, width, height, mode, ctx, rows)
 
 
+def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
+    """tessellate() for this view, cached (one entry on the PatchSet): the
+    bands of one map, and repeated renders of one view, share it."""
+    key = (tuple(camera.eye), tuple(camera.look_at), tuple(camera.up), camera.fov, camera.fov_axis, width, height)
+    cached = patches.derived.get("tessellation")
+    if cached is None or cached[0] != key:
+        mesh = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
+        patches.derived["tessellation"] = cached = (key, mesh)
+    return cached[1]
+
+
 def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
     near, far = depth_range(patches, camera)
-    vertices, indices = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
+    vertices, indices = _tessellation(patches, camera, width, height)
     program = gl.program(ctx, "prelim")
     program["clip_from_eye"].write(clip_from_eye(camera, width, height, near, far, rows).T.astype("f4").tobytes())
     program["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0

@@ -1,0 +1,420 @@
+"""The preview window (``bsrt preview``), driven by its event scripts in a real
+window: Xvfb and Mesa's GLX (llvmpipe). If DISPLAY is unset the tests start
+their own Xvfb; if that fails they fail (they are never skipped).
+
+The window runs in a subprocess (as a user runs it); the images it saves are
+compared with render() called here with the camera it printed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from bsrt import preview
+from bsrt.camera import Camera
+from bsrt.errors import InputError
+from bsrt.render import Geometry, render
+from bsrt.scene import load_scene
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "scenes"
+TIMEOUT = 300
+
+
+# ---------------------------------------------------------------- fixtures and helpers
+
+
+@pytest.fixture(scope="session")
+def display():
+    """A usable X display: $DISPLAY, or a private Xvfb started here."""
+    if os.environ.get("DISPLAY"):
+        yield os.environ["DISPLAY"]
+        return
+    xvfb = shutil.which("Xvfb")
+    if xvfb is None:
+        pytest.fail("DISPLAY is unset and Xvfb is not installed (apt-get install xvfb xauth): the window tests need one")
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen(
+        [xvfb, "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )
+    os.close(write_fd)
+    with os.fdopen(read_fd) as pipe:
+        number = pipe.readline().strip()  # Xvfb writes the display number once it accepts connections
+    if not number:
+        proc.kill()
+        pytest.fail(f"Xvfb did not start: {proc.stderr.read().decode(errors='replace')[-500:]}")
+    try:
+        yield f":{number}"
+    finally:
+        proc.terminate()
+        proc.wait(10)
+
+
+def run_preview(display, scene, *args, cwd=None, env_display=True):
+    env = dict(os.environ)
+    env.pop("WAYLAND_DISPLAY", None)
+    if env_display and display is not None:
+        env["DISPLAY"] = display
+    else:
+        env.pop("DISPLAY", None)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    return subprocess.run(
+        [sys.executable, "-m", "bsrt.cli", "preview", str(scene), *map(str, args)],
+        capture_output=True, text=True, timeout=TIMEOUT, env=env, cwd=cwd,
+    )
+
+
+def cameras_printed(stdout: str) -> list[Camera]:
+    """Every [camera] table the window printed (key C / script 'camera'), in order."""
+    out = []
+    for chunk in stdout.split("[camera]")[1:]:
+        table = tomllib.loads(chunk.split("\n\n")[0])
+        out.append(Camera(np.array(table["eye"]), np.array(table["look_at"]), np.array(table["up"]),
+                          table["fov"], table["fov_axis"]))
+    return out
+
+
+def read_png(path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def assert_same_image(got: np.ndarray, want: np.ndarray, what: str) -> None:
+    assert got.shape == want.shape, what
+    diff = np.abs(got.astype(np.int16) - want.astype(np.int16))
+    assert diff.mean() < 1.0, f"{what}: mean abs diff {diff.mean():.3f} / 255"
+    assert (diff.max(axis=-1) <= 2).mean() >= 0.999, f"{what}: {(diff.max(axis=-1) > 2).sum()} pixels differ by > 2/255"
+
+
+def foreground(image: np.ndarray, background) -> np.ndarray:
+    from bsrt.image import srgb_encode
+
+    bg = srgb_encode(np.asarray(background, dtype=np.float64)).astype(np.int16)
+    return np.abs(image.astype(np.int16) - bg).max(axis=-1) > 8
+
+
+# ---------------------------------------------------------------- one scripted session, several checks
+
+
+@pytest.fixture(scope="module")
+def session(display, tmp_path_factory):
+    """column.toml in a 200x150 window: refine, save, orbit, refine, save,
+    switch method, show the map, save with key S next to the scene, quit."""
+    tmp = tmp_path_factory.mktemp("preview")
+    scene = tmp / "column.toml"
+    shutil.copy(SCENES / "column.toml", scene)
+    script = tmp / "script.txt"
+    script.write_text(
+        "# refine, then save the exact image and print the camera\n"
+        "wait\n"
+        "key c; save a.png; screenshot a-screen.png\n"
+        "orbit 40 15 6   # six frames of moving\n"
+        "screenshot moving.png\n"
+        "wait; key c; save b.png\n"
+        "key 2; wait; save fast.png\n"
+        "key m; frames 2; screenshot map.png; key m\n"
+        "key s; quit\n"
+    )
+    result = run_preview(display, scene, "--width", 200, "--height", 150, "--script", script,
+                         "--frame-log", "log.json", cwd=tmp)
+    return tmp, scene, result
+
+
+def test_session_exits_cleanly(session):
+    tmp, _, result = session
+    assert result.returncode == 0, result.stderr
+    assert "Warning" not in result.stderr and "error" not in result.stderr.lower(), result.stderr
+    log = json.loads((tmp / "log.json").read_text())
+    assert log["gl_error"] == "GL_NO_ERROR"
+    assert log["gl_objects_released"] >= 5 and log["gl_objects_left"] == 0
+    assert log["framebuffer"] == [200, 150]
+
+
+def test_refined_image_equals_render(session):
+    tmp, scene_path, result = session
+    assert result.returncode == 0, result.stderr
+    scene = load_scene(scene_path)
+    cameras = cameras_printed(result.stdout)
+    assert len(cameras) == 2
+    geometry = Geometry(scene)
+    for name, camera in zip(("a.png", "b.png"), cameras):
+        want = render(scene, camera=camera, width=200, height=150, geometry=geometry, spp=1).pixels
+        assert_same_image(read_png(tmp / name), want, name)
+    # what the window showed is the exact image, pixel for pixel
+    assert np.array_equal(read_png(tmp / "a-screen.png"), read_png(tmp / "a.png"))
+
+
+def test_scripted_orbit_changes_the_image(session):
+    tmp, scene_path, result = session
+    a, b = read_png(tmp / "a.png"), read_png(tmp / "b.png")
+    changed = np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=-1) > 8
+    assert changed.mean() > 0.05
+    first, second = cameras_printed(result.stdout)
+    assert not np.allclose(first.eye, second.eye)
+    assert np.allclose(first.look_at, second.look_at)
+    assert np.isclose(np.linalg.norm(first.eye - first.look_at), np.linalg.norm(second.eye - second.look_at))
+
+
+def test_fast_view_draws_the_scene(session):
+    tmp, scene_path, _ = session
+    scene = load_scene(scene_path)
+    moving, exact = read_png(tmp / "moving.png"), read_png(tmp / "b.png")
+    fg = foreground(moving, scene.film.background)
+    assert fg.mean() > 0.05  # the column covers a good part of the window
+    # the shaded tessellation looks like the exact image of the same camera
+    overlap = (fg == foreground(exact, scene.film.background)).mean()
+    assert overlap > 0.97
+    assert np.abs(moving.astype(float) - exact.astype(float)).mean() < 12.0
+
+
+def test_method_switch_and_map(session):
+    tmp, scene_path, result = session
+    scene = load_scene(scene_path)
+    camera = cameras_printed(result.stdout)[1]
+    want = render(scene, method="fast", camera=camera, width=200, height=150, spp=1)
+    assert_same_image(read_png(tmp / "fast.png"), want.pixels, "fast.png")
+    # key M shows the preliminary map's picture (paper's Figure 1)
+    assert np.array_equal(read_png(tmp / "map.png"), want.prelim.picture)
+
+
+def test_key_s_saves_next_to_the_scene(session):
+    tmp, scene_path, result = session
+    saved = tmp / "column-preview-001.png"
+    assert saved.exists(), result.stderr
+    assert np.array_equal(read_png(saved), read_png(tmp / "fast.png"))
+
+
+def test_frame_log_records_refinement(session):
+    tmp, _, _ = session
+    log = json.loads((tmp / "log.json").read_text())
+    states = [f["state"] for f in log["frames"]]
+    assert {"moving", "refining", "exact"} <= set(states)
+    summary = log["summary"]
+    assert summary["refining_frames"] >= 3  # the window kept drawing while the solver worked
+    # generous (a loaded CI machine): the 100 ms target is measured at 800x600, see the issue notes
+    assert summary["max_gap_refining_ms"] < 1000
+
+
+# ---------------------------------------------------------------- more windows
+
+
+def test_fast_view_frames_and_screenshot(display, tmp_path):
+    out = tmp_path / "shot.png"
+    result = run_preview(display, SCENES / "quad.toml", "--width", 200, "--height", 150, "--frames", 3,
+                         "--screenshot", out)
+    assert result.returncode == 0, result.stderr
+    image = read_png(out)
+    assert image.shape == (150, 200, 3)
+    scene = load_scene(SCENES / "quad.toml")
+    assert 0.1 < foreground(image, scene.film.background).mean() < 0.9
+
+
+def test_resize_renders_at_the_new_framebuffer_size(display, tmp_path):
+    result = run_preview(display, SCENES / "quad.toml", "--width", 120, "--height", 90,
+                         "--events", "wait; resize 160 100; frames 3; wait; camera; save out.png; quit", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    image = read_png(tmp_path / "out.png")
+    assert image.shape == (100, 160, 3)
+    scene = load_scene(SCENES / "quad.toml")
+    (camera,) = cameras_printed(result.stdout)
+    assert_same_image(image, render(scene, camera=camera, width=160, height=100, spp=1).pixels, "resized")
+
+
+def test_martin_method_or_its_error_keeps_the_window_running(display, tmp_path):
+    result = run_preview(display, SCENES / "quad.toml", "--width", 80, "--height", 60,
+                         "--events", "key 4; wait; frames 2; key 3; wait; save n.png; quit", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "n.png").exists()
+
+
+def test_no_display_exits_2_pointing_at_bsrt_render():
+    result = run_preview(None, SCENES / "quad.toml", "--frames", 1, env_display=False)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "bsrt render" in lines[0], result.stderr
+
+
+def test_bad_display_exits_2():
+    result = run_preview(":987", SCENES / "quad.toml", "--frames", 1)  # nothing listens there
+    assert result.returncode == 2
+    assert "bsrt render" in result.stderr
+
+
+def test_bad_script_exits_2_before_opening_a_window():
+    result = run_preview(None, SCENES / "quad.toml", "--events", "orbit 30; quit")
+    assert result.returncode == 2
+    assert "orbit" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_input_callbacks_in_process(display, monkeypatch):
+    """Mouse, wheel and keys through the real glfw callbacks of a real window."""
+    import argparse
+
+    import glfw
+
+    monkeypatch.setenv("DISPLAY", display)
+    parser = argparse.ArgumentParser()
+    preview.add_arguments(parser)
+    path = SCENES / "quad.toml"
+    args = parser.parse_args([str(path), "--width", "120", "--height", "90"])
+    window = preview.Preview(load_scene(path), path, args, [])
+    window.open()
+    try:
+        w = window.window
+        home = window.camera
+        distance = np.linalg.norm(home.eye - home.look_at)
+        window._on_mouse_button(w, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+        x, y = window.mouse["x"], window.mouse["y"]
+        window._on_cursor(w, x + 25, y - 10)
+        assert window.state() == "moving"
+        window._on_mouse_button(w, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)
+        orbited = window.camera
+        assert np.allclose(orbited.look_at, home.look_at) and not np.allclose(orbited.eye, home.eye)
+        assert np.isclose(np.linalg.norm(orbited.eye - orbited.look_at), distance)
+        window._on_mouse_button(w, glfw.MOUSE_BUTTON_RIGHT, glfw.PRESS, 0)
+        window._on_cursor(w, x + 35, y)
+        window._on_mouse_button(w, glfw.MOUSE_BUTTON_RIGHT, glfw.RELEASE, 0)
+        assert np.allclose(window.camera.eye - orbited.eye, window.camera.look_at - orbited.look_at)
+        assert not np.allclose(window.camera.look_at, orbited.look_at)
+        before = window.camera
+        window._on_scroll(w, 0.0, 1.0)
+        assert np.isclose(np.linalg.norm(window.camera.eye - window.camera.look_at),
+                          preview.ZOOM_STEP * np.linalg.norm(before.eye - before.look_at))
+        window._on_key(w, glfw.KEY_LEFT, 0, glfw.PRESS, 0)
+        assert not np.allclose(window.camera.eye, before.eye)
+        window._on_key(w, glfw.KEY_M, 0, glfw.PRESS, 0)
+        assert window.show_map
+        window._on_key(w, glfw.KEY_2, 0, glfw.PRESS, 0)
+        assert window.method == "fast"
+        window._on_key(w, glfw.KEY_R, 0, glfw.PRESS, 0)
+        assert np.array_equal(window.camera.eye, home.eye)
+        window.args.frames = 3
+        window.run()
+        assert window.frame == 3
+        window._on_key(w, glfw.KEY_ESCAPE, 0, glfw.PRESS, 0)
+        assert window.quit
+    finally:
+        window.close()
+    assert window.gl_error == "GL_NO_ERROR" and not window._owned
+
+
+def test_solver_abandons_a_stale_job_at_once(ctx):
+    """A camera move while a long solve runs: the warm spare process takes over."""
+    import time
+
+    from bsrt.prelim import render_map
+
+    scene = load_scene(SCENES / "column.toml")
+    patches = Geometry(scene).patches
+    solver = preview.Solver(scene, "float")
+    solver.start()
+    try:
+        def job(generation, width, height, camera):
+            prelim = render_map(patches, camera, width, height, ctx=ctx)
+            return preview.Job(generation, 0, "newton", camera, width, height, prelim)
+
+        deadline = time.monotonic() + 120
+        while solver.spare is None or solver.spare.running.value != preview.IDLE:
+            solver.outcomes()
+            assert time.monotonic() < deadline, "the spare solver never got ready"
+            time.sleep(0.02)
+        solver.submit(job(1, 480, 360, scene.camera))  # seconds of work
+        while solver.active.running.value != 1:
+            solver.outcomes()
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        moved = preview.orbit(scene.camera, 20.0, 0.0)
+        solver.cancel_before(2)
+        assert solver.swaps == 1
+        solver.submit(job(2, 40, 30, moved))
+        got = []
+        while not got:
+            got = solver.outcomes()
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert [o.job.generation for o in got] == [2] and got[0].error is None
+        want = render(scene, camera=moved, width=40, height=30, spp=1).pixels
+        assert np.array_equal(got[0].pixels, want)
+    finally:
+        solver.stop()
+    assert solver.active is None
+
+
+# ---------------------------------------------------------------- pure functions
+
+
+def _camera():
+    return Camera(np.array([1.0, -5.0, 2.0]), np.array([0.0, 0.0, 0.5]), np.array([0.0, 0.0, 1.0]), 35.0, "y")
+
+
+def test_orbit_keeps_distance_and_target():
+    cam = _camera()
+    moved = preview.orbit(cam, 30.0, 10.0)
+    assert np.allclose(moved.look_at, cam.look_at)
+    assert np.isclose(np.linalg.norm(moved.eye - moved.look_at), np.linalg.norm(cam.eye - cam.look_at))
+    assert moved.eye[2] > cam.eye[2]  # positive pitch raises the eye
+    # a full turn of yaw comes back; pitch never crosses the up axis
+    assert np.allclose(preview.orbit(cam, 360.0, 0.0).eye, cam.eye)
+    top = cam
+    for _ in range(40):
+        top = preview.orbit(top, 0.0, 10.0)
+    offset = (top.eye - top.look_at) / np.linalg.norm(top.eye - top.look_at)
+    assert offset @ cam.up < np.cos(np.radians(0.99))
+
+
+def test_pan_and_zoom():
+    cam = _camera()
+    panned = preview.pan(cam, 0.1, -0.2, 4 / 3)
+    assert np.allclose(panned.eye - cam.eye, panned.look_at - cam.look_at)
+    right, up, _ = cam.basis()
+    shift = panned.eye - cam.eye
+    assert shift @ right < 0 and shift @ up > 0  # the scene follows the cursor
+    zoomed = preview.zoom(cam, 0.5)
+    assert np.allclose(zoomed.look_at, cam.look_at)
+    assert np.isclose(np.linalg.norm(zoomed.eye - cam.look_at), 0.5 * np.linalg.norm(cam.eye - cam.look_at))
+
+
+def test_camera_toml_round_trips_exactly():
+    cam = preview.orbit(_camera(), 12.345, 6.789)
+    (back,) = cameras_printed(preview.camera_toml(cam))
+    assert np.array_equal(back.eye, cam.eye) and np.array_equal(back.look_at, cam.look_at)
+    assert back.fov == cam.fov and back.fov_axis == cam.fov_axis
+
+
+def test_parse_script():
+    cmds = preview.parse_script("orbit 30 0; wait  # comment\nsave 'a b.png'\nzoom 0.5 4; key M; quit")
+    assert [c.name for c in cmds] == ["orbit", "wait", "save", "zoom", "key", "quit"]
+    assert cmds[2].args == ["a b.png"] and cmds[3].args == [0.5, 4]
+    for bad in ("fly 1", "orbit 1", "orbit a b", "save out.jpg", "key F13", "method fastest", "frames 0"):
+        with pytest.raises(InputError):
+            preview.parse_script(bad)
+
+
+def test_map_bands_stitch_to_the_whole_map(ctx):
+    scene = load_scene(SCENES / "column.toml")
+    patches = Geometry(scene).patches
+    from bsrt.prelim import render_map
+
+    width, height = 120, 90
+    whole = render_map(patches, scene.camera, width, height, ctx=ctx)
+    bands = preview.map_bands(width, height)
+    assert bands[0][0] == 0 and bands[-1][1] == height
+    assert all(a[1] == b[0] for a, b in zip(bands, bands[1:]))
+    assert len(preview.map_bands(800, 600)) == round(800 * 600 / preview.MAP_BAND_PIXELS)
+    three = [(0, 30), (30, 60), (60, 90)]
+    stitched = preview.stitch_maps([render_map(patches, scene.camera, width, height, ctx=ctx, rows=r) for r in three])
+    assert np.array_equal(stitched.surface, whole.surface)
+    covered = whole.surface >= 0
+    assert np.allclose(stitched.u[covered], whole.u[covered], atol=1e-3)
+    assert np.allclose(stitched.v[covered], whole.v[covered], atol=1e-3)
+    assert ctx.error == "GL_NO_ERROR"
