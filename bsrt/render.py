@@ -45,6 +45,7 @@ LAYER_SLACK_PIXELS = 8.0
 # footprints marks a fold (the surface's own silhouette) between neighbours.
 FOLD_PIXELS = 4.0
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+REPAIR_ITERATIONS = 16
 
 
 @dataclass
@@ -351,6 +352,7 @@ def _solve_from_map(geometry, rays, prelim, method, tolerance, max_iterations, c
     res = find_roots(
         patches, rays, covered, seed_surface[covered], prelim.u.ravel()[covered], prelim.v.ravel()[covered],
         method=method, tolerance=tolerance, max_iterations=max_iterations,
+        stop_on_growth=method == "newton",  # a failure here is re-solved as a suspect below
     )
     ok = res.converged & (res.t > 0)
     hits.iterations[covered] = res.iterations
@@ -406,7 +408,7 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, tolerance,
     row, col = np.divmod(suspects, w)
     item_pixel, item_surface, item_u, item_v = [], [], [], []
     seed_surface, seed_u, seed_v = prelim.surface.ravel(), prelim.u.ravel(), prelim.v.ravel()
-    for di, dj in NEIGHBOURS:
+    for di, dj in sorted(NEIGHBOURS, key=lambda o: abs(o[0]) + abs(o[1])):  # own start first
         r, c = row + di, col + dj
         inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
         src = (r * w + c)[inside]
@@ -420,10 +422,16 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, tolerance,
         item_surface.append(surf[keep])
         item_u.append(uu[keep])
         item_v.append(vv[keep])
-    item_pixel = np.concatenate(item_pixel)
+    item_pixel, item_surface = np.concatenate(item_pixel), np.concatenate(item_surface)
+    # One start per (pixel, surface), the nearest neighbour's: a second layer of
+    # the same surface (a fold) is the hierarchy's job below.
+    _, first = np.unique(item_pixel * len(patches.surfaces) + item_surface, return_index=True)
+    item_pixel, item_surface = item_pixel[first], item_surface[first]
+    # Newton from a pixel away converges in a few steps or not at all.
     res = find_roots(
-        patches, rays, item_pixel, np.concatenate(item_surface), np.concatenate(item_u), np.concatenate(item_v),
-        method="newton", tolerance=tolerance, max_iterations=max_iterations,
+        patches, rays, item_pixel, item_surface, np.concatenate(item_u)[first], np.concatenate(item_v)[first],
+        method="newton", tolerance=tolerance, max_iterations=min(max_iterations, REPAIR_ITERATIONS),
+        stop_on_growth=True,
     )
     np.add.at(hits.iterations, item_pixel, res.iterations)
     valid = res.converged & (res.t > 0)
