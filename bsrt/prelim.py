@@ -22,8 +22,8 @@ from . import gl
 from .camera import Camera, clip_from_eye
 from .errors import InputError, RenderError
 from .patches import PatchSet
+from .scene import MAP_MODES
 
-MAP_MODES = ("float", "rgba8")
 MAX_SEGMENTS = 64
 
 

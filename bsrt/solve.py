@@ -36,7 +36,7 @@ import numpy as np
 
 from .patches import PatchSet
 
-METHODS = ("gradient", "fast", "newton")
+METHODS = ("gradient", "fast", "newton")  # the map-seeded ones; scene.METHODS adds "martin"
 
 
 def orthonormal_frames(directions: np.ndarray):
