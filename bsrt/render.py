@@ -100,7 +100,7 @@ class Geometry:
         return self._bvh
 
 
-MAX_BAND_SAMPLES = 1 << 20  # primary samples solved at once (memory ~ 0.5 KB per sample)
+MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
 
 
 def sample_grid(spp: int) -> tuple[int, int]:
@@ -153,6 +153,7 @@ def render(
                    "height": height, "spp": spp, "seconds": {"setup": 0.0, "map": 0.0, "solve": 0.0, "shade": 0.0}}
     clock = time.perf_counter()
     geometry = geometry or Geometry(scene)
+    geometry.bvh  # built here, not inside the first stage that needs it (hard pixels, shadows)
     stats["seconds"]["setup"] = time.perf_counter() - clock
     trace = _Tracer(scene, geometry, camera, method, map_mode, ctx, stats, report)
 
