@@ -84,6 +84,7 @@ def _vector(text: str):
 
 
 def _camera_options(parser) -> None:
+    parser.add_argument("--format", default="auto", help="model file format (default: by extension)")
     parser.add_argument("--camera-eye", type=_vector, metavar="X,Y,Z", help="camera position (overrides)")
     parser.add_argument("--camera-look-at", type=_vector, metavar="X,Y,Z", help="point the camera looks at")
     parser.add_argument("--fov", type=float, help="vertical field of view in degrees, 0 < fov < 180")
@@ -118,7 +119,7 @@ def _load_input(args):
 
         if not path.is_file():
             raise InputError(f"{path}: no such file")
-        model = load_model(path)
+        model = load_model(path, args.format)
         scene = scene_for_model(model, args.width or 512, args.height or 512, args.camera_eye, args.camera_look_at, args.fov)
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
