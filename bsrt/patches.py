@@ -225,6 +225,4 @@ class PatchSet:
             hv += x[1, i]
         if d == 3:
             return h, hu, hv
-        w = h[3]
-        S = h[:3] / w
-        return S, (hu[:3] - S * hu[3]) / w, (hv[:3] - S * hv[3]) / w
+        return tuple(a.T for a in rational_quotient(h.T, hu.T, hv.T))

@@ -295,7 +295,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
 
     geometry = Geometry(scene)
     try:
-        geometry.bvh  # shadow rays and "martin" need it: build it before the first job
+        _ = geometry.bvh  # shadow rays and "martin" need it: build it before the first job
     except Exception:  # render() reports it when a job needs it
         pass
     running.value = IDLE

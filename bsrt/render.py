@@ -153,7 +153,7 @@ def render(
                    "height": height, "spp": spp, "seconds": {"setup": 0.0, "map": 0.0, "solve": 0.0, "shade": 0.0}}
     clock = time.perf_counter()
     geometry = geometry or Geometry(scene)
-    geometry.bvh  # built here, not inside the first stage that needs it (hard pixels, shadows)
+    _ = geometry.bvh  # built here, not inside the first stage that needs it (hard pixels, shadows)
     stats["seconds"]["setup"] = time.perf_counter() - clock
     trace = _Tracer(scene, geometry, camera, method, map_mode, ctx, stats, report)
 

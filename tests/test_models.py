@@ -9,7 +9,6 @@ import pytest
 from PIL import Image
 
 from bsrt.bspline import make_surface
-from bsrt.camera import Camera
 from bsrt.cli import main
 from bsrt.io import Model, load_model
 from bsrt.io.bez import newell_from_qt3d
