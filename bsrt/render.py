@@ -2,24 +2,15 @@
 
 The CLI, the preview window and the benchmarks all call :func:`render`.
 
-Hard pixels. A map rasterised from a tessellation is right almost
-everywhere, but near silhouettes it can miss pixels the surface covers (or
-claim pixels it does not), at borders between surfaces and knot spans it can
-name the wrong surface, and where a surface folds over itself Newton can
-slide to a root behind the visible one. After every covered pixel has been
-solved from its own seed, a pixel is *suspect* when
+Hard pixels. After every pixel the map covers has been solved from its own
+seed, suspect pixels (failed, on a border between surfaces in the map, on a
+kink of the map's distance, or with a root off the map's layer) are solved
+again from their neighbours' starts and by Martin et al.'s hierarchy; the
+nearest valid root wins. See the README ("How bsrt finds every hit") and
+_solve_from_map / _repair below.
 
-- it is covered but its root finder did not converge (or t <= 0), or
-- one of its 8 neighbours shows a different surface in the map (this rings
-  every silhouette and every border between surfaces, on both sides), or
-- its root's distance disagrees with the map's rasterised distance by more
-  than a few pixel footprints (a root on another layer).
-
-Each suspect pixel is solved again (Newton) from up to nine starts, its own
-and its neighbours' (their solved (u, v) where they converged, else their map
-seeds), and, when the exact intersector is available, by Martin et al.'s
-hierarchy; the nearest valid root wins. Everything else keeps its map-seeded
-root. See docs in the README ("How bsrt finds every hit").
+Secondary rays (shadows, mirrors) and method "martin" go through the
+hierarchy (bvh.intersect); anti-aliased and large films are traced in bands.
 """
 
 from __future__ import annotations
@@ -29,9 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .bvh import build_bvh, intersect
 from .camera import pixel_rays
 from .errors import InputError
 from .hits import Hits
+from .image import srgb_encode
 from .patches import PatchSet
 from .prelim import PrelimMap, render_map
 from .scene import Scene
@@ -53,7 +46,8 @@ class RenderResult:
     """pixels: (H, W, 3) uint8 sRGB. linear: (H, W, 3) float64.
     hits: Hits for the H * W pixel-centre rays (row-major).
     position, normal: (H * W, 3) float64, NaN where no hit.
-    prelim: the preliminary map (None for method "martin").
+    prelim: the preliminary map of the last band traced, the whole film's
+      when it fits in one band (None for method "martin").
     stats: timings (seconds) and counters, JSON-serialisable."""
 
     pixels: np.ndarray
@@ -94,8 +88,6 @@ class Geometry:
     @property
     def bvh(self):
         if self._bvh is None:
-            from .bvh import build_bvh
-
             self._bvh = build_bvh(self.patches)
         return self._bvh
 
@@ -184,8 +176,6 @@ def render(
     hits = Hits.concatenate([p[0] for p in primary])
     position = np.concatenate([p[1] for p in primary])
     normal = np.concatenate([p[2] for p in primary])
-    from .image import srgb_encode
-
     pixels = srgb_encode(linear)
     work = hits.iterations[hits.iterations > 0]
     stats.update(
@@ -302,8 +292,6 @@ class _Tracer:
         return hits.surface[hit], hits.u[hit], hits.v[hit], ru, rv
 
     def _trace(self, origins, directions, exclude, t_max=np.inf, any_hit=False) -> Hits:
-        from .bvh import intersect
-
         clock = time.perf_counter()
         out = intersect(self.geometry.bvh, origins, directions, t_min=0.0, t_max=t_max, tolerance=self.tolerance,
                         any_hit=any_hit, exclude=exclude)
@@ -328,8 +316,6 @@ class _Tracer:
 
 
 def _intersect_all(geometry: Geometry, rays: Rays, tolerance: float) -> Hits:
-    from .bvh import intersect
-
     return intersect(geometry.bvh, rays.origin.T, rays.direction.T, tolerance=tolerance)
 
 
@@ -439,8 +425,6 @@ def _repair(geometry, rays, prelim, hits: Hits, suspects: np.ndarray, tolerance,
     _keep_nearest(hits, patches, item_pixel[valid], res, np.flatnonzero(valid))
     hard = suspects
     if hard.size:
-        from .bvh import intersect
-
         exact = intersect(geometry.bvh, rays.origin[:, hard].T, rays.direction[:, hard].T, tolerance=tolerance)
         hits.iterations[hard] += exact.iterations
         better = exact.hit & (~hits.hit[hard] | (exact.t < hits.t[hard]))
