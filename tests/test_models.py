@@ -16,6 +16,7 @@ from bsrt.render import render
 from bsrt.scene import load_scene, scene_for_model
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "spline-surfaces"
+assert DATA.is_dir(), f"{DATA} is missing: the tests read the shared model files from there"
 FILES = sorted(p for p in DATA.rglob("*") if p.is_file() and p.suffix not in (".gif", ".md"))
 
 
