@@ -44,6 +44,10 @@ class PrelimMap:
     distance: np.ndarray
     picture: np.ndarray
 
+    def rows(self, first: int, stop: int) -> "PrelimMap":
+        """The map of film rows first..stop-1 (views, not copies)."""
+        return PrelimMap(*(a[first:stop] for a in (self.surface, self.u, self.v, self.distance, self.picture)))
+
 
 def segments_per_patch(patches: PatchSet, camera: Camera, width: int, height: int) -> np.ndarray:
     """(P, 2) int64: quads along u and v for each patch (1..MAX_SEGMENTS)."""

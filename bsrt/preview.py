@@ -257,7 +257,7 @@ class _NoGLHere:
 @dataclass
 class Job:
     generation: int
-    level: int  # index into Preview.divisors()
+    level: int  # index into LEVELS
     method: str
     camera: Camera
     width: int
@@ -904,32 +904,16 @@ class Preview:
 
     # ---- refinement
 
-    def divisors(self) -> list[int]:
-        """The refinement levels for this framebuffer: LEVELS, except that a
-        level must fit render()'s one band (a precomputed map is accepted only
-        for a film of one band): on a huge framebuffer the finest image is
-        the largest one that fits."""
-        from .render import MAX_BAND_SAMPLES
-
-        w, h = self.fb_size
-        out = []
-        for d in LEVELS:
-            while -(-w // d) * -(-h // d) > MAX_BAND_SAMPLES:
-                d += 1
-            if d not in out:
-                out.append(d)
-        return out
-
     def level_size(self, level: int) -> tuple[int, int]:
         w, h = self.fb_size
-        d = self.divisors()[level]
+        d = LEVELS[level]
         return max(1, -(-w // d)), max(1, -(-h // d))
 
     def _refine(self, now: float) -> None:
         """Rasterise the next band of the next level's map (one per frame, so
         the window never waits for a whole full-size map); when a level's map
         is complete, hand it to the solver."""
-        if self.failed or self.next_level >= len(self.divisors()) or min(self.fb_size) < 1:
+        if self.failed or self.next_level >= len(LEVELS) or min(self.fb_size) < 1:
             return
         if self.mouse["left"] or self.mouse["pan"] or now - self.last_change < SETTLE_SECONDS:
             return
@@ -994,7 +978,7 @@ class Preview:
             self.image_tex = self._texture(outcome.pixels)
             self.keep_image = False
             self.done_level = job.level
-            if job.level == len(self.divisors()) - 1:
+            if job.level == len(LEVELS) - 1:
                 self.exact_pixels = outcome.pixels
                 self._flush_saves()
 
@@ -1104,12 +1088,11 @@ class Preview:
         if self.failed:
             parts.append(self.failed.splitlines()[0][:120])
         elif state == "refining":
-            divisors = self.divisors()
+            divisors = LEVELS
             shown = divisors[self.done_level] if self.done_level >= 0 else None
             parts.append(f"refining {self.done_level + 1}/{len(divisors)}" + (f" (1/{shown} shown)" if shown and shown > 1 else ""))
         elif state == "exact":
-            last = self.divisors()[-1]
-            parts.append("exact" if last == 1 else f"exact at 1/{last} (larger than render()'s one band)")
+            parts.append("exact")
         else:
             parts.append(state)
         if self.solve_seconds is not None:
@@ -1290,7 +1273,7 @@ def main(args) -> int:
             preview.close()
     if args.frame_log:
         preview.log.write(Path(args.frame_log), {
-            "scene": str(scene_path), "framebuffer": list(preview.fb_size), "levels": preview.divisors(),
+            "scene": str(scene_path), "framebuffer": list(preview.fb_size), "levels": list(LEVELS),
             "max_fps": args.max_fps, "map_band_pixels": MAP_BAND_PIXELS, "gl_error": preview.gl_error,
             "gl_objects_released": preview.released, "gl_objects_left": len(preview._owned),
             "solver_swaps": preview.solver.swaps,

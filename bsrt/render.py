@@ -119,9 +119,9 @@ def render(
 
     camera: a camera.Camera to use instead of the scene's; ctx: a moderngl
     context for the map (default: the process's headless EGL context);
-    prelim: a map already rendered for this camera and size (the preview
-    window rasterises it on its own context, then solves elsewhere; only
-    with spp = 1 and a film small enough for one band); progress: called
+    prelim: a map already rendered for this camera and the whole film (the
+    preview window rasterises it on its own context, then solves elsewhere;
+    spp = 1 only); progress: called
     with a stage name ("map", "solve", "shade") as each stage starts.
 
     Anti-aliasing: spp samples per pixel sit at the centres of a stratified
@@ -152,8 +152,8 @@ def render(
     cols, rows = sample_grid(spp)
     sample_w, sample_h = width * cols, height * rows
     band = max(rows, (MAX_BAND_SAMPLES // sample_w) // rows * rows)
-    if prelim is not None and (spp != 1 or band < height):
-        raise ValueError("a precomputed map needs spp = 1 and a film of at most one band")
+    if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
+        raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     linear = np.zeros((height, width, 3))
     primary = []
     for first in range(0, sample_h, band):
@@ -223,8 +223,8 @@ class _Tracer:
             if prelim is None:
                 prelim = render_map(self.geometry.patches, self.camera, width, height, self.map_mode, ctx=self.ctx,
                                     rows=(lo, hi))
-            elif prelim.surface.shape != (height, width):
-                raise ValueError(f"prelim map is {prelim.surface.shape[::-1]}, the film {width}x{height}")
+            else:  # the whole film's map, given: this band's rows of it
+                prelim = prelim.rows(lo, hi)
             self.last_map = prelim
             seconds["map"] += time.perf_counter() - clock
             self.report("solve")
