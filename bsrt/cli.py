@@ -87,6 +87,7 @@ def _camera_options(parser) -> None:
     parser.add_argument("--format", default="auto", help="model file format (default: by extension)")
     parser.add_argument("--camera-eye", type=_vector, metavar="X,Y,Z", help="camera position (overrides)")
     parser.add_argument("--camera-look-at", type=_vector, metavar="X,Y,Z", help="point the camera looks at")
+    parser.add_argument("--camera-up", type=_vector, metavar="X,Y,Z", help="up direction (models default to +z)")
     parser.add_argument("--fov", type=float, help="vertical field of view in degrees, 0 < fov < 180")
 
 
@@ -109,10 +110,11 @@ def _load_input(args):
         cam = scene.camera
         eye = np.array(args.camera_eye) if args.camera_eye else cam.eye
         look = np.array(args.camera_look_at) if args.camera_look_at else cam.look_at
-        camera = replace(cam, eye=eye, look_at=look, fov=args.fov if args.fov is not None else cam.fov)
+        up = np.array(args.camera_up) if args.camera_up else cam.up
+        camera = replace(cam, eye=eye, look_at=look, up=up, fov=args.fov if args.fov is not None else cam.fov)
         view = camera.look_at - camera.eye
         if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, camera.up)) < 1e-9 * np.linalg.norm(view):
-            raise InputError("--camera-eye / --camera-look-at: the view direction must not be zero or parallel to up")
+            raise InputError("--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up")
         scene = replace(scene, camera=camera)
     else:
         from .io import load_model
@@ -120,7 +122,8 @@ def _load_input(args):
         if not path.is_file():
             raise InputError(f"{path}: no such file")
         model = load_model(path, args.format)
-        scene = scene_for_model(model, args.width or 512, args.height or 512, args.camera_eye, args.camera_look_at, args.fov)
+        scene = scene_for_model(model, args.width or 512, args.height or 512, args.camera_eye, args.camera_look_at,
+                                args.fov, args.camera_up or (0.0, 0.0, 1.0))
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
     return scene

@@ -396,11 +396,11 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     """A scene that shows a model file with no scene file.
 
     The camera frames the bounding box of the control points from a
-    three-quarter view above (+z up): the box's bounding sphere fills the
-    narrower field of view. A key point light (from the upper right, as
-    bright as 1 at the model), a dimmer directional fill from the other side
-    and a little ambient light; one neutral material. eye / look_at / fov
-    override the automatic choice.
+    three-quarter view above (``up`` is +z unless given): the box's
+    bounding sphere fills the narrower field of view. A key point light
+    (above and behind the camera, as bright as 1 at the model), a dimmer
+    directional fill and a little ambient light; one neutral material.
+    eye / look_at / fov override the automatic choice.
     """
     pts = np.concatenate([s.points.reshape(-1, 3) for s in model.surfaces])
     lo, hi = pts.min(axis=0), pts.max(axis=0)
@@ -408,16 +408,22 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)
     fov = 35.0 if fov is None else float(fov)
     look = centre if look_at is None else np.asarray(look_at, dtype=np.float64)
-    if eye is None:
+    up = np.asarray(up, dtype=np.float64)
+    if np.linalg.norm(up) == 0:
+        raise InputError("--camera-up: must not be the zero vector")
+    if eye is None:  # three-quarter view from above, relative to "up"
         half = np.radians(fov) / 2.0 * min(1.0, width / height)
-        direction = np.array([0.55, -0.75, 0.42])
+        zup = up / np.linalg.norm(up)
+        side = np.cross(zup, [1.0, 0.0, 0.0] if abs(zup[0]) < 0.9 else [0.0, 1.0, 0.0])
+        side /= np.linalg.norm(side)
+        front = np.cross(side, zup)
+        direction = 0.55 * side - 0.75 * front + 0.42 * zup
         eye = look + direction / np.linalg.norm(direction) * radius / np.sin(half) * 1.05
     eye = np.asarray(eye, dtype=np.float64)
-    up = np.asarray(up, dtype=np.float64)
     view = look - eye
     if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
-        raise InputError("--camera-eye / --camera-look-at: the view direction must not be zero or parallel to +z")
-    key_pos = centre + np.array([2.0, -1.5, 3.0]) * radius
+        raise InputError("--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up")
+    key_pos = centre + (eye - look) / np.linalg.norm(eye - look) * 2.5 * radius + up / np.linalg.norm(up) * 2.0 * radius
     lights = (
         Light("ambient", intensity=0.12),
         Light("point", color=(1.0, 0.97, 0.92), intensity=float(np.sum((key_pos - centre) ** 2)), position=tuple(key_pos)),

@@ -221,3 +221,5 @@ def test_camera_overrides_for_models(tmp_path):
     assert main(args + ["--camera-eye", "0,-5,0", "--camera-look-at", "0,0,0", "--fov", "30"]) == 0
     assert main(args + ["--camera-eye", "0,0,5", "--camera-look-at", "0,0,0"]) == 2  # view parallel to up
     assert main(args + ["--fov", "0"]) == 2
+    assert main(args + ["--camera-up", "0,1,0"]) == 0
+    assert main(args + ["--camera-up", "0,0,0"]) == 2
