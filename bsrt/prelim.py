@@ -58,21 +58,29 @@ def segments_per_patch(patches: PatchSet, camera: Camera, width: int, height: in
     diag = max(patches.scene_diagonal(), 1e-300)
     tolerance = 0.5 * pixel_at_unit_distance * np.maximum(nearest, 1e-3 * diag)
     out = np.ones((patches.size, 2), dtype=np.int64)
+    shapes: dict[tuple, list[int]] = {}
     for k, ctrl in enumerate(patches.bezier):
-        pts = ctrl[..., :3] / ctrl[..., 3:4]
-        p, q = pts.shape[0] - 1, pts.shape[1] - 1
-        m_uu = p * (p - 1) * _max_norm(pts[2:] - 2 * pts[1:-1] + pts[:-2]) if p > 1 else 0.0
-        m_vv = q * (q - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2]) if q > 1 else 0.0
-        m_uv = p * q * _max_norm(pts[1:, 1:] - pts[1:, :-1] - pts[:-1, 1:] + pts[:-1, :-1])
+        shapes.setdefault(ctrl.shape, []).append(k)
+    for shape, ids in shapes.items():  # vectorised over the patches of one degree
+        ctrl = np.array([patches.bezier[k] for k in ids])
+        pts = ctrl[..., :3] / ctrl[..., 3:4]  # (K, p+1, q+1, 3)
+        p, q = shape[0] - 1, shape[1] - 1
+        m_uu = p * (p - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2])
+        m_vv = q * (q - 1) * _max_norm(pts[:, :, 2:] - 2 * pts[:, :, 1:-1] + pts[:, :, :-2])
+        m_uv = p * q * _max_norm(pts[:, 1:, 1:] - pts[:, 1:, :-1] - pts[:, :-1, 1:] + pts[:, :-1, :-1])
         # chord error <= (m_uu / n_u^2 + 2 m_uv / (n_u n_v) + m_vv / n_v^2) / 8
-        n_u = np.sqrt((m_uu + m_uv) / (4.0 * tolerance[k]))
-        n_v = np.sqrt((m_vv + m_uv) / (4.0 * tolerance[k]))
-        out[k] = np.clip(np.ceil([n_u, n_v]), 1, MAX_SEGMENTS)
+        tol = tolerance[ids]
+        n_u = np.sqrt((m_uu + m_uv) / (4.0 * tol))
+        n_v = np.sqrt((m_vv + m_uv) / (4.0 * tol))
+        out[ids] = np.clip(np.ceil(np.stack([n_u, n_v], axis=1)), 1, MAX_SEGMENTS)
     return out
 
 
-def _max_norm(a: np.ndarray) -> float:
-    return float(np.sqrt((a * a).sum(axis=-1)).max()) if a.size else 0.0
+def _max_norm(a: np.ndarray) -> np.ndarray:
+    """Largest vector length per patch: a (K, ..., 3) -> (K,), zeros if a has no vectors."""
+    if a.size == 0:
+        return np.zeros(a.shape[0])
+    return np.sqrt((a * a).sum(axis=-1)).reshape(a.shape[0], -1).max(axis=1)
 
 
 def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):
