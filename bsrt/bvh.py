@@ -31,8 +31,10 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    piece's departure from a plane and the non-linearity of its
    parametrisation, which is what limits Newton's basin from the centre.
    A second, relative bound (curvature-based, like Martin's) also splits a
-   piece while ``dev > BEND * size`` (size = its box diagonal, BEND = 0.02):
-   its normals then turn by less than about 9 degrees, so a ray can cross a
+   piece while ``dev > BEND * size`` or its corners' bilinear patch is
+   twisted by more than that (``|P00 - Pp0 - P0q + Ppq| / 4``; size = its box
+   diagonal, BEND = 0.02): the piece is then within 2% of its size of a
+   plane, its normals turn by only about 9 degrees, so a ray can cross a
    leaf twice only within about 9 degrees of its tangent plane, i.e. with
    |cos(normal, ray)| < 0.16, which the grazing retries below (threshold
    0.3) cover. Without it, small strongly curved features (the column's
@@ -234,7 +236,10 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
             dev, dev_u, dev_v = flatness_measures(ctrl)
             pts = ctrl[..., :3] / ctrl[..., 3:4]
             size = np.linalg.norm(pts.max(axis=(1, 2)) - pts.min(axis=(1, 2)), axis=-1)
-            split = ((dev > eps) | (dev > BEND * size)) & (depth < max_depth)
+            # the twist of the corners' bilinear patch (zero when they are coplanar)
+            twist = 0.25 * np.linalg.norm(pts[:, 0, 0] - pts[:, -1, 0] - pts[:, 0, -1] + pts[:, -1, -1], axis=-1)
+            bent = np.maximum(dev, twist) > BEND * size
+            split = ((dev > eps) | bent) & (depth < max_depth)
             done = ~split
             if np.any(done):
                 out_patch.append(patch[done])
