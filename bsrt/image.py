@@ -7,7 +7,7 @@ place, so a failure never leaves a half-written output behind.
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +23,9 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
 
 def _atomic_write(path: Path, write) -> None:
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    os.close(fd)
+    # Created with mode 0o666 less the umask, like any new file (mkstemp's 0o600 would stick).
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
         write(tmp)
         os.replace(tmp, path)

@@ -126,3 +126,14 @@ def test_doctor_reports_the_gl_renderer(capsys):
     assert main(["doctor"]) == 0
     out = capsys.readouterr().out
     assert "OpenGL renderer:" in out and "OK" in out
+
+
+def test_outputs_get_ordinary_permissions(tmp_path):
+    """Written atomically, but with the usual mode (0o666 less the umask), not a temp file's 0o600."""
+    import os
+
+    out = tmp_path / "q.png"
+    assert main(["render", str(SCENES / "quad.toml"), "-o", str(out), "--width", "8", "--height", "8"]) == 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask
