@@ -128,6 +128,8 @@ class BVH:
         the [:p + 1, :q + 1] corner, the rest is zero).
       leaf_degree: (L, 2) int64, (p, q) of the piece.
       leaf_depth: (L,) int64, number of cuts from the Bezier patch.
+      leaf_planar: (L,) bool, the piece's control points lie in one plane
+        (its oriented box has no thickness beyond the padding).
       node_min, node_max: (K, 3) float64, node boxes (union of their leaves).
       node_bounds: (6, K) float64, the same, component-major
         (min x, min y, min z, max x, max y, max z), for traversal.
@@ -150,6 +152,7 @@ class BVH:
     leaf_net: np.ndarray
     leaf_degree: np.ndarray
     leaf_depth: np.ndarray
+    leaf_planar: np.ndarray
     node_min: np.ndarray
     node_max: np.ndarray
     node_bounds: np.ndarray
@@ -395,6 +398,7 @@ def build_bvh(
         leaf_net=all_nets[order],
         leaf_degree=degree[order],
         leaf_depth=depth[order],
+        leaf_planar=obb[order, 14] <= padding * (1.0 + 1e-6) + 1e-12 * diag,
         node_min=n_min,
         node_max=n_max,
         node_bounds=np.ascontiguousarray(np.concatenate([n_min, n_max], axis=1).T),
@@ -599,6 +603,19 @@ def _accept(bvh, leaf, ray, converged, u, v, t, t_min, t_max, exclude):
     return ok & ~start & (t > t_min[ray]) & (t < t_max[ray]), start
 
 
+def _leaves_own_plane(bvh: BVH, ray, leaf, exclude) -> np.ndarray:
+    """(M,) bool: the pair's leaf is planar and holds the ray's start root.
+
+    A ray leaving a plane never meets it again, so such a pair can only
+    yield the excluded root: no need to run Newton on it (most secondary
+    rays start on floors and water).
+    """
+    surface, u, v = exclude[0][ray], exclude[1][ray], exclude[2][ray]
+    rect = bvh.leaf_rect[leaf]
+    own = (bvh.leaf_surface[leaf] == surface) & (u >= rect[:, 0]) & (u <= rect[:, 1]) & (v >= rect[:, 2]) & (v <= rect[:, 3])
+    return own & bvh.leaf_planar[leaf]
+
+
 def intersect(
     bvh: BVH,
     origins: np.ndarray,
@@ -654,6 +671,9 @@ def intersect(
     for a in range(0, n, ray_chunk):
         ids = np.arange(a, min(n, a + ray_chunk))
         ray, leaf, entry = _candidates(bvh, rays.origin, rays.direction, inv_d, ids, t_min, t_max)
+        if exclude is not None and ray.size:
+            keep = ~_leaves_own_plane(bvh, ray, leaf, exclude)
+            ray, leaf, entry = ray[keep], leaf[keep], entry[keep]
         if not ray.size:
             continue
         order = np.lexsort((entry, ray))
