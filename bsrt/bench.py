@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .image import write_text
 from .render import Geometry, render
 from .scene import load_scene
 
@@ -142,5 +143,5 @@ def main(args) -> int:
     print()
     print(format_tables(results))
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2))
+        write_text(args.json, json.dumps(results, indent=2))
     return 0

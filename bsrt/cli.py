@@ -243,6 +243,8 @@ def _cmd_bench(args) -> int:
     unknown = [m for m in args.methods.split(",") if m.strip() and m.strip() not in METHODS]
     if unknown:
         raise InputError(f"--methods: unknown method {unknown[0]!r} (expected {', '.join(METHODS)})")
+    if args.json:
+        _check_output(args.json, ".json")
     return bench.main(args)
 
 

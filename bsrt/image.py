@@ -40,6 +40,11 @@ def write_png(path, pixels: np.ndarray) -> None:
     _atomic_write(path, lambda tmp: Image.fromarray(pixels, "RGB").save(tmp, format="PNG"))
 
 
+def write_text(path, text: str) -> None:
+    """UTF-8 text (e.g. JSON results) at path."""
+    _atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+
+
 def write_npz(path, arrays: dict) -> None:
     """Arrays -> compressed .npz at path (the name is kept exactly)."""
 
