@@ -29,6 +29,8 @@ class BSplineSurface:
     knots_v: (nv + q + 1,) float64, non-decreasing.
     points: (nu, nv, 3) float64, points[i, j] = P(i, j).
     weights: (nu, nv) float64, all > 0, or None for a non-rational surface.
+    trims: trim loops (bsrt.trim.TrimLoop) in the surface's (u, v) domain;
+      empty: the surface is whole.
 
     Construct through :func:`make_surface`, which validates; the messages of
     its :class:`InputError` name the offending key (``knots_u: ...``), and
@@ -40,6 +42,11 @@ class BSplineSurface:
     knots_v: np.ndarray
     points: np.ndarray
     weights: np.ndarray | None = None
+    trims: tuple = ()
+
+    @property
+    def is_trimmed(self) -> bool:
+        return bool(self.trims)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -73,7 +80,15 @@ class BSplineSurface:
         """
         m = np.asarray(world_from_local, dtype=np.float64)
         pts = self.points @ m[:3, :3].T + m[:3, 3]
-        return BSplineSurface(self.degree, self.knots_u, self.knots_v, pts, self.weights)
+        return BSplineSurface(self.degree, self.knots_u, self.knots_v, pts, self.weights, self.trims)
+
+    def with_trims(self, loops) -> "BSplineSurface":
+        """The same surface trimmed by ``loops`` (TrimLoop, checked to close and lie in the domain)."""
+        from .trim import check_loops
+
+        domain = (*self.domain_u, *self.domain_v)
+        return BSplineSurface(self.degree, self.knots_u, self.knots_v, self.points, self.weights,
+                              check_loops(tuple(loops), domain))
 
 
 def _check_knots(key: str, knots: np.ndarray, n: int, p: int) -> None:
