@@ -143,7 +143,7 @@ def _progress():
         return None
     start = time.perf_counter()
 
-    def report(stage: str) -> None:
+    def report(stage: str, fraction: float = 0.0) -> None:
         print(f"\rbsrt: {stage}... ({time.perf_counter() - start:.1f} s)", end="", file=sys.stderr, flush=True)
 
     return report

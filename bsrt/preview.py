@@ -316,7 +316,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
             continue
         running.value = job.generation
 
-        def progress(stage, job=job):
+        def progress(stage, fraction=0.0, job=job):
             if job.generation < generation.value:
                 raise _Cancelled
 

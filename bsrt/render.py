@@ -58,6 +58,25 @@ class RenderResult:
     prelim: PrelimMap | None
     stats: dict = field(default_factory=dict)
 
+    def save(self, path) -> None:
+        """Write the image as a PNG (atomically: a failure leaves no file)."""
+        from .image import write_png
+
+        write_png(path, self.pixels)
+
+    def png_bytes(self) -> bytes:
+        """The image encoded as PNG."""
+        import io
+
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        Image.fromarray(self.pixels, "RGB").save(buffer, format="PNG")
+        return buffer.getvalue()
+
+    def _repr_png_(self) -> bytes:  # Jupyter shows the image
+        return self.png_bytes()
+
     def aovs(self) -> dict:
         """The arrays of ``--aov`` (keys, dtypes and shapes of the scene format)."""
         h, w = self.pixels.shape[:2]
@@ -121,8 +140,10 @@ def render(
     context for the map (default: the process's headless EGL context);
     prelim: a map already rendered for this camera and the whole film (the
     preview window rasterises it on its own context, then solves elsewhere;
-    spp = 1 only); progress: called
-    with a stage name ("map", "solve", "shade") as each stage starts.
+    spp = 1 only); progress: called as ``progress(stage, fraction)`` with a
+    stage name ("map", "solve", "shade", "aov", "done") as each stage starts
+    and the fraction (0..1) of the whole render done so far (bands traced
+    and shaded, secondary rays included); it may raise to abandon the render.
 
     Anti-aliasing: spp samples per pixel sit at the centres of a stratified
     columns x rows grid (sample_grid), which is exactly the pixel-centre grid
@@ -140,7 +161,7 @@ def render(
     camera = camera or scene.camera
     if width < 1 or height < 1:
         raise InputError(f"film size must be at least 1x1, got {width}x{height}")
-    report = progress or (lambda stage: None)
+    report = progress or (lambda stage, fraction=0.0: None)
     stats: dict = {"method": method, "map": map_mode if method != "martin" else None, "width": width,
                    "height": height, "spp": spp, "seconds": {"setup": 0.0, "map": 0.0, "solve": 0.0, "shade": 0.0}}
     clock = time.perf_counter()
@@ -156,10 +177,13 @@ def render(
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     linear = np.zeros((height, width, 3))
     primary = []
+    # Progress: the AOV pass of an anti-aliased render counts as one more sample.
+    total = sample_h + (height if spp > 1 else 0)
     for first in range(0, sample_h, band):
         stop = min(sample_h, first + band)
+        trace.done = first / total
         hits, directions = trace.primary(sample_w, sample_h, (first, stop), prelim)
-        report("shade")
+        report("shade", trace.done)
         clock = time.perf_counter()
         colour, position, normal = trace.shade(hits, directions)
         block = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
@@ -170,12 +194,14 @@ def render(
     if spp > 1:  # the AOVs: pixel-centre rays
         band = max(1, MAX_BAND_SAMPLES // width)
         for first in range(0, height, band):
+            report("aov", (sample_h + first) / total)
             hits, directions = trace.primary(width, height, (first, min(height, first + band)), None)
             position, normal, _ = trace.frames(hits, directions)
             primary.append((hits, position, normal))
     hits = Hits.concatenate([p[0] for p in primary])
     position = np.concatenate([p[1] for p in primary])
     normal = np.concatenate([p[2] for p in primary])
+    report("done", 1.0)
     pixels = srgb_encode(linear)
     work = hits.iterations[hits.iterations > 0]
     stats.update(
@@ -197,6 +223,7 @@ class _Tracer:
         self.tolerance = scene.render.tolerance * max(geometry.patches.scene_diagonal(), 1e-300)
         self.max_iterations = scene.render.max_iterations
         self.last_map = None
+        self.done = 0.0  # fraction of the render done when the current band started
         for key in ("covered_by_map", "non_converged", "suspect", "wrong_layer", "repaired", "hierarchy"):
             stats[key] = None if method == "martin" and key == "covered_by_map" else 0
 
@@ -213,12 +240,12 @@ class _Tracer:
         rays = Rays.from_arrays(self.camera.eye[None, :], directions)
         stats, seconds = self.stats, self.stats["seconds"]
         if self.method == "martin":
-            self.report("solve")
+            self.report("solve", self.done)
             clock = time.perf_counter()
             hits = _intersect_all(self.geometry, rays, self.tolerance)
             seconds["solve"] += time.perf_counter() - clock
         else:
-            self.report("map")
+            self.report("map", self.done)
             clock = time.perf_counter()
             if prelim is None:
                 prelim = render_map(self.geometry.patches, self.camera, width, height, self.map_mode, ctx=self.ctx,
@@ -227,7 +254,7 @@ class _Tracer:
                 prelim = prelim.rows(lo, hi)
             self.last_map = prelim
             seconds["map"] += time.perf_counter() - clock
-            self.report("solve")
+            self.report("solve", self.done)
             clock = time.perf_counter()
             hits = _solve_from_map(self.geometry, rays, prelim, self.method, self.tolerance, self.max_iterations,
                                    self.camera, height, stats)
