@@ -20,6 +20,7 @@ import numpy as np
 
 from .errors import InputError
 from .image import write_text
+from .settings import RenderOptions
 from .render import Geometry, render
 from .scene import load_scene
 
@@ -55,11 +56,12 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
         entry = {"surfaces": len(scene.surfaces), "patches": geometry.patches.size, "setup_seconds": setup, "methods": {}}
         reference = None
         for method in sorted(methods, key=lambda m: m != "newton"):
-            render(scene, method=method, width=size, height=size, geometry=geometry)  # warm-up
+            options = RenderOptions.resolve(scene, method=method, width=size, height=size)
+            render(scene, options, geometry=geometry)  # warm-up
             runs = []
             for _ in range(repeat):
                 clock = time.perf_counter()
-                res = render(scene, method=method, width=size, height=size, geometry=geometry)
+                res = render(scene, options, geometry=geometry)
                 total = time.perf_counter() - clock
                 runs.append((res.stats["seconds"], total))
             med = {k: statistics.median(r[0][k] for r in runs) for k in runs[0][0]}

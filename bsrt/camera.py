@@ -40,6 +40,12 @@ class Camera:
         return ty * aspect, ty
 
 
+def pixel_footprint(camera: Camera, width: int, height: int) -> float:
+    """Size of a pixel at unit distance from the eye (scene units per unit distance)."""
+    _, ty = camera.half_extents(width, height)
+    return 2.0 * ty / height
+
+
 def pixel_rays(camera: Camera, width: int, height: int, rows=None):
     """Unit directions through the centre of each pixel, row-major.
 

@@ -55,3 +55,26 @@ class Hits:
     @classmethod
     def concatenate(cls, parts: list["Hits"]) -> "Hits":
         return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
+
+
+def keep_nearest(hits: Hits, ray: np.ndarray, candidates: Hits) -> np.ndarray:
+    """Keep, for every ray, the nearest of its current hit and its candidate hits.
+
+    ray: (K,) int, the ray (index into ``hits``) of each of the K candidates;
+    candidates: K hit records (only those with ``hit`` count; their
+    ``iterations`` are ignored). Returns the rays whose hit changed.
+    This is the one "nearest wins" rule of every tracer.
+    """
+    valid = np.flatnonzero(candidates.hit)
+    if not valid.size:
+        return np.zeros(0, dtype=np.int64)
+    r, t = ray[valid], candidates.t[valid]
+    order = np.lexsort((t, r))  # nearest first within each ray
+    valid, r, t = valid[order], r[order], t[order]
+    first = np.concatenate([[True], r[1:] != r[:-1]])
+    valid, r, t = valid[first], r[first], t[first]
+    better = ~hits.hit[r] | (t < hits.t[r])
+    valid, r = valid[better], r[better]
+    for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):
+        getattr(hits, name)[r] = getattr(candidates, name)[valid]
+    return r

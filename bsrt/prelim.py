@@ -19,10 +19,10 @@ import moderngl
 import numpy as np
 
 from . import gl
-from .camera import Camera, clip_from_eye
+from .camera import Camera, clip_from_eye, pixel_footprint
 from .errors import InputError, RenderError
 from .patches import PatchSet
-from .scene import MAP_MODES
+from .settings import MAP_MODES
 
 MAX_SEGMENTS = 64
 
@@ -51,8 +51,7 @@ class PrelimMap:
 
 def segments_per_patch(patches: PatchSet, camera: Camera, width: int, height: int) -> np.ndarray:
     """(P, 2) int64: quads along u and v for each patch (1..MAX_SEGMENTS)."""
-    _, ty = camera.half_extents(width, height)
-    pixel_at_unit_distance = 2.0 * ty / height
+    pixel_at_unit_distance = pixel_footprint(camera, width, height)
     lo, hi = patches.box_min, patches.box_max
     nearest = np.linalg.norm(np.maximum(np.maximum(lo - camera.eye, camera.eye - hi), 0.0), axis=1)
     diag = max(patches.scene_diagonal(), 1e-300)

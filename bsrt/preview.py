@@ -51,7 +51,7 @@ import numpy as np
 from . import gl
 from .camera import Camera, clip_from_eye
 from .errors import InputError, RenderError
-from .scene import MAP_MODES, METHODS
+from .settings import MAP_MODES, METHODS, RenderOptions
 
 LEVELS = (4, 2, 1)  # refinement: the framebuffer divided by these, coarse to fine
 SETTLE_SECONDS = 0.15  # the camera counts as stopped after this long without a change
@@ -323,10 +323,9 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
         clock = time.perf_counter()
         outcome = Outcome(light)
         try:
-            result = render(
-                scene, method=job.method, map_mode=map_mode, width=job.width, height=job.height, spp=1,
-                geometry=geometry, camera=job.camera, ctx=no_gl, prelim=job.prelim, progress=progress,
-            )
+            options = RenderOptions.resolve(scene, method=job.method, map=map_mode, width=job.width,
+                                            height=job.height, spp=1, camera=job.camera)
+            result = render(scene, options, geometry=geometry, ctx=no_gl, prelim=job.prelim, progress=progress)
             outcome.pixels = result.pixels
         except _Cancelled:
             pass

@@ -18,9 +18,9 @@ import numpy as np
 from .bspline import BSplineSurface, make_surface
 from .camera import Camera
 from .errors import InputError
+from .settings import MAP_MODES, METHODS
+from .trim import TrimLoop, make_trim_curve
 
-METHODS = ("gradient", "fast", "newton", "martin")
-MAP_MODES = ("float", "rgba8")
 
 
 @dataclass(frozen=True)
@@ -295,6 +295,8 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             )
         except InputError as exc:
             raise InputError(f"{where}: surface[{i}].{exc}") from None
+        if t.has("trim"):
+            geometry = _trimmed(t, geometry)
         if t.has("transform"):
             geometry = geometry.transformed(_transform(t, "transform"))
         t.finish()
@@ -302,6 +304,35 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
     return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes))
+
+
+def _trimmed(t: _Table, geometry):
+    """The surface with its [[surface.trim]] loops (see the README's "Trimmed surfaces")."""
+    raw = t.raw("trim")
+    if not isinstance(raw, list):
+        t.fail("trim", "expected an array of tables [[surface.trim]], each with curves = [...]")
+    loops = []
+    for i, loop_raw in enumerate(raw):
+        lt = _Table(t.where, loop_raw, f"{t.name}.trim[{i}]")
+        curves_raw = lt.raw("curves", required=True)
+        if not isinstance(curves_raw, list) or not curves_raw:
+            lt.fail("curves", "expected a non-empty list of curves { degree, knots, points [, weights] }")
+        curves = []
+        for j, c_raw in enumerate(curves_raw):
+            ct = _Table(t.where, c_raw, f"{lt.name}.curves[{j}]")
+            args = (ct.raw("degree", required=True), ct.raw("knots", required=True), ct.raw("points", required=True),
+                    ct.raw("weights"))
+            try:
+                curves.append(make_trim_curve(*args))
+            except InputError as exc:
+                raise InputError(f"{t.where}: {ct.name}.{exc}") from None
+            ct.finish()
+        lt.finish()
+        loops.append(TrimLoop(tuple(curves)))
+    try:
+        return geometry.with_trims(loops)
+    except InputError as exc:
+        raise InputError(f"{t.where}: {t.name}.{exc}") from None
 
 
 def _load_import(t: _Table, folder: Path | None):

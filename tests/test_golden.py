@@ -19,6 +19,7 @@ import pytest
 from PIL import Image
 
 from bsrt.image import write_png
+from bsrt.settings import RenderOptions
 from bsrt.render import render
 from bsrt.scene import load_scene
 
@@ -30,7 +31,7 @@ CASES = [("column", 96, 1), ("water-lily", 128, 1), ("water-lily", 96, 4), ("qua
 @pytest.mark.parametrize("name,size,spp", CASES, ids=[f"{n}-{s}-spp{p}" for n, s, p in CASES])
 def test_golden_image(tmp_path, name, size, spp):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
-    got = render(scene, width=size, height=size, spp=spp).pixels
+    got = render(scene, RenderOptions.resolve(scene, width=size, height=size, spp=spp)).pixels
     path = GOLDEN / f"{name}-{size}-spp{spp}.png"
     if os.environ.get("BSRT_UPDATE_GOLDEN"):
         write_png(path, got)

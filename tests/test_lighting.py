@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.camera import pixel_rays
+from bsrt.settings import RenderOptions
 from bsrt.render import render
 from bsrt.scene import parse_scene
 from bsrt.shade import shade
@@ -114,7 +115,8 @@ def test_spp4_blends_a_high_contrast_edge_only():
             "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
             "light": [{"kind": "ambient", "intensity": 1.0}], "surface": [white]}
     one = render(parse_scene(base)).linear[..., 0]
-    four = render(parse_scene(base), spp=4).linear[..., 0]
+    scene = parse_scene(base)
+    four = render(scene, RenderOptions.resolve(scene, spp=4)).linear[..., 0]
     # the edge x = 0.03 crosses column j where the pixel straddles it
     x = (2 * (np.arange(48) + 0.5) / 48 - 1) * np.tan(np.radians(15)) * 4.0
     pixel = 2 * np.tan(np.radians(15)) * 4.0 / 48

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from PIL import Image
@@ -15,9 +13,11 @@ from bsrt.io.bez import newell_from_qt3d
 from bsrt.render import render
 from bsrt.scene import load_scene, scene_for_model
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "spline-surfaces"
-assert DATA.is_dir(), f"{DATA} is missing: the tests read the shared model files from there"
-FILES = sorted(p for p in DATA.rglob("*") if p.is_file() and p.suffix not in (".gif", ".md"))
+from conftest import MODELS as DATA
+from conftest import model_files
+
+# Every file listed in tests/data/models/SOURCES.md; a missing or changed one fails the run.
+FILES = list(model_files())
 
 
 @pytest.mark.parametrize("path", FILES, ids=[str(p.relative_to(DATA)) for p in FILES])

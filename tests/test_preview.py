@@ -23,6 +23,7 @@ from PIL import Image
 from bsrt import preview
 from bsrt.camera import Camera
 from bsrt.errors import InputError
+from bsrt.settings import RenderOptions
 from bsrt.render import Geometry, render
 from bsrt.scene import load_scene
 
@@ -148,7 +149,7 @@ def test_refined_image_equals_render(session):
     assert len(cameras) == 2
     geometry = Geometry(scene)
     for name, camera in zip(("a.png", "b.png"), cameras):
-        want = render(scene, camera=camera, width=200, height=150, geometry=geometry, spp=1).pixels
+        want = render(scene, RenderOptions.resolve(scene, camera=camera, width=200, height=150, spp=1), geometry=geometry).pixels
         assert_same_image(read_png(tmp / name), want, name)
     # what the window showed is the exact image, pixel for pixel
     assert np.array_equal(read_png(tmp / "a-screen.png"), read_png(tmp / "a.png"))
@@ -181,7 +182,7 @@ def test_method_switch_and_map(session):
     tmp, scene_path, result = session
     scene = load_scene(scene_path)
     camera = cameras_printed(result.stdout)[1]
-    want = render(scene, method="fast", camera=camera, width=200, height=150, spp=1)
+    want = render(scene, RenderOptions.resolve(scene, method="fast", camera=camera, width=200, height=150, spp=1))
     assert_same_image(read_png(tmp / "fast.png"), want.pixels, "fast.png")
     # key M shows the preliminary map's picture (paper's Figure 1)
     assert np.array_equal(read_png(tmp / "map.png"), want.prelim.picture)
@@ -227,7 +228,7 @@ def test_resize_renders_at_the_new_framebuffer_size(display, tmp_path):
     assert image.shape == (100, 160, 3)
     scene = load_scene(SCENES / "quad.toml")
     (camera,) = cameras_printed(result.stdout)
-    assert_same_image(image, render(scene, camera=camera, width=160, height=100, spp=1).pixels, "resized")
+    assert_same_image(image, render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1)).pixels, "resized")
 
 
 def test_martin_method_or_its_error_keeps_the_window_running(display, tmp_path):
@@ -343,7 +344,7 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
             assert time.monotonic() < deadline
             time.sleep(0.01)
         assert [o.job.generation for o in got] == [2] and got[0].error is None
-        want = render(scene, camera=moved, width=40, height=30, spp=1).pixels
+        want = render(scene, RenderOptions.resolve(scene, camera=moved, width=40, height=30, spp=1)).pixels
         assert np.array_equal(got[0].pixels, want)
     finally:
         solver.stop()

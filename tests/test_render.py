@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bsrt.camera import pixel_rays
+from bsrt.settings import RenderOptions
 from bsrt.render import render
 from bsrt.scene import load_scene, parse_scene
 
@@ -112,7 +113,7 @@ def test_paraboloid_silhouette_and_self_occlusion(ctx, eye, look_at):
 @pytest.mark.parametrize("name", ["column", "water-lily"])
 def test_methods_agree_on_every_pixel(ctx, name):
     scene = load_scene(SCENES / f"{name}.toml")
-    results = {m: render(scene, method=m, width=128, height=128, ctx=ctx) for m in ("newton", "gradient", "fast", "martin")}
+    results = {m: render(scene, RenderOptions.resolve(scene, method=m, width=128, height=128), ctx=ctx) for m in ("newton", "gradient", "fast", "martin")}
     ref = results["newton"].hits
     tol = scene.render.tolerance * 1e3 * 20  # scene sizes are ~10: distances agree to ~1e-7
     for method, res in results.items():
@@ -156,10 +157,10 @@ def test_bands_and_a_given_map_give_the_same_hits(ctx, monkeypatch):
     import bsrt.render as render_module
 
     scene = load_scene(SCENES / "water-lily.toml")
-    one = render(scene, width=64, height=48, ctx=ctx)
+    one = render(scene, RenderOptions.resolve(scene, width=64, height=48), ctx=ctx)
     monkeypatch.setattr(render_module, "MAX_BAND_SAMPLES", 64 * 8)
-    banded = render(scene, width=64, height=48, ctx=ctx)
-    given = render(scene, width=64, height=48, ctx=ctx, prelim=one.prelim)
+    banded = render(scene, RenderOptions.resolve(scene, width=64, height=48), ctx=ctx)
+    given = render(scene, RenderOptions.resolve(scene, width=64, height=48), ctx=ctx, prelim=one.prelim)
     assert one.prelim.surface.shape == (48, 64)
     for res in (banded, given):
         np.testing.assert_array_equal(res.hits.hit, one.hits.hit)

@@ -7,7 +7,8 @@ import pytest
 
 from bsrt.bspline import evaluate, make_surface
 from bsrt.patches import PatchSet
-from bsrt.solve import METHODS, Rays, find_roots, orthonormal_frames
+from bsrt.kernels.roots import ray_frame
+from bsrt.solve import METHODS, Rays, find_roots
 
 np.seterr(all="raise", under="ignore")
 
@@ -17,11 +18,12 @@ def test_orthonormal_frames():
     d = rng.normal(size=(1000, 3))
     d[:3] = [[0, 0, 1], [0, 0, -1], [1e-300, 0, -1]]
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    e1, e2 = orthonormal_frames(d)
-    for a, b in ((e1.T, e2.T), (e1.T, d), (e2.T, d)):
+    frames = np.array([ray_frame(*x) for x in d])  # (N, 6): e1, e2
+    e1, e2 = frames[:, :3], frames[:, 3:]
+    for a, b in ((e1, e2), (e1, d), (e2, d)):
         np.testing.assert_allclose(np.einsum("ij,ij->i", a, b), 0.0, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(e1, axis=0), 1.0, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.norm(e2, axis=0), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(e1, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(e2, axis=1), 1.0, atol=1e-12)
 
 
 def _wavy_surface():

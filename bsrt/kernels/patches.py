@@ -1,0 +1,175 @@
+"""The patch table as flat arrays, and its evaluation inside compiled kernels.
+
+``PatchArrays`` (built by ``bsrt.patches.PatchSet``) holds every Bezier patch
+of a scene in the power basis of its local parameters (s, t) in [0, 1]^2:
+
+    coef:        (C,) float64, all patches' coefficients; patch k's start at
+                 coef_start[k], laid out [i][c][j] (s^i, component c, t^j),
+                 c over x, y, z (and w for a rational patch).
+    coef_start:  (P,) int64.
+    degree:      (P, 2) int64, (p, q).
+    dim:         (P,) int64, 3 (polynomial) or 4 (rational, homogeneous).
+    bounds:      (P, 4) float64, (u0, u1, v0, v1) in the surface's knot domain.
+    inv_size:    (P, 2) float64, 1 / (u1 - u0), 1 / (v1 - v0).
+    surface:     (P,) int64, the surface of each patch.
+    domain:      (M, 4) float64, (umin, umax, vmin, vmax) of each surface.
+    breaks_u:    (Bu,) float64, every surface's distinct u knots in its
+                 domain, surface after surface; surface m's are
+                 breaks_u[break_start_u[m] : break_start_u[m + 1]].
+    break_start_u: (M + 1,) int64.
+    breaks_v, break_start_v: the same in v.
+    grid_start:  (M,) int64, patch_grid[grid_start[m] + iu * spans_v + iv]
+                 is the patch of span (iu, iv) of surface m.
+    patch_grid:  (P,) int64.
+
+Evaluation is Horner's scheme in t then s, with derivatives, per component;
+no temporary arrays, so a kernel can call it per iteration of a per-ray loop.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+
+class PatchArrays(NamedTuple):
+    coef: np.ndarray
+    coef_start: np.ndarray
+    degree: np.ndarray
+    dim: np.ndarray
+    bounds: np.ndarray
+    inv_size: np.ndarray
+    surface: np.ndarray
+    domain: np.ndarray
+    breaks_u: np.ndarray
+    break_start_u: np.ndarray
+    breaks_v: np.ndarray
+    break_start_v: np.ndarray
+    grid_start: np.ndarray
+    patch_grid: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def _component(coef, row0, p, q, dim, c, s, t):
+    """(value, d/ds, d/dt) of one homogeneous component at local (s, t)."""
+    b = 0.0
+    bs = 0.0
+    bt = 0.0
+    for i in range(p, -1, -1):
+        row = row0 + (i * dim + c) * (q + 1)
+        a = coef[row + q]
+        at = 0.0
+        for j in range(q - 1, -1, -1):
+            at = at * t + a
+            a = a * t + coef[row + j]
+        bs = bs * s + b
+        b = b * s + a
+        bt = bt * s + at
+    return b, bs, bt
+
+
+@njit(cache=True, inline="always")
+def _value(coef, row0, p, q, dim, c, s, t):
+    """Value of one homogeneous component at local (s, t)."""
+    b = 0.0
+    for i in range(p, -1, -1):
+        row = row0 + (i * dim + c) * (q + 1)
+        a = coef[row + q]
+        for j in range(q - 1, -1, -1):
+            a = a * t + coef[row + j]
+        b = b * s + a
+    return b
+
+
+@njit(cache=True)
+def point(P, k, u, v):
+    """S(u, v) of patch k at global parameters: (x, y, z)."""
+    p, q, dim = P.degree[k, 0], P.degree[k, 1], P.dim[k]
+    base = P.coef_start[k]
+    s = (u - P.bounds[k, 0]) * P.inv_size[k, 0]
+    t = (v - P.bounds[k, 2]) * P.inv_size[k, 1]
+    x = _value(P.coef, base, p, q, dim, 0, s, t)
+    y = _value(P.coef, base, p, q, dim, 1, s, t)
+    z = _value(P.coef, base, p, q, dim, 2, s, t)
+    if dim == 4:
+        w = _value(P.coef, base, p, q, dim, 3, s, t)
+        return x / w, y / w, z / w
+    return x, y, z
+
+
+@njit(cache=True)
+def frame(P, k, u, v):
+    """S, S_u, S_v of patch k at global (u, v): 9 floats (x, y, z, xu, yu, zu, xv, yv, zv)."""
+    p, q, dim = P.degree[k, 0], P.degree[k, 1], P.dim[k]
+    base = P.coef_start[k]
+    du, dv = P.inv_size[k, 0], P.inv_size[k, 1]
+    s = (u - P.bounds[k, 0]) * du
+    t = (v - P.bounds[k, 2]) * dv
+    x, xs, xt = _component(P.coef, base, p, q, dim, 0, s, t)
+    y, ys, yt = _component(P.coef, base, p, q, dim, 1, s, t)
+    z, zs, zt = _component(P.coef, base, p, q, dim, 2, s, t)
+    if dim == 4:  # quotient rule on the homogeneous point
+        w, ws, wt = _component(P.coef, base, p, q, dim, 3, s, t)
+        x, y, z = x / w, y / w, z / w
+        xs, ys, zs = (xs - x * ws) / w, (ys - y * ws) / w, (zs - z * ws) / w
+        xt, yt, zt = (xt - x * wt) / w, (yt - y * wt) / w, (zt - z * wt) / w
+    return x, y, z, xs * du, ys * du, zs * du, xt * dv, yt * dv, zt * dv
+
+
+@njit(cache=True, inline="always")
+def _span(breaks, first, stop, x):
+    """Index (0-based within the surface) of the span of sorted breaks[first:stop] holding x."""
+    lo, hi = first, stop - 2  # spans first .. stop - 2
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if breaks[mid] <= x:
+            lo = mid
+        else:
+            hi = mid - 1
+    return lo - first
+
+
+@njit(cache=True)
+def clamp(P, m, u, v):
+    """(u, v) clipped into surface m's domain."""
+    d = P.domain[m]
+    return min(max(u, d[0]), d[1]), min(max(v, d[2]), d[3])
+
+
+@njit(cache=True)
+def locate(P, m, u, v):
+    """Patch of surface m holding (u, v) (parameters outside the domain: the nearest)."""
+    fu, su = P.break_start_u[m], P.break_start_u[m + 1]
+    fv, sv = P.break_start_v[m], P.break_start_v[m + 1]
+    iu = _span(P.breaks_u, fu, su, u)
+    iv = _span(P.breaks_v, fv, sv, v)
+    return P.patch_grid[P.grid_start[m] + iu * (sv - fv - 1) + iv]
+
+
+@njit(cache=True, inline="always")
+def inside_patch(P, k, u, v):
+    b = P.bounds[k]
+    return b[0] <= u <= b[1] and b[2] <= v <= b[3]
+
+
+@njit(cache=True, parallel=False)
+def evaluate_many(P, patch, u, v, S, Su, Sv, derivatives):
+    """S (and S_u, S_v) of patch[i] at (u[i], v[i]) into (3, N) arrays."""
+    for i in range(patch.shape[0]):
+        if derivatives:
+            f = frame(P, patch[i], u[i], v[i])
+            S[0, i], S[1, i], S[2, i] = f[0], f[1], f[2]
+            Su[0, i], Su[1, i], Su[2, i] = f[3], f[4], f[5]
+            Sv[0, i], Sv[1, i], Sv[2, i] = f[6], f[7], f[8]
+        else:
+            x, y, z = point(P, patch[i], u[i], v[i])
+            S[0, i], S[1, i], S[2, i] = x, y, z
+
+
+@njit(cache=True)
+def locate_many(P, surface, u, v, out):
+    """out[i] = the patch of surface[i] holding (u[i], v[i])."""
+    for i in range(surface.shape[0]):
+        out[i] = locate(P, surface[i], u[i], v[i])

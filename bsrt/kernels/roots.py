@@ -1,0 +1,166 @@
+"""Root finding per (ray, start) item: Qx = Qy = 0 on the patch table (paper 2.2, 2.3).
+
+A ray o + t d meets S(u, v) where S - o is parallel to d. With e1, e2 an
+orthonormal pair perpendicular to d (the rotation with rows (e1, e2, d) moves
+the ray onto the z axis), a hit solves
+
+    Qx(u, v) = e1 . (S(u, v) - o) = 0,   Qy(u, v) = e2 . (S(u, v) - o) = 0,
+
+and w = Qx^2 + Qy^2 is the squared distance between the ray and S(u, v),
+which the tolerance bounds; t = d . (S - o). The rotation is applied to the
+evaluated point, not to the control net: two dot products per evaluation.
+
+Methods (``METHOD_IDS``):
+
+- newton: Newton on (Qx, Qy) with a Levenberg-Marquardt term of 1e-12 of the
+  Jacobian's scale (finite steps where J is singular). ``stop_on_growth``
+  gives up as soon as w grows (Martin et al.'s rule for far starts).
+- gradient (paper eq. 7-9): u -= h dw/du, v -= h dw/dv, h the Cauchy step
+  |g|^2 / (2 |J g|^2) of the Gauss-Newton model (S, S_u, S_v evaluated at
+  every point); a step that does not decrease w is halved from the last
+  accepted point.
+- fast (paper 2.3): as gradient, but the surface derivatives (the Jacobian
+  J of (Qx, Qy)) are kept from the last point where they were computed while
+  w keeps decreasing: each further step evaluates S only and takes the
+  gradient 2 J^T q and the Cauchy step from the new residual q and the kept
+  J. When w stops decreasing, J is recomputed at the last accepted point.
+  (Re-using the gradient *vector* itself would be pointless with a Cauchy
+  step: the step already reaches the model's minimum along that direction.)
+
+Parameters are clipped to the surface's domain after every step; an item
+whose clipped step is zero is stuck and fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .patches import clamp, frame, inside_patch, locate, point
+
+METHOD_IDS = {"gradient": 0, "fast": 1, "newton": 2}
+GRADIENT, FAST, NEWTON = 0, 1, 2
+MAX_HALVINGS = 60
+
+
+@njit(cache=True, inline="always")
+def ray_frame(dx, dy, dz):
+    """e1, e2 (6 floats) perpendicular to the unit direction d and to each other
+    (Duff et al. 2017, "Building an orthonormal basis, revisited")."""
+    sign = 1.0 if dz >= 0.0 else -1.0
+    a = -1.0 / (sign + dz)
+    b = dx * dy * a
+    return 1.0 + sign * dx * dx * a, sign * b, -sign * dx, b, sign + dy * dy * a, -dy
+
+
+@njit(cache=True)
+def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, stop_on_growth):
+    """One item from (u, v) on surface m.
+
+    Returns (converged, u, v, patch, t, residual, iterations): the final
+    parameters (in the domain), their patch, the distance along the ray and
+    the ray-surface distance there.
+    """
+    e1x, e1y, e1z, e2x, e2y, e2z = ray_frame(dx, dy, dz)
+    c1 = e1x * ox + e1y * oy + e1z * oz
+    c2 = e2x * ox + e2y * oy + e2z * oz
+    u, v = clamp(P, m, u, v)
+    k = locate(P, m, u, v)
+    # Gradient methods: the last accepted point and the step taken from it.
+    ua, va, ka, wa = u, v, k, np.inf
+    a = b = c = d = 0.0  # the Jacobian of (Qx, Qy) in use
+    gu = gv = h = 0.0
+    need_derivatives = True
+    jacobian_here = False  # J was computed at the accepted point
+    refresh = False
+    halvings = 0
+    w_prev = np.inf
+    converged = False
+    x = y = z = xu = yu = zu = xv = yv = zv = 0.0
+    iterations = 0
+    for it in range(1, max_iterations + 1):
+        iterations = it
+        if need_derivatives:
+            x, y, z, xu, yu, zu, xv, yv, zv = frame(P, k, u, v)
+        else:
+            x, y, z = point(P, k, u, v)
+        qx = e1x * x + e1y * y + e1z * z - c1
+        qy = e2x * x + e2y * y + e2z * z - c2
+        w = qx * qx + qy * qy
+        if w <= tol2:
+            converged = True
+            break
+        if not w < np.inf or it == max_iterations:  # NaN or overflow, or out of iterations
+            break
+        if method == NEWTON:
+            if stop_on_growth and w > w_prev:
+                break
+            w_prev = w
+            a = e1x * xu + e1y * yu + e1z * zu
+            b = e1x * xv + e1y * yv + e1z * zv
+            c = e2x * xu + e2y * yu + e2z * zu
+            d = e2x * xv + e2y * yv + e2z * zv
+            j00, j01, j11 = a * a + c * c, a * b + c * d, b * b + d * d
+            mu = 1e-12 * (j00 + j11) + 1e-300
+            g0, g1 = a * qx + c * qy, b * qx + d * qy
+            det = (j00 + mu) * (j11 + mu) - j01 * j01
+            nu = u - ((j11 + mu) * g0 - j01 * g1) / det
+            nv = v - ((j00 + mu) * g1 - j01 * g0) / det
+        elif w < wa or refresh:  # accept this point, take a new Cauchy step
+            refresh = False
+            halvings = 0
+            ua, va, ka, wa = u, v, k, w
+            jacobian_here = need_derivatives
+            if need_derivatives:
+                a = e1x * xu + e1y * yu + e1z * zu
+                b = e1x * xv + e1y * yv + e1z * zv
+                c = e2x * xu + e2y * yu + e2z * zu
+                d = e2x * xv + e2y * yv + e2z * zv
+            gu = 2.0 * (a * qx + c * qy)
+            gv = 2.0 * (b * qx + d * qy)
+            jg0, jg1 = a * gu + b * gv, c * gu + d * gv
+            h = (gu * gu + gv * gv) / (2.0 * (jg0 * jg0 + jg1 * jg1) + 1e-300)
+            nu, nv = ua - h * gu, va - h * gv
+            need_derivatives = method == GRADIENT
+        elif method == FAST and not jacobian_here:  # the kept J no longer helps: recompute it
+            u, v, k = ua, va, ka
+            need_derivatives = True
+            refresh = True
+            continue
+        else:  # rejected: halve the step from the accepted point
+            halvings += 1
+            if halvings > MAX_HALVINGS:
+                break
+            h *= 0.5
+            nu, nv = ua - h * gu, va - h * gv
+            need_derivatives = method == GRADIENT
+        nu, nv = clamp(P, m, nu, nv)
+        base_u, base_v = (u, v) if method == NEWTON else (ua, va)
+        if nu == base_u and nv == base_v:  # clipped at the border with nowhere to go
+            break
+        u, v = nu, nv
+        if not inside_patch(P, k, u, v):
+            k = locate(P, m, u, v)
+    t = dx * (x - ox) + dy * (y - oy) + dz * (z - oz)
+    if not converged and method != NEWTON and wa < np.inf and not w <= wa:
+        # report the best point seen (its S is not at hand: evaluate it)
+        u, v, k = ua, va, ka
+        x, y, z = point(P, k, u, v)
+        t = dx * (x - ox) + dy * (y - oy) + dz * (z - oz)
+        w = wa
+    return converged, u, v, k, t, np.sqrt(w), iterations
+
+
+@njit(cache=True, parallel=True)
+def solve_items(P, origin, direction, ray, surface, u0, v0, method, tolerance, max_iterations, stop_on_growth,
+                converged, u, v, patch, t, residual, iterations):
+    """solve_one for every item i: ray[i] (into origin, direction (N, 3), unit
+    directions), surface[i], start (u0[i], v0[i]); results into the (M,) outputs."""
+    tol2 = tolerance * tolerance
+    for i in prange(ray.shape[0]):
+        r = ray[i]
+        ok, uu, vv, k, tt, res, its = solve_one(
+            P, surface[i], u0[i], v0[i], origin[r, 0], origin[r, 1], origin[r, 2],
+            direction[r, 0], direction[r, 1], direction[r, 2], method, tol2, max_iterations, stop_on_growth)
+        converged[i] = ok
+        u[i], v[i], patch[i], t[i], residual[i], iterations[i] = uu, vv, k, tt, res, its

@@ -1,0 +1,304 @@
+"""Rays through Martin et al.'s hierarchy of flat pieces, one ray per loop iteration.
+
+``BVHArrays`` (built by ``bsrt.bvh.build_bvh``; L leaves, K nodes, node 0 the root):
+
+    node_bounds: (K, 6) float64, (min x, y, z, max x, y, z) of each node.
+    node_left, node_right: (K,) int64 children, -1 for a tree leaf.
+    node_first, node_count: (K,) int64, a tree leaf's pieces are
+      first .. first + count - 1.
+    leaf_surface: (L,) int64. leaf_rect: (L, 4) float64 (u0, u1, v0, v1).
+    leaf_obb: (L, 15) float64, oriented box: centre (3), axes (3 x 3, row k
+      = axis k), half extents (3), padded.
+    leaf_net: (L, Pm, Qm, 4) float64, the piece's homogeneous Bezier net in
+      its [:p + 1, :q + 1] corner. leaf_degree: (L, 2) int64, (p, q).
+    leaf_planar: (L,) bool, the piece lies in one plane.
+
+Per ray (``trace_one``): a depth-first walk, nearer child first, that skips
+nodes entered beyond the nearest root so far (any-hit: stops at the first
+valid root). Every piece whose oriented box the ray enters runs Newton from
+the piece's centre (stop on growth); a root counts if it converged, lies in
+the piece's rectangle (grown by 1e-9 of its size), has t_min < t < t_max, is
+not the excluded start root of a secondary ray, and is kept by the surface's
+trims. A piece whose centre start finds nothing, or finds a grazing root
+(|cos| < 0.3: the ray may cross it twice), is cut into quarters by de
+Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
+points do not straddle the ray (in the ray's frame) or lie beyond the root
+found are culled, and Newton restarts from the survivors' centres.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from .patches import frame
+from .roots import NEWTON, ray_frame, solve_one
+from .trim import point_kept
+
+GRAZING_COSINE = 0.3
+RECT_SLACK = 1e-9
+STACK = 64
+
+
+class BVHArrays(NamedTuple):
+    node_bounds: np.ndarray
+    node_left: np.ndarray
+    node_right: np.ndarray
+    node_first: np.ndarray
+    node_count: np.ndarray
+    leaf_surface: np.ndarray
+    leaf_rect: np.ndarray
+    leaf_obb: np.ndarray
+    leaf_net: np.ndarray
+    leaf_degree: np.ndarray
+    leaf_planar: np.ndarray
+
+
+class Exclusion(NamedTuple):
+    """The root each secondary ray starts from (N rays; surface -1: none).
+
+    surface: (N,) int64; u, v: (N,) float64; radius_u, radius_v: (N,) float64,
+    half-widths of the parameter box around (u, v) whose roots are not hits.
+    """
+
+    surface: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    radius_u: np.ndarray
+    radius_v: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def _slab(b, ox, oy, oz, ix, iy, iz):
+    """Entry and exit distances of a ray (origin, inverse direction) into box b (6,)."""
+    t1, t2 = (b[0] - ox) * ix, (b[3] - ox) * ix
+    near, far = min(t1, t2), max(t1, t2)
+    t1, t2 = (b[1] - oy) * iy, (b[4] - oy) * iy
+    near, far = max(near, min(t1, t2)), min(far, max(t1, t2))
+    t1, t2 = (b[2] - oz) * iz, (b[5] - oz) * iz
+    return max(near, min(t1, t2)), min(far, max(t1, t2))
+
+
+@njit(cache=True, inline="always")
+def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
+    """Entry and exit distances of a ray into an oriented box (15,)."""
+    rx, ry, rz = ox - obb[0], oy - obb[1], oz - obb[2]
+    near, far = -np.inf, np.inf
+    for k in range(3):
+        ax, ay, az = obb[3 + 3 * k], obb[4 + 3 * k], obb[5 + 3 * k]
+        o = ax * rx + ay * ry + az * rz
+        d = ax * dx + ay * dy + az * dz
+        if abs(d) < 1e-300:
+            d = 1e-300
+        half = obb[12 + k]
+        t1, t2 = (-half - o) / d, (half - o) / d
+        near, far = max(near, min(t1, t2)), min(far, max(t1, t2))
+    return near, far
+
+
+@njit(cache=True, inline="always")
+def _grazing(P, k, u, v, dx, dy, dz):
+    f = frame(P, k, u, v)
+    nx = f[4] * f[8] - f[5] * f[7]
+    ny = f[5] * f[6] - f[3] * f[8]
+    nz = f[3] * f[7] - f[4] * f[6]
+    return abs(nx * dx + ny * dy + nz * dz) < GRAZING_COSINE * np.sqrt(nx * nx + ny * ny + nz * nz)
+
+
+@njit(cache=True)
+def _split(src, lo, hi, p, q, axis, tmp):
+    """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)."""
+    n, other = (p, q) if axis == 0 else (q, p)
+    for j in range(other + 1):
+        for c in range(4):
+            for i in range(n + 1):
+                tmp[i] = src[i, j, c] if axis == 0 else src[j, i, c]
+            for r in range(n + 1):
+                if r > 0:
+                    for i in range(n - r + 1):
+                        tmp[i] = 0.5 * (tmp[i] + tmp[i + 1])
+                if axis == 0:
+                    lo[r, j, c] = tmp[0]
+                    hi[n - r, j, c] = tmp[n - r]
+                else:
+                    lo[j, r, c] = tmp[0]
+                    hi[j, n - r, c] = tmp[n - r]
+
+
+@njit(cache=True)
+def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
+    """Can the ray meet the piece with this net before t_far? (its hull, in the ray's frame)."""
+    xlo = ylo = zlo = np.inf
+    xhi = yhi = zhi = -np.inf
+    for i in range(p + 1):
+        for j in range(q + 1):
+            w = net[i, j, 3]
+            px, py, pz = net[i, j, 0] / w - ox, net[i, j, 1] / w - oy, net[i, j, 2] / w - oz
+            x = e[0] * px + e[1] * py + e[2] * pz
+            y = e[3] * px + e[4] * py + e[5] * pz
+            z = dx * px + dy * py + dz * pz
+            xlo, xhi = min(xlo, x), max(xhi, x)
+            ylo, yhi = min(ylo, y), max(yhi, y)
+            zlo, zhi = min(zlo, z), max(zhi, z)
+    return xlo <= tol and xhi >= -tol and ylo <= tol and yhi >= -tol and zhi + tol >= t_min and zlo - tol < t_far
+
+
+@njit(cache=True)
+def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
+    """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either)."""
+    su = RECT_SLACK * (rect[1] - rect[0])
+    sv = RECT_SLACK * (rect[3] - rect[2])
+    if not (rect[0] - su <= u <= rect[1] + su and rect[2] - sv <= v <= rect[3] + sv):
+        return 0
+    if m == ex_m and abs(u - ex_u) <= ex_ru and abs(v - ex_v) <= ex_rv:
+        return 2
+    if not (t_min < t < t_max):
+        return 0
+    if not point_kept(T, m, u, v):
+        return 0
+    return 1
+
+
+@njit(cache=True)
+def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, max_iterations, retry_depth,
+                 cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv):
+    """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations)."""
+    m = B.leaf_surface[leaf]
+    rect = B.leaf_rect[leaf]
+    tol2 = tol * tol
+    ok, u, v, k, t, res, its = solve_one(P, m, 0.5 * (rect[0] + rect[1]), 0.5 * (rect[2] + rect[3]),
+                                         ox, oy, oz, dx, dy, dz, NEWTON, tol2, max_iterations, True)
+    iterations = its
+    state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+    found = state == 1
+    best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
+    if retry_depth == 0 or state == 2 or (found and not _grazing(P, k, u, v, dx, dy, dz)):
+        return found, best_t, best_u, best_v, best_k, best_res, iterations
+    # Retry on quarters (depth-first; at most 3 siblings wait per level).
+    p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
+    pm, qm = B.leaf_net.shape[1], B.leaf_net.shape[2]
+    size = 4 * retry_depth + 8
+    nets = np.empty((size, pm, qm, 4))
+    rects = np.empty((size, 4))
+    depth = np.empty(size, dtype=np.int64)
+    tmp = np.empty(max(pm, qm))
+    nets[0, : p + 1, : q + 1] = B.leaf_net[leaf, : p + 1, : q + 1]
+    rects[0] = rect
+    depth[0] = 0
+    top = 1
+    while top > 0:
+        top -= 1
+        if depth[top] >= retry_depth or top + 6 > size:
+            continue
+        # cut the popped piece into quarters in slots top .. top + 3 (two spare slots for the halves)
+        a, b2 = top + 4, top + 5
+        _split(nets[top], nets[a], nets[b2], p, q, 0, tmp)
+        _split(nets[a], nets[top], nets[top + 1], p, q, 1, tmp)
+        _split(nets[b2], nets[top + 2], nets[top + 3], p, q, 1, tmp)
+        r = rects[top].copy()
+        um, vm = 0.5 * (r[0] + r[1]), 0.5 * (r[2] + r[3])
+        d = depth[top] + 1
+        rects[top, 0], rects[top, 1], rects[top, 2], rects[top, 3] = r[0], um, r[2], vm
+        rects[top + 1, 0], rects[top + 1, 1], rects[top + 1, 2], rects[top + 1, 3] = r[0], um, vm, r[3]
+        rects[top + 2, 0], rects[top + 2, 1], rects[top + 2, 2], rects[top + 2, 3] = um, r[1], r[2], vm
+        rects[top + 3, 0], rects[top + 3, 1], rects[top + 3, 2], rects[top + 3, 3] = um, r[1], vm, r[3]
+        first = top
+        for s in range(first, first + 4):
+            if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
+                continue
+            sr = rects[s]
+            ok, u, v, k, t, res, its = solve_one(P, m, 0.5 * (sr[0] + sr[1]), 0.5 * (sr[2] + sr[3]),
+                                                 ox, oy, oz, dx, dy, dz, NEWTON, tol2, max_iterations, True)
+            iterations += its
+            state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+            again = True
+            if state == 1:
+                if t < best_t:
+                    found = True
+                    best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
+                again = _grazing(P, k, u, v, dx, dy, dz)
+            if again and d < retry_depth:  # keep it: move it down to the stack's top
+                if s != top:
+                    nets[top] = nets[s]
+                    rects[top] = rects[s]
+                depth[top] = d
+                top += 1
+    return found, best_t, best_u, best_v, best_k, best_res, iterations
+
+
+@njit(cache=True)
+def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations, any_hit, retry_depth, cull_tol,
+              ex_m, ex_u, ex_v, ex_ru, ex_rv, stack, stack_t):
+    """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations)."""
+    e = ray_frame(dx, dy, dz)
+    ix = 1.0 / dx if abs(dx) > 1e-300 else np.copysign(1e300, dx)
+    iy = 1.0 / dy if abs(dy) > 1e-300 else np.copysign(1e300, dy)
+    iz = 1.0 / dz if abs(dz) > 1e-300 else np.copysign(1e300, dz)
+    best_t, best_u, best_v, best_k, best_res = np.inf, np.nan, np.nan, -1, np.nan
+    iterations = 0
+    near, far = _slab(B.node_bounds[0], ox, oy, oz, ix, iy, iz)
+    if not (near <= far and far >= t_min and near <= t_max):
+        return False, best_t, best_u, best_v, best_k, best_res, iterations
+    stack[0], stack_t[0] = 0, near
+    top = 1
+    while top > 0:
+        top -= 1
+        node, entry = stack[top], stack_t[top]
+        if entry >= best_t:
+            continue
+        left = B.node_left[node]
+        if left < 0:
+            for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
+                lm = B.leaf_surface[leaf]
+                if B.leaf_planar[leaf] and lm == ex_m:  # a ray leaving a plane never meets it again
+                    r = B.leaf_rect[leaf]
+                    if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
+                        continue
+                lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
+                if not (lo <= hi and hi >= t_min and lo <= t_max and lo < best_t):
+                    continue
+                found, t, u, v, k, res, its = _solve_piece(
+                    P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, min(t_max, best_t), tol, max_iterations,
+                    retry_depth, cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv)
+                iterations += its
+                if found and t < best_t:
+                    best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
+                    if any_hit:
+                        return True, best_t, best_u, best_v, best_k, best_res, iterations
+            continue
+        right = B.node_right[node]
+        n1, f1 = _slab(B.node_bounds[left], ox, oy, oz, ix, iy, iz)
+        n2, f2 = _slab(B.node_bounds[right], ox, oy, oz, ix, iy, iz)
+        hit1 = n1 <= f1 and f1 >= t_min and n1 <= t_max and n1 < best_t
+        hit2 = n2 <= f2 and f2 >= t_min and n2 <= t_max and n2 < best_t
+        if hit1 and hit2 and top + 2 <= stack.shape[0]:
+            if n1 <= n2:  # push the farther first: the nearer is walked first
+                stack[top], stack_t[top], stack[top + 1], stack_t[top + 1] = right, n2, left, n1
+            else:
+                stack[top], stack_t[top], stack[top + 1], stack_t[top + 1] = left, n1, right, n2
+            top += 2
+        elif hit1:
+            stack[top], stack_t[top] = left, n1
+            top += 1
+        elif hit2:
+            stack[top], stack_t[top] = right, n2
+            top += 1
+    return best_k >= 0, best_t, best_u, best_v, best_k, best_res, iterations
+
+
+@njit(cache=True, parallel=True)
+def trace_rays(P, T, B, origin, direction, t_min, t_max, tol, max_iterations, any_hit, retry_depth, cull_tol,
+               ex, hit, t, u, v, patch, residual, iterations):
+    """trace_one for every ray i of origin, direction (N, 3) (unit directions), with
+    t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays); results into (N,) outputs."""
+    n = direction.shape[0]
+    for i in prange(n):
+        stack = np.empty(STACK, dtype=np.int64)
+        stack_t = np.empty(STACK)
+        h, tt, uu, vv, k, res, its = trace_one(
+            P, T, B, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1], direction[i, 2],
+            t_min[i], t_max[i], tol, max_iterations, any_hit, retry_depth, cull_tol,
+            ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i], stack, stack_t)
+        hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its
