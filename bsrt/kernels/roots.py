@@ -15,10 +15,13 @@ Methods (``METHOD_IDS``):
 - newton: Newton on (Qx, Qy) with a Levenberg-Marquardt term of 1e-12 of the
   Jacobian's scale (finite steps where J is singular). ``stop_on_growth``
   gives up as soon as w grows (Martin et al.'s rule for far starts).
-- gradient (paper eq. 7-9): u -= h dw/du, v -= h dw/dv, h the Cauchy step
-  |g|^2 / (2 |J g|^2) of the Gauss-Newton model (S, S_u, S_v evaluated at
-  every point); a step that does not decrease w is halved from the last
-  accepted point.
+- gradient (paper eq. 7-9): u -= h_u dw/du, v -= h_v dw/dv. Step rule: per
+  parameter, h_u = h / |dQ/du|^2 and h_v = h / |dQ/dv|^2 (the gradient
+  measured in arc length, so a surface that is fast in u and slow in v, like
+  a surface of revolution, does not zig-zag), with h the Cauchy step of the
+  Gauss-Newton model along that direction g: h = (g . J^T q) / |J g|^2.
+  S, S_u, S_v are evaluated at every point; a step that does not decrease w
+  is halved from the last accepted point.
 - fast (paper 2.3): as gradient, but the surface derivatives (the Jacobian
   J of (Qx, Qy)) are kept from the last point where they were computed while
   w keeps decreasing: each further step evaluates S only and takes the
@@ -116,10 +119,14 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
                 b = e1x * xv + e1y * yv + e1z * zv
                 c = e2x * xu + e2y * yu + e2z * zu
                 d = e2x * xv + e2y * yv + e2z * zv
-            gu = 2.0 * (a * qx + c * qy)
-            gv = 2.0 * (b * qx + d * qy)
+            # gradient of w, each parameter scaled by 1 / |d(Qx, Qy)/d(parameter)|^2
+            scale_u = 1.0 / (a * a + c * c + 1e-300)
+            scale_v = 1.0 / (b * b + d * d + 1e-300)
+            gu = 2.0 * (a * qx + c * qy) * scale_u
+            gv = 2.0 * (b * qx + d * qy) * scale_v
             jg0, jg1 = a * gu + b * gv, c * gu + d * gv
-            h = (gu * gu + gv * gv) / (2.0 * (jg0 * jg0 + jg1 * jg1) + 1e-300)
+            h = (a * qx + c * qy) * gu + (b * qx + d * qy) * gv  # (J^T q) . g: the Cauchy step along -g
+            h /= jg0 * jg0 + jg1 * jg1 + 1e-300
             nu, nv = ua - h * gu, va - h * gv
             need_derivatives = method == GRADIENT
         elif method == FAST and not jacobian_here:  # the kept J no longer helps: recompute it
