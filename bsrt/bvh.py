@@ -45,10 +45,11 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    render time (the water-lily renders as fast at 1e-3 as at 1e-2) but
    make Newton from the centre fail less often.
 
-2. **BVH** over the leaves, arrays only, built top-down level by level
-   (vectorised over all nodes of a level): a node's leaves are split at the
-   median of their box centroids along the longest axis of the centroids'
-   box, until a node holds at most ``leaf_size`` leaves (default 2).
+2. **BVH** over the leaves, arrays only, built breadth first (compiled,
+   ``kernels/flatten.build_tree``): a node's leaves are split by the binned
+   surface-area heuristic (16 bins along the longest axis of their box
+   centres; the median where the centres coincide), until a node holds at
+   most ``leaf_size`` leaves (default 2).
 
 3. **Intersection** (:func:`intersect`): compiled, one ray per loop
    iteration (``kernels/traverse.py``): a depth-first walk of the tree,
@@ -88,6 +89,7 @@ import numpy as np
 
 from .hits import Hits
 from .patches import PatchSet
+from .kernels.flatten import build_tree, flatten_patches
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
 from .solve import Rays
 
@@ -174,153 +176,32 @@ class BVH:
 # Flattening
 
 
-def split_half(ctrl: np.ndarray, axis: int):
-    """de Casteljau at the midpoint of a stack of homogeneous Bezier nets.
-
-    ctrl: (K, p + 1, q + 1, 4); axis 1 splits in u, 2 in v. Returns the two
-    halves (lower parameters first), each shaped like ctrl.
-    """
-    pts = np.moveaxis(ctrl, axis, 1)
-    n = pts.shape[1] - 1
-    left, right = [pts[:, 0]], [pts[:, n]]
-    for _ in range(n):
-        pts = 0.5 * (pts[:, :-1] + pts[:, 1:])
-        left.append(pts[:, 0])
-        right.append(pts[:, -1])
-    lo = np.moveaxis(np.stack(left, axis=1), 1, axis)
-    hi = np.moveaxis(np.stack(right[::-1], axis=1), 1, axis)
-    return lo, hi
-
-
-def flatness_measures(ctrl: np.ndarray):
-    """(dev, dev_u, dev_v), each (K,), of a stack of nets (K, p+1, q+1, 4); see the module doc."""
-    w = ctrl[..., 3]
-    pts = ctrl[..., :3] / w[..., None]
-    p, q = pts.shape[1] - 1, pts.shape[2] - 1
-    s = (np.arange(p + 1) / p)[None, :, None, None]
-    t = (np.arange(q + 1) / q)[None, None, :, None]
-    c00, c10 = pts[:, :1, :1], pts[:, -1:, :1]
-    c01, c11 = pts[:, :1, -1:], pts[:, -1:, -1:]
-    bil = (1 - s) * ((1 - t) * c00 + t * c01) + s * ((1 - t) * c10 + t * c11)
-    dev = np.linalg.norm(pts - bil, axis=-1).max(axis=(1, 2))
-    row = (1 - s) * pts[:, :1] + s * pts[:, -1:]
-    col = (1 - t) * pts[:, :, :1] + t * pts[:, :, -1:]
-    dev_u = np.linalg.norm(pts - row, axis=-1).max(axis=(1, 2))
-    dev_v = np.linalg.norm(pts - col, axis=-1).max(axis=(1, 2))
-    if not np.all(w == w[:, :1, :1]):
-        diag = np.linalg.norm(pts.max(axis=(1, 2)) - pts.min(axis=(1, 2)), axis=-1)
-        spread_u = (w.max(axis=1) / w.min(axis=1)).max(axis=1) - 1.0
-        spread_v = (w.max(axis=2) / w.min(axis=2)).max(axis=1) - 1.0
-        dev_u = dev_u + spread_u * diag
-        dev_v = dev_v + spread_v * diag
-        dev = dev + np.maximum(spread_u, spread_v) * diag
-    return dev, dev_u, dev_v
+def padded_nets(patches: PatchSet):
+    """(nets (P, Pm, Qm, 4), degree (P, 2)): every patch's homogeneous net in the corner of one array."""
+    pm = max(b.shape[0] for b in patches.bezier)
+    qm = max(b.shape[1] for b in patches.bezier)
+    nets = np.zeros((patches.size, pm, qm, 4))
+    degree = np.zeros((patches.size, 2), dtype=np.int64)
+    for k, b in enumerate(patches.bezier):
+        nets[k, : b.shape[0], : b.shape[1]] = b
+        degree[k] = (b.shape[0] - 1, b.shape[1] - 1)
+    return nets, degree
 
 
 def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: int = DEFAULT_MAX_DEPTH):
-    """Cut every Bezier patch into flat pieces.
+    """Cut every Bezier patch into flat pieces (compiled: kernels/flatten.py).
 
-    Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, nets): nets is
-    a list of (indices into the L leaves, (n, p+1, q+1, 4) homogeneous nets),
-    one entry per patch shape.
+    Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, nets (L, Pm, Qm,
+    4) homogeneous nets in the corner of the array, degree (L, 2) int64).
     """
-    eps = flatness * patches.scene_diagonal()
-    shapes: dict[tuple[int, int], list[int]] = {}
-    for k, b in enumerate(patches.bezier):
-        shapes.setdefault(b.shape[:2], []).append(k)
-    out_patch, out_rect, out_depth, out_nets = [], [], [], []
-    for ids in shapes.values():
-        ids = np.array(ids, dtype=np.int64)
-        ctrl = np.array([patches.bezier[k] for k in ids])
-        patch, rect, depth = ids, patches.bounds[ids].copy(), np.zeros(ids.size, np.int64)
-        while patch.size:
-            dev, dev_u, dev_v = flatness_measures(ctrl)
-            pts = ctrl[..., :3] / ctrl[..., 3:4]
-            size = np.linalg.norm(pts.max(axis=(1, 2)) - pts.min(axis=(1, 2)), axis=-1)
-            # the twist of the corners' bilinear patch (zero when they are coplanar)
-            twist = 0.25 * np.linalg.norm(pts[:, 0, 0] - pts[:, -1, 0] - pts[:, 0, -1] + pts[:, -1, -1], axis=-1)
-            bent = np.maximum(dev, twist) > BEND * size
-            split = ((dev > eps) | bent) & (depth < max_depth)
-            done = ~split
-            if np.any(done):
-                out_patch.append(patch[done])
-                out_rect.append(rect[done])
-                out_depth.append(depth[done])
-                out_nets.append(ctrl[done])
-            pieces = []
-            for axis, sel in ((1, split & (dev_u >= dev_v)), (2, split & (dev_u < dev_v))):
-                if not np.any(sel):
-                    continue
-                lo, hi = split_half(ctrl[sel], axis)
-                r = rect[sel]
-                a, b = (0, 1) if axis == 1 else (2, 3)
-                mid = 0.5 * (r[:, a] + r[:, b])
-                r_lo, r_hi = r.copy(), r.copy()
-                r_lo[:, b] = mid
-                r_hi[:, a] = mid
-                pieces.append((np.concatenate([lo, hi]), np.tile(patch[sel], 2),
-                               np.concatenate([r_lo, r_hi]), np.tile(depth[sel] + 1, 2)))
-            if not pieces:
-                break
-            ctrl = np.concatenate([x[0] for x in pieces])
-            patch = np.concatenate([x[1] for x in pieces])
-            rect = np.concatenate([x[2] for x in pieces])
-            depth = np.concatenate([x[3] for x in pieces])
-    counts = [x.shape[0] for x in out_patch]
-    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    nets = [(np.arange(starts[i], starts[i + 1]), out_nets[i]) for i in range(len(counts))]
-    return np.concatenate(out_patch), np.concatenate(out_rect), np.concatenate(out_depth), nets
+    nets, degree = padded_nets(patches)
+    patch, rect, depth, leaf_nets = flatten_patches(nets, degree, patches.bounds, flatness * patches.scene_diagonal(),
+                                                    BEND, max_depth)
+    return patch, rect, depth, leaf_nets, degree[patch]
 
 
 # ---------------------------------------------------------------------------
 # Tree
-
-
-def _ranges(first: np.ndarray, count: np.ndarray):
-    """Concatenation of the ranges first[i] .. first[i] + count[i] - 1, and their owner i."""
-    owner = np.repeat(np.arange(first.size), count)
-    offs = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-    return np.repeat(first - offs, count) + np.arange(owner.size), owner
-
-
-def _build_tree(box_min: np.ndarray, box_max: np.ndarray, leaf_size: int):
-    """Median-split tree over L boxes. Returns (order, node arrays...)."""
-    n = box_min.shape[0]
-    centre = 0.5 * (box_min + box_max)
-    order = np.arange(n)
-    n_min, n_max, n_left, n_right, n_first, n_count = [], [], [], [], [], []
-    level_first = np.array([0], dtype=np.int64)
-    level_count = np.array([n], dtype=np.int64)
-    next_id = 1
-    while level_first.size:
-        idx, owner = _ranges(level_first, level_count)
-        offs = np.concatenate([[0], np.cumsum(level_count)[:-1]]).astype(np.int64)
-        members = order[idx]
-        c = centre[members]
-        c_lo, c_hi = np.minimum.reduceat(c, offs), np.maximum.reduceat(c, offs)
-        n_min.append(np.minimum.reduceat(box_min[members], offs))
-        n_max.append(np.maximum.reduceat(box_max[members], offs))
-        n_first.append(level_first)
-        n_count.append(level_count)
-        inner = level_count > leaf_size
-        left = np.full(level_first.size, -1, dtype=np.int64)
-        left[inner] = next_id + 2 * np.arange(np.count_nonzero(inner))
-        right = np.where(inner, left + 1, -1)
-        next_id += 2 * np.count_nonzero(inner)
-        n_left.append(left)
-        n_right.append(right)
-        if not np.any(inner):
-            break
-        axis = np.argmax(c_hi - c_lo, axis=1)
-        key = c[np.arange(owner.size), axis[owner]]
-        perm = np.lexsort((key, owner))
-        order[idx] = members[perm]
-        f, k = level_first[inner], level_count[inner]
-        half = k // 2
-        level_first = np.stack([f, f + half], axis=1).ravel()
-        level_count = np.stack([half, k - half], axis=1).ravel()
-    cat = np.concatenate
-    return order, cat(n_min), cat(n_max), cat(n_left), cat(n_right), cat(n_first), cat(n_count)
 
 
 def _oriented_boxes(nets, degree, points, padding):
@@ -341,10 +222,10 @@ def _oriented_boxes(nets, degree, points, padding):
     a0 = du[good] / lu[good, None]
     a2 = normal[good] / ln[good, None]
     axes[good] = np.stack([a0, np.cross(a2, a0), a2], axis=1)
-    proj = np.einsum("lck,lak->lca", points, axes)  # (L, C, 3) coordinates along the axes
+    proj = points @ axes.transpose(0, 2, 1)  # (L, C, 3) coordinates along the axes
     lo, hi = proj.min(axis=1) - padding, proj.max(axis=1) + padding
-    centre = np.einsum("la,lak->lk", 0.5 * (lo + hi), axes)
-    return np.concatenate([centre, axes.reshape(n, 9), 0.5 * (hi - lo)], axis=1)
+    centre = (0.5 * (lo + hi))[:, None, :] @ axes
+    return np.concatenate([centre[:, 0], axes.reshape(n, 9), 0.5 * (hi - lo)], axis=1)
 
 
 def build_bvh(
@@ -364,24 +245,18 @@ def build_bvh(
     diag = patches.scene_diagonal()
     if padding is None:
         padding = 1e-8 * diag
-    patch, rect, depth, nets = flatten(patches, flatness, max_depth)
+    patch, rect, depth, all_nets, degree = flatten(patches, flatness, max_depth)
     n = patch.size
-    c_max = max(b.shape[0] * b.shape[1] for b in patches.bezier)
-    p_max = max(b.shape[0] for b in patches.bezier)
-    q_max = max(b.shape[1] for b in patches.bezier)
-    points = np.empty((n, c_max, 3))
-    all_nets = np.zeros((n, p_max, q_max, 4))
-    degree = np.zeros((n, 2), dtype=np.int64)
-    for where, net in nets:
-        all_nets[where, : net.shape[1], : net.shape[2]] = net
-        degree[where] = (net.shape[1] - 1, net.shape[2] - 1)
-        pts = (net[..., :3] / net[..., 3:4]).reshape(net.shape[0], -1, 3)
-        points[where, : pts.shape[1]] = pts
-        points[where, pts.shape[1] :] = pts[:, :1]
+    # the pieces' projected control points (L, Pm * Qm, 3), padding entries replaced by the first point
+    pm, qm = all_nets.shape[1:3]
+    used = (np.arange(pm)[None, :, None] <= degree[:, None, None, 0]) & (np.arange(qm)[None, None, :] <= degree[:, None, None, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        points = all_nets[..., :3] / all_nets[..., 3:4]
+    points = np.where(used[..., None], points, points[:, :1, :1]).reshape(n, -1, 3)
     obb = _oriented_boxes(all_nets, degree, points, padding)
     box_min = points.min(axis=1) - padding
     box_max = points.max(axis=1) + padding
-    order, n_min, n_max, n_left, n_right, n_first, n_count = _build_tree(box_min, box_max, leaf_size)
+    order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
     rect = rect[order]
     return BVH(
         patches=patches,

@@ -63,9 +63,10 @@ class PatchSet:
         self.size = len(self.bezier)
         self.surface = np.concatenate(surface) if surface else np.zeros(0, np.int64)
         self.bounds = np.concatenate(bounds).reshape(self.size, 4) if bounds else np.zeros((0, 4))
-        pts = [b[..., :3] / b[..., 3:4] for b in self.bezier]
-        self.box_min = np.array([x.min(axis=(0, 1)) for x in pts]).reshape(self.size, 3)
-        self.box_max = np.array([x.max(axis=(0, 1)) for x in pts]).reshape(self.size, 3)
+        self.box_min, self.box_max = np.empty((self.size, 3)), np.empty((self.size, 3))
+        for ids, nets in _by_shape(self.bezier):
+            pts = nets[..., :3] / nets[..., 3:4]
+            self.box_min[ids], self.box_max[ids] = pts.min(axis=(1, 2)), pts.max(axis=(1, 2))
         self.arrays = kp.PatchArrays(
             *_power_coefficients(self.bezier),
             bounds=self.bounds,
@@ -135,24 +136,37 @@ def _starts(parts: list) -> np.ndarray:
     return np.concatenate([[0], np.cumsum([len(x) for x in parts])]).astype(np.int64)
 
 
+def _by_shape(bezier: list):
+    """[(patch ids (K,), nets (K, p+1, q+1, 4))] grouping the patches of one degree."""
+    shapes: dict = {}
+    for k, b in enumerate(bezier):
+        shapes.setdefault(b.shape, []).append(k)
+    return [(np.array(ids, dtype=np.int64), np.array([bezier[k] for k in ids])) for ids in shapes.values()]
+
+
 def _power_coefficients(bezier: list):
-    """(coef, coef_start, degree, dim) of PatchArrays from homogeneous Bezier nets (p+1, q+1, 4)."""
-    coef, start, degree, dim = [], [], [], []
-    cache: dict = {}
-    offset = 0
-    for net in bezier:
-        p, q = net.shape[0] - 1, net.shape[1] - 1
-        rational = not np.all(net[..., 3] == net[0, 0, 3])
-        ctrl = net if rational else net[..., :3] / net[..., 3:4]
-        if p not in cache:
-            cache[p] = power_from_bernstein(p)
-        if q not in cache:
-            cache[q] = power_from_bernstein(q)
-        c = np.einsum("ai,bj,abc->icj", cache[p], cache[q], ctrl)  # [s^i][component][t^j]
-        coef.append(c.ravel())
-        start.append(offset)
-        offset += c.size
-        degree.append((p, q))
-        dim.append(ctrl.shape[-1])
-    return (np.concatenate(coef) if coef else np.zeros(0), np.array(start, dtype=np.int64),
-            np.array(degree, dtype=np.int64).reshape(-1, 2), np.array(dim, dtype=np.int64))
+    """(coef, coef_start, degree, dim) of PatchArrays from homogeneous Bezier nets (p+1, q+1, 4).
+
+    A patch whose weights are all equal is stored polynomial (x, y, z), else
+    homogeneous (x w, y w, z w, w)."""
+    n = len(bezier)
+    degree = np.array([b.shape[:2] for b in bezier], dtype=np.int64).reshape(n, 2) - 1
+    dim = np.empty(n, dtype=np.int64)
+    blocks = [None] * n
+    for ids, nets in _by_shape(bezier):
+        p, q = nets.shape[1] - 1, nets.shape[2] - 1
+        rational = ~np.all(nets[..., 3] == nets[:, :1, :1, 3], axis=(1, 2))
+        for flag in (False, True):
+            sel = ids[rational == flag]
+            if not sel.size:
+                continue
+            ctrl = nets[rational == flag]
+            if not flag:
+                ctrl = ctrl[..., :3] / ctrl[..., 3:4]
+            c = np.einsum("ai,bj,kabc->kicj", power_from_bernstein(p), power_from_bernstein(q), ctrl)
+            dim[sel] = ctrl.shape[-1]
+            for k, row in zip(sel, c.reshape(sel.size, -1)):
+                blocks[k] = row
+    sizes = np.array([b.size for b in blocks], dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64) if n else np.zeros(0, np.int64)
+    return (np.concatenate(blocks) if n else np.zeros(0)), start, degree, dim

@@ -1,0 +1,255 @@
+"""Cutting Bezier patches into flat pieces (the hierarchy's leaves), compiled.
+
+The criterion is bvh.py's (see its module doc): a piece is a leaf when its
+projected control points lie within ``eps`` of its corners' bilinear patch
+and it is not bent (deviation and twist within BEND x its size), or it has
+been cut ``max_depth`` times; otherwise it is cut at the parameter midpoint
+across the direction with the larger directional deviation. Each patch is
+cut depth-first with a stack of nets; two passes (count, then fill) so the
+output arrays are allocated once, both parallel over patches.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def measures(net, p, q):
+    """(dev, dev_u, dev_v, twist, size) of one homogeneous net ([:p+1, :q+1, 4])."""
+    dev = dev_u = dev_v = 0.0
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    w00 = net[0, 0, 3]
+    uneven = False
+    for i in range(p + 1):
+        for j in range(q + 1):
+            if net[i, j, 3] != w00:
+                uneven = True
+    c00, cp0, c0q, cpq = net[0, 0], net[p, 0], net[0, q], net[p, q]
+    for i in range(p + 1):
+        s = i / p
+        for j in range(q + 1):
+            t = j / q
+            w = net[i, j, 3]
+            e = e_u = e_v = 0.0
+            for k in range(3):
+                x = net[i, j, k] / w
+                lo[k], hi[k] = min(lo[k], x), max(hi[k], x)
+                a00, ap0, a0q, apq = c00[k] / c00[3], cp0[k] / cp0[3], c0q[k] / c0q[3], cpq[k] / cpq[3]
+                bil = (1 - s) * ((1 - t) * a00 + t * a0q) + s * ((1 - t) * ap0 + t * apq)
+                row = (1 - s) * net[0, j, k] / net[0, j, 3] + s * net[p, j, k] / net[p, j, 3]
+                col = (1 - t) * net[i, 0, k] / net[i, 0, 3] + t * net[i, q, k] / net[i, q, 3]
+                e += (x - bil) ** 2
+                e_u += (x - row) ** 2
+                e_v += (x - col) ** 2
+            dev, dev_u, dev_v = max(dev, np.sqrt(e)), max(dev_u, np.sqrt(e_u)), max(dev_v, np.sqrt(e_v))
+    size = np.sqrt(((hi - lo) ** 2).sum())
+    twist = 0.0
+    for k in range(3):
+        twist += (c00[k] / c00[3] - cp0[k] / cp0[3] - c0q[k] / c0q[3] + cpq[k] / cpq[3]) ** 2
+    twist = 0.25 * np.sqrt(twist)
+    if uneven:  # uneven weights bend the parametrisation even of a flat piece
+        spread_u = spread_v = 0.0
+        for j in range(q + 1):
+            wl, wh = np.inf, 0.0
+            for i in range(p + 1):
+                wl, wh = min(wl, net[i, j, 3]), max(wh, net[i, j, 3])
+            spread_u = max(spread_u, wh / wl - 1.0)
+        for i in range(p + 1):
+            wl, wh = np.inf, 0.0
+            for j in range(q + 1):
+                wl, wh = min(wl, net[i, j, 3]), max(wh, net[i, j, 3])
+            spread_v = max(spread_v, wh / wl - 1.0)
+        dev_u += spread_u * size
+        dev_v += spread_v * size
+        dev += max(spread_u, spread_v) * size
+    return dev, dev_u, dev_v, twist, size
+
+
+@njit(cache=True)
+def split_half(src, lo, hi, p, q, axis):
+    """de Casteljau at the midpoint of net src along axis 0 (u) or 1 (v) into lo, hi."""
+    n, other = (p, q) if axis == 0 else (q, p)
+    tmp = np.empty(n + 1)
+    for j in range(other + 1):
+        for c in range(4):
+            for i in range(n + 1):
+                tmp[i] = src[i, j, c] if axis == 0 else src[j, i, c]
+            for r in range(n + 1):
+                if r > 0:
+                    for i in range(n - r + 1):
+                        tmp[i] = 0.5 * (tmp[i] + tmp[i + 1])
+                if axis == 0:
+                    lo[r, j, c] = tmp[0]
+                    hi[n - r, j, c] = tmp[n - r]
+                else:
+                    lo[j, r, c] = tmp[0]
+                    hi[j, n - r, c] = tmp[n - r]
+
+
+@njit(cache=True)
+def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth, out_net):
+    """Cut one patch depth-first; with fill, write its leaves from index first. Returns the leaf count."""
+    stack = np.empty((max_depth + 2, net.shape[0], net.shape[1], 4))
+    rects = np.empty((max_depth + 2, 4))
+    depth = np.empty(max_depth + 2, dtype=np.int64)
+    stack[0] = net
+    rects[0] = rect
+    depth[0] = 0
+    top, count = 1, 0
+    while top > 0:
+        top -= 1
+        dev, dev_u, dev_v, twist, size = measures(stack[top], p, q)
+        if not ((dev > eps or max(dev, twist) > bend * size) and depth[top] < max_depth):
+            if fill:
+                out_rect[first + count] = rects[top]
+                out_depth[first + count] = depth[top]
+                out_net[first + count] = stack[top]
+            count += 1
+            continue
+        axis = 0 if dev_u >= dev_v else 1
+        piece = stack[top].copy()
+        r = rects[top].copy()
+        d = depth[top] + 1
+        split_half(piece, stack[top], stack[top + 1], p, q, axis)
+        mid = 0.5 * (r[2 * axis] + r[2 * axis + 1])
+        rects[top] = r
+        rects[top + 1] = r
+        rects[top, 2 * axis + 1] = mid
+        rects[top + 1, 2 * axis] = mid
+        depth[top] = d
+        depth[top + 1] = d
+        top += 2
+    return count
+
+
+@njit(cache=True, parallel=True)
+def flatten_patches(nets, degree, rects, eps, bend, max_depth):
+    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
+
+    nets: (P, Pm, Qm, 4) homogeneous Bezier nets (degree (P, 2) fills the
+    corner); rects: (P, 4) parameter rectangles.
+    """
+    n = nets.shape[0]
+    counts = np.zeros(n, dtype=np.int64)
+    dummy_r, dummy_d, dummy_n = np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0,) + nets.shape[1:])
+    for k in prange(n):
+        counts[k] = _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, 0,
+                         dummy_r, dummy_d, dummy_n)
+    starts = np.zeros(n + 1, dtype=np.int64)
+    starts[1:] = np.cumsum(counts)
+    total = starts[n]
+    patch = np.empty(total, dtype=np.int64)
+    out_rect = np.empty((total, 4))
+    out_depth = np.empty(total, dtype=np.int64)
+    out_net = np.zeros((total,) + nets.shape[1:])
+    for k in prange(n):
+        _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True, starts[k],
+             out_rect, out_depth, out_net)
+        patch[starts[k]:starts[k + 1]] = k
+    return patch, out_rect, out_depth, out_net
+
+
+SAH_BINS = 16
+
+
+@njit(cache=True)
+def _area(lo, hi):
+    dx, dy, dz = max(hi[0] - lo[0], 0.0), max(hi[1] - lo[1], 0.0), max(hi[2] - lo[2], 0.0)
+    return dx * dy + dy * dz + dz * dx
+
+
+@njit(cache=True)
+def build_tree(box_min, box_max, leaf_size):
+    """Binned surface-area-heuristic tree over L boxes (L, 3), built breadth first.
+
+    Returns (order (L,): the boxes in tree order, node_min, node_max (K, 3),
+    node_left, node_right, node_first, node_count (K,)); node 0 is the root,
+    a node's boxes are order[first:first + count], children -1 for a tree
+    leaf (count <= leaf_size). Each inner node is cut at the best of 15 bin
+    planes along the longest axis of its boxes' centres (cost: count x
+    surface area on each side); where all centres coincide, at the median.
+    """
+    n = box_min.shape[0]
+    centre = 0.5 * (box_min + box_max)
+    order = np.arange(n)
+    cap = 2 * n + 1
+    node_min, node_max = np.empty((cap, 3)), np.empty((cap, 3))
+    left, right = np.full(cap, -1, dtype=np.int64), np.full(cap, -1, dtype=np.int64)
+    first, count = np.zeros(cap, dtype=np.int64), np.zeros(cap, dtype=np.int64)
+    count[0] = n
+    made, node = 1, 0
+    lo, hi, clo, chi = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    bin_count = np.zeros(SAH_BINS, dtype=np.int64)
+    bin_lo, bin_hi = np.empty((SAH_BINS, 3)), np.empty((SAH_BINS, 3))
+    run_lo, run_hi = np.empty(3), np.empty(3)
+    below, above = np.empty(SAH_BINS - 1), np.empty(SAH_BINS - 1)
+    while node < made:
+        f, c = first[node], count[node]
+        lo[:], hi[:], clo[:], chi[:] = np.inf, -np.inf, np.inf, -np.inf
+        for i in range(f, f + c):
+            b = order[i]
+            for k in range(3):
+                lo[k], hi[k] = min(lo[k], box_min[b, k]), max(hi[k], box_max[b, k])
+                clo[k], chi[k] = min(clo[k], centre[b, k]), max(chi[k], centre[b, k])
+        node_min[node] = lo
+        node_max[node] = hi
+        if c > leaf_size:
+            axis = np.argmax(chi - clo)
+            extent = chi[axis] - clo[axis]
+            half = c // 2
+            if extent > 0.0:
+                bin_count[:] = 0
+                bin_lo[:] = np.inf
+                bin_hi[:] = -np.inf
+                scale = SAH_BINS * (1.0 - 1e-9) / extent
+                for i in range(f, f + c):
+                    b = order[i]
+                    j = int((centre[b, axis] - clo[axis]) * scale)
+                    bin_count[j] += 1
+                    for k in range(3):
+                        bin_lo[j, k], bin_hi[j, k] = min(bin_lo[j, k], box_min[b, k]), max(bin_hi[j, k], box_max[b, k])
+                # areas of the boxes of bins below / above each plane, by a sweep from each end
+                run_lo[:] = np.inf
+                run_hi[:] = -np.inf
+                for j in range(SAH_BINS - 1):
+                    if bin_count[j]:
+                        run_lo[:] = np.minimum(run_lo, bin_lo[j])
+                        run_hi[:] = np.maximum(run_hi, bin_hi[j])
+                    below[j] = _area(run_lo, run_hi)
+                run_lo[:] = np.inf
+                run_hi[:] = -np.inf
+                for j in range(SAH_BINS - 1, 0, -1):
+                    if bin_count[j]:
+                        run_lo[:] = np.minimum(run_lo, bin_lo[j])
+                        run_hi[:] = np.maximum(run_hi, bin_hi[j])
+                    above[j - 1] = _area(run_lo, run_hi)
+                best, best_cost, nl = -1, np.inf, 0
+                for s in range(1, SAH_BINS):
+                    nl += bin_count[s - 1]
+                    if nl == 0 or nl == c:
+                        continue
+                    cost = nl * below[s - 1] + (c - nl) * above[s - 1]
+                    if cost < best_cost:
+                        best, best_cost, half = s, cost, nl
+                if best > 0:  # partition in place: bins below the plane first
+                    i, j = f, f + c - 1
+                    while i <= j:
+                        if int((centre[order[i], axis] - clo[axis]) * scale) < best:
+                            i += 1
+                        else:
+                            order[i], order[j] = order[j], order[i]
+                            j -= 1
+                else:
+                    half = c // 2
+                    keys = centre[order[f:f + c], axis]
+                    order[f:f + c] = order[f:f + c][np.argsort(keys, kind="mergesort")]
+            left[node], right[node] = made, made + 1
+            first[made], count[made] = f, half
+            first[made + 1], count[made + 1] = f + half, c - half
+            made += 2
+        node += 1
+    return (order, node_min[:made].copy(), node_max[:made].copy(), left[:made].copy(), right[:made].copy(),
+            first[:made].copy(), count[:made].copy())
