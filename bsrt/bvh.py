@@ -90,6 +90,7 @@ import numpy as np
 from .hits import Hits
 from .patches import PatchSet
 from .kernels.flatten import build_tree, flatten_patches
+from .kernels.trim import OUTSIDE, rect_states
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
 from .solve import Rays
 
@@ -246,6 +247,9 @@ def build_bvh(
     if padding is None:
         padding = 1e-8 * diag
     patch, rect, depth, all_nets, degree = flatten(patches, flatness, max_depth)
+    if patches.trimmed:  # pieces the trims remove entirely hold no hit
+        keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
+        patch, rect, depth, all_nets, degree = patch[keep], rect[keep], depth[keep], all_nets[keep], degree[keep]
     n = patch.size
     # the pieces' projected control points (L, Pm * Qm, 3), padding entries replaced by the first point
     pm, qm = all_nets.shape[1:3]

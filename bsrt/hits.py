@@ -52,6 +52,11 @@ class Hits:
         """The rays at ``index`` (a slice or an index array)."""
         return Hits(*(getattr(self, name)[index] for name in self.FIELDS))
 
+    def put(self, index, other: "Hits") -> None:
+        """Store ``other``'s records at ``index`` (a slice or an index array)."""
+        for name in self.FIELDS:
+            getattr(self, name)[index] = getattr(other, name)
+
     @classmethod
     def concatenate(cls, parts: list["Hits"]) -> "Hits":
         return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))

@@ -21,6 +21,7 @@ import numpy as np
 from . import gl
 from .camera import Camera, clip_from_eye, pixel_footprint
 from .errors import InputError, RenderError
+from .kernels.trim import OUTSIDE, rect_states
 from .patches import PatchSet
 from .settings import MAP_MODES
 
@@ -90,9 +91,12 @@ def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):
     share their border vertices exactly (no T-junctions, no cracks).
     segments: (P, 2) quads per patch. Returns (vertices (V, 6) float32 rows
     (x, y, z eye-relative, u_norm, v_norm, surface index + 1), indices (T, 3)
-    uint32).
+    uint32). Cells of a trimmed surface that its trims remove entirely are
+    left out; cells the trim curves cross stay (the map then shows a little
+    more than the kept region, and those pixels' roots are refused and
+    repaired as hard pixels), so the map never misses a kept part.
     """
-    verts, tris, base = [], [], 0
+    verts, tris, base = [], [], 0  # every surface's grid vertices; the triangles of its kept cells
     for m in range(len(patches.surfaces)):
         mine = patches.surface == m
         n_u, n_v = segments[mine].max(axis=0)
@@ -111,7 +115,11 @@ def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):
         block[:, 5] = m + 1
         verts.append(block)
         i, j = np.meshgrid(np.arange(gu.size - 1), np.arange(gv.size - 1), indexing="ij")
-        corner = (i * gv.size + j).ravel()
+        i, j = i.ravel(), j.ravel()
+        if patches.surfaces[m].is_trimmed:  # leave out the cells the trims remove entirely
+            cells = rect_states(patches.trims, np.full(i.size, m), gu[i], gu[i + 1], gv[j], gv[j + 1])
+            i, j = i[cells != OUTSIDE], j[cells != OUTSIDE]
+        corner = i * gv.size + j
         quad = np.stack([corner, corner + gv.size, corner + gv.size + 1, corner + 1], axis=1)
         tris.append(base + np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]))
         base += u.size

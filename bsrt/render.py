@@ -9,18 +9,20 @@ bands of at most MAX_BAND_SAMPLES samples, which bounds memory.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from .bvh import build_bvh, intersect
+from .camera import pixel_rays
 from .hits import Hits
 from .image import srgb_encode
 from .patches import PatchSet
 from .prelim import PrelimMap
 from .scene import Scene
 from .settings import RenderOptions
-from .shade import light_directions, shade, surface_frames
+from .shade import facing_frames, light_directions, shade
 from .stats import Stats
 from .trace import make_primary_tracer
 
@@ -28,24 +30,38 @@ MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of prima
 SECONDARY_CHUNK = 1 << 16  # secondary rays per kernel call: progress and cancellation points
 
 
-@dataclass
+@dataclass(eq=False)
 class RenderResult:
     """pixels: (H, W, 3) uint8 sRGB. linear: (H, W, 3) float64.
     hits: Hits for the H * W pixel-centre rays (row-major).
-    position, normal: (H * W, 3) float64, NaN where no hit.
+    position, normal: (H * W, 3) float64, NaN where no hit, computed from the
+      hits on first use (a large film keeps only its hits).
     prelim: the preliminary map of the last band traced, the whole film's
       when it fits in one band (None for method "martin").
     stats: timings (seconds) and counters, JSON-serialisable.
-    options: the settings it was rendered with."""
+    options: the settings it was rendered with; geometry: the scene's Geometry."""
 
     pixels: np.ndarray
     linear: np.ndarray
     hits: Hits
-    position: np.ndarray
-    normal: np.ndarray
     prelim: PrelimMap | None
-    stats: dict = field(default_factory=dict)
-    options: RenderOptions | None = None
+    stats: dict
+    options: RenderOptions
+    geometry: "Geometry"
+
+    @cached_property
+    def _frames(self):
+        h, w = self.pixels.shape[:2]
+        directions = pixel_rays(self.options.camera, w, h)
+        return facing_frames(self.geometry.patches, self.hits, directions)[:2]
+
+    @property
+    def position(self) -> np.ndarray:
+        return self._frames[0]
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self._frames[1]
 
     def save(self, path) -> None:
         """Write the image as a PNG (atomically: a failure leaves no file)."""
@@ -153,32 +169,31 @@ def render(
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     linear = np.zeros((height, width, 3))
-    primary = []
+    primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
     for first in range(0, sample_h, band):
         stop = min(sample_h, first + band)
         hits, directions = tracer.trace(sample_w, sample_h, (first, stop), prelim, first / total)
         shader.begin_band(hits, (first / total, stop / total))
         with stats.timer("shade"):
-            colour, position, normal = shader.shade(hits, directions)
+            colour = shader.shade(hits, directions)
         linear[first // rows : stop // rows] = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
         if spp == 1:
-            primary.append((hits, position, normal))
+            primary.put(slice(first * width, stop * width), hits)
     if spp > 1:  # the AOVs: pixel-centre rays
         band = max(1, MAX_BAND_SAMPLES // width)
         for first in range(0, height, band):
             report("aov", (sample_h + first) / total)
-            hits, directions = tracer.trace(width, height, (first, min(height, first + band)), None)
-            position, normal, _ = shader.frames(hits, directions)
-            primary.append((hits, position, normal))
+            stop = min(height, first + band)
+            hits, _ = tracer.trace(width, height, (first, stop), None)
+            primary.put(slice(first * width, stop * width), hits)
     report("done", 1.0)
-    hits = Hits.concatenate([p[0] for p in primary])
+    hits = primary
     work = hits.iterations[hits.iterations > 0]
     stats.fields.update(pixels=width * height, hits=int(hits.hit.sum()),
                         iterations_mean=float(work.mean()) if work.size else 0.0,
                         iterations_max=int(hits.iterations.max()))
-    return RenderResult(srgb_encode(linear), linear, hits, np.concatenate([p[1] for p in primary]),
-                        np.concatenate([p[2] for p in primary]), tracer.last_map, stats.as_dict(), opts)
+    return RenderResult(srgb_encode(linear), linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
 
 
 class _Shader:
@@ -201,29 +216,14 @@ class _Shader:
         self.span, self.traced = span, 0
         self.expected = max(1, int(hits.hit.sum()) * max(self.casting, 1) * mirrors)
 
-    def frames(self, hits: Hits, directions: np.ndarray):
-        """Position and viewer-facing unit normal (K, 3) of each hit, NaN where no hit,
-        and |S_u|, |S_v| (K, 2)."""
-        position = np.full((len(hits), 3), np.nan)
-        normal = np.full((len(hits), 3), np.nan)
-        speed = np.full((len(hits), 2), np.nan)
-        hit = np.flatnonzero(hits.hit)
-        if hit.size:
-            pos, nrm, speed[hit] = surface_frames(self.geometry.patches, hits, hit)
-            flip = np.einsum("ij,ij->i", nrm, directions[hit]) > 0
-            nrm[flip] *= -1.0
-            position[hit], normal[hit] = pos, nrm
-        return position, normal, speed
-
     def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0):
-        """Linear RGB (K, 3) seen along each ray (ending at ``hits``), with the
-        hits' positions and normals (K, 3)."""
-        position, normal, speed = self.frames(hits, directions)
+        """Linear RGB (K, 3) seen along each ray (ending at ``hits``)."""
+        position, normal, speed = facing_frames(self.geometry.patches, hits, directions)
         colour = np.empty((len(hits), 3))
         colour[:] = self.scene.film.background
         hit = np.flatnonzero(hits.hit)
         if not hit.size:
-            return colour, position, normal
+            return colour
         pos, nrm, dirs = position[hit], normal[hit], directions[hit]
         material = self.geometry.material[hits.surface[hit]]
         exclude = self._exclusion(hits, hit, speed[hit])
@@ -236,10 +236,10 @@ class _Shader:
             r = d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
             self.stats.add("reflection_rays", mirror.size)
             seen = self._trace(pos[mirror], r, tuple(a[mirror] for a in exclude))
-            reflected, _, _ = self.shade(seen, r, depth + 1)
+            reflected = self.shade(seen, r, depth + 1)
             k = reflectance[mirror][:, None]
             colour[hit[mirror]] = (1.0 - k) * colour[hit[mirror]] + k * reflected
-        return colour, position, normal
+        return colour
 
     def _exclusion(self, hits: Hits, hit: np.ndarray, speed: np.ndarray):
         """The parameter box around each hit that its secondary rays must not hit again.

@@ -43,6 +43,21 @@ def surface_frames(patches: PatchSet, hits: Hits, index: np.ndarray):
     return S.T, n, speed
 
 
+def facing_frames(patches: PatchSet, hits: Hits, directions: np.ndarray):
+    """Position and viewer-facing unit normal (K, 3) of each hit, NaN where no hit,
+    and |S_u|, |S_v| (K, 2); directions: (K, 3) the rays that found the hits."""
+    position = np.full((len(hits), 3), np.nan)
+    normal = np.full((len(hits), 3), np.nan)
+    speed = np.full((len(hits), 2), np.nan)
+    hit = np.flatnonzero(hits.hit)
+    if hit.size:
+        pos, nrm, speed[hit] = surface_frames(patches, hits, hit)
+        flip = np.einsum("ij,ij->i", nrm, directions[hit]) > 0
+        nrm[flip] *= -1.0
+        position[hit], normal[hit] = pos, nrm
+    return position, normal, speed
+
+
 def light_directions(light, position: np.ndarray):
     """Unit directions (K, 3) from each point toward the light, distances (K,) (inf if directional)."""
     if light.kind == "point":
