@@ -254,7 +254,7 @@ def build_bvh(
     # the pieces' projected control points (L, Pm * Qm, 3), padding entries replaced by the first point
     pm, qm = all_nets.shape[1:3]
     used = (np.arange(pm)[None, :, None] <= degree[:, None, None, 0]) & (np.arange(qm)[None, None, :] <= degree[:, None, None, 1])
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(all="ignore"):  # the padding entries have w = 0; they are replaced below
         points = all_nets[..., :3] / all_nets[..., 3:4]
     points = np.where(used[..., None], points, points[:, :1, :1]).reshape(n, -1, 3)
     obb = _oriented_boxes(all_nets, degree, points, padding)
