@@ -139,9 +139,16 @@ def depth_range(patches: PatchSet, camera: Camera) -> tuple[float, float]:
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     _, _, f = camera.basis()
     depth = (corners - camera.eye) @ f
-    far = max(float(depth.max()), 1e-300) * 1.01 + 1e-9
+    far = max(float(depth.max()), 1e-300) * 1.1 + 1e-9  # generous: depth is tested on linear distance (far_distance)
     near = max(float(depth.min()) * 0.99, far * 1e-5)
     return near, far
+
+
+def far_distance(patches: PatchSet, camera: Camera) -> float:
+    """Beyond the farthest control point from the eye (the linear depth's scale)."""
+    lo, hi = patches.scene_box()
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    return max(float(np.linalg.norm(corners - camera.eye, axis=1).max()), 1e-300) * 1.01
 
 
 def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode: str = "float", ctx=None,
@@ -182,6 +189,7 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
     program = gl.program(ctx, "prelim")
     program["clip_from_eye"].write(clip_from_eye(camera, width, height, near, far, rows).T.astype("f4").tobytes())
     program["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0
+    program["inv_far"].value = 1.0 / far_distance(patches, camera)
     first, stop = rows if rows is not None else (0, height)
     height = stop - first
     size = (width, height)

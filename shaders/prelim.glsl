@@ -25,6 +25,7 @@ void main() {
 #elif defined FRAGMENT_SHADER
 
 uniform float id_scale;       // 1 for the float map, 1/255 for the 8-bit map
+uniform float inv_far;        // 1 / the far plane's distance: the depth test runs on linear distance
 
 in vec3 eye_offset;
 in vec2 frag_uv;
@@ -36,6 +37,10 @@ layout(location = 1) out float eye_distance;
 void main() {
     map_color = vec4(frag_id * id_scale, clamp(frag_uv, 0.0, 1.0), 1.0);
     eye_distance = length(eye_offset);
+    // Linear depth: the same resolution everywhere between the eye and the far
+    // plane (a perspective depth buffer loses it all when the eye sits inside
+    // the scene's box and the near plane must come close).
+    gl_FragDepth = clamp(eye_distance * inv_far, 0.0, 1.0);
 }
 
 #endif
