@@ -423,18 +423,43 @@ def rotation_matrix(axis: np.ndarray, degrees: float) -> np.ndarray:
 MODEL_MATERIAL = Material("model", color=(0.72, 0.70, 0.66), specular=0.3, shininess=48.0)
 
 
+def model_box(surfaces) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) corners (3,) of what the surfaces show.
+
+    An untrimmed surface counts with its control points (its hull holds it);
+    a trimmed one with the kept points of a 64 x 64 grid over its domain and
+    the points of its trim curves, so a model whose faces are small pieces of
+    large surfaces is framed by its faces.
+    """
+    from .bspline import evaluate
+    from .trim import kept
+
+    parts = []
+    for surf in surfaces:
+        if not surf.is_trimmed:
+            parts.append(surf.points.reshape(-1, 3))
+            continue
+        (u0, u1), (v0, v1) = surf.domain_u, surf.domain_v
+        u, v = (x.ravel() for x in np.meshgrid(np.linspace(u0, u1, 64), np.linspace(v0, v1, 64), indexing="ij"))
+        keep = kept(surf, u, v)
+        curve_uv = [c.evaluate(np.linspace(*c.domain, 33)) for loop in surf.trims for c in loop.curves]
+        uv = np.concatenate([np.stack([u[keep], v[keep]], axis=1)] + curve_uv)
+        parts.append(evaluate(surf, np.clip(uv[:, 0], u0, u1), np.clip(uv[:, 1], v0, v1))[0])
+    pts = np.concatenate(parts)
+    return pts.min(axis=0), pts.max(axis=0)
+
+
 def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=None, up=(0.0, 0.0, 1.0)) -> Scene:
     """A scene that shows a model file with no scene file.
 
-    The camera frames the bounding box of the control points from a
-    three-quarter view above (``up`` is +z unless given): the box's
+    The camera frames the model's box (``model_box``: trimmed surfaces by
+    their kept parts) from a three-quarter view above (``up`` is +z unless given): the box's
     bounding sphere fills the narrower field of view. A key point light
     (above and behind the camera, as bright as 1 at the model), a dimmer
     directional fill and a little ambient light; one neutral material.
     eye / look_at / fov override the automatic choice.
     """
-    pts = np.concatenate([s.points.reshape(-1, 3) for s in model.surfaces])
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo, hi = model_box(model.surfaces)
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)
     fov = 35.0 if fov is None else float(fov)
