@@ -165,7 +165,45 @@ def format_full(results: dict) -> str:
     return "\n".join(lines)
 
 
+def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
+    """Each model rendered as it is and with its trims ignored (same camera: the trimmed model's), medians.
+
+    Returns {name: {"trimmed": seconds, "untrimmed": seconds, "ratio": ..., "trimmed_surfaces": n}}.
+    """
+    from dataclasses import replace
+
+    from .io import load_model
+    from .scene import SceneSurface, scene_for_model
+
+    out = {}
+    for path in paths:
+        model = load_model(path)
+        scene = scene_for_model(model, size, size)
+        bare = replace(scene, surfaces=tuple(SceneSurface(replace(s.geometry, trims=()), s.material, s.name)
+                                             for s in scene.surfaces))
+        row = {"trimmed_surfaces": sum(s.geometry.is_trimmed for s in scene.surfaces)}
+        for label, sc in (("trimmed", scene), ("untrimmed", bare)):
+            options = RenderOptions.resolve(sc)
+            render(sc, options)  # warm-up
+            times = []
+            for _ in range(repeat):
+                clock = time.perf_counter()
+                render(sc, options)
+                times.append(time.perf_counter() - clock)
+            row[label] = statistics.median(times)
+        row["ratio"] = row["trimmed"] / row["untrimmed"]
+        out[Path(path).name] = row
+        log(f"{Path(path).name:24s} trimmed {row['trimmed']:6.3f} s  trims ignored {row['untrimmed']:6.3f} s  "
+            f"ratio {row['ratio']:.2f}  ({row['trimmed_surfaces']} trimmed surfaces)")
+    return out
+
+
 def main(args) -> int:
+    if getattr(args, "models", None):
+        results = trim_cost(args.models, args.size, args.repeat, log=lambda text: print(text, flush=True))
+        if args.json:
+            write_text(args.json, json.dumps(results, indent=2))
+        return 0
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     results = run(args.scenes or DEFAULT_SCENES, methods, args.size, args.repeat,
                   log=lambda text: print(text, flush=True))

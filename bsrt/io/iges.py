@@ -1,32 +1,50 @@
-"""IGES 5.x fixed-format ASCII files: entity 128 (rational B-spline surface).
+"""IGES 5.x fixed-format ASCII files: B-spline, analytic and trimmed surfaces.
+
+This module reads the file structure; the geometry lives next to it:
+``iges_bspline.py`` (exact B-spline curve algebra and conics),
+``iges_curves.py`` (curve entities), ``iges_surfaces.py`` and ``analytic.py``
+(surface entities as exact NURBS), ``iges_invert.py`` (model-space curves into a
+surface's parameters, parameter maps on 2-D curves), ``iges_loops.py`` (trim
+loops onto a surface's B-spline) and ``iges_topology.py`` (trimmed surfaces,
+bounded surfaces, B-rep faces, and what a file draws).
 
 Every record is 80 columns: data in 1-72, the section letter (S, G, D, P, T)
 in 73 and a sequence number in 74-80. The reader checks the section order,
 the sequence numbers and the Terminate record's counts, so truncated or
 spliced files are reported rather than half-read.
 
-* G: only the parameter and record delimiters are used (default ``,`` ``;``).
+* G: the parameter and record delimiters (default ``,`` ``;``) and parameter
+  19, the minimum user-intended resolution (model-space gaps up to it do not
+  open a trim loop).
 * D: two records per entity; the directory entry number (DE) of an entity is
   the sequence number of its first record. Fields used: entity type, P
-  pointer and P line count, transformation matrix pointer (field 7), form,
-  label (columns 57-64 of the 2nd record) and subscript.
-* P: columns 1-64 hold the parameters, 65-72 the DE back-pointer.
-
-Entity 128 parameters: K1 K2 M1 M2 PROP1..5, the K1+M1+2 u knots and K2+M2+2
-v knots, the (K1+1)(K2+1) weights, the control points (x y z each) and
-U0 U1 V0 V1. Weights and points are listed u fastest (index (i, j) is at
-position i + (K1+1) j); degree = M. When [U0, U1] x [V0, V1] is smaller than
-the knot domain the surface is cut to it.
+  pointer and P line count, transformation matrix pointer (field 7), blank
+  status (field 9), form, label (columns 57-64 of the 2nd record) and
+  subscript.
+* P: columns 1-64 hold the parameters, 65-72 the DE back-pointer. Parameters
+  after an entity's own ones (back pointers, properties) are ignored.
 
 Entity 124 (transformation matrix) parameters are R11 R12 R13 T1 R21 ...
-T3: x' = R x + T. A 128 whose field 7 points to a 124 is mapped by it; a 124
-may itself point to another 124, which is applied after it.
+T3: x' = R x + T; a 124 may itself point to another 124, applied after it.
+An entity's own matrix maps it into model space. The members of a composite
+curve (102) are mapped by their own matrices and then by the composite's;
+the curves, points and directions a surface entity is built from (118, 120,
+122, 190-198) by theirs and then by the surface's. Boundary curves (142,
+141, 504, a 108's boundary) are model-space curves: their own matrices only.
+A parameter-space curve's matrix acts in the (u, v) plane (its x, y, z are
+mapped and z is dropped: x -> u, y -> v).
 
-Trimming is not supported: 128 surfaces referenced by 141 (boundary), 143
-(bounded surface) or 144 (trimmed surface) entities are drawn untrimmed and
-one warning says how many. Every other entity, except the 124s applied to a
-128, is counted in ``Model.skipped`` by type. Compressed (C) and binary
-IGES are refused.
+What is drawn, in directory order: every trimmed surface (144), bounded
+surface (143) and B-rep face (510), with its trim loops; every surface entity
+no 144/143/510 refers to, whole (128, 114, 118, 120, 122, 196, 198; a 108
+only when bounded by a curve or given a display size); the solids (186) and
+shells (514) only gather faces, which are drawn as faces. Entities that take
+part (curves, 124s, vertex and edge lists, ...) are used; every other one is
+counted in ``Model.skipped`` by type, unless it is blanked (blank status 01:
+hidden in the sending system). A trimmed surface whose boundary uses a curve
+bsrt does not convert (130 offset curve, ...) is drawn whole, with a warning
+and counted in ``Model.untrimmed``; an unbounded surface with nothing to bound
+it is left out with a warning. Compressed (C) and binary IGES are refused.
 """
 
 from __future__ import annotations
@@ -37,9 +55,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import Model, build_surface, cut, fail, read_text, split_lines
+from . import Model, fail, read_text, split_lines
 
-_ENTITY_NAMES = {
+ENTITY_NAMES = {
     100: "circular arc", 102: "composite curve", 104: "conic arc", 106: "copious data",
     108: "plane", 110: "line", 112: "parametric spline curve", 114: "parametric spline surface",
     116: "point", 118: "ruled surface", 120: "surface of revolution", 122: "tabulated cylinder",
@@ -54,8 +72,6 @@ _ENTITY_NAMES = {
     402: "associativity instance", 404: "drawing", 406: "property", 408: "singular subfigure instance",
     410: "view", 502: "vertex list", 504: "edge list", 508: "loop", 510: "face", 514: "shell",
 }
-# entity type -> index (0-based, after the type) of its surface pointer
-_TRIMMING = {141: 2, 143: 1, 144: 0}
 _SECTIONS = "SGDPT"
 _HOLLERITH = re.compile(r"\s*(\d+)H")
 _REAL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[EeDd][+-]?\d+)?")
@@ -72,6 +88,8 @@ class _Entity:
     xform: int  # DE of its transformation matrix, 0 for none
     pcount: int  # number of P lines
     label: str
+    form: int = 0  # form number (2nd record, columns 33-40)
+    blanked: bool = False  # blank status 01 (status number, columns 65-66): hidden in the sending system
 
 
 class _Params:
@@ -80,12 +98,14 @@ class _Params:
     def __init__(self, path: str, entity: _Entity, tokens: list[tuple[str, int]]):
         self.path, self.entity, self.tokens, self.pos = path, entity, tokens, 1
 
-    def fail(self, line: int, message: str):
-        return fail(self.path, line, f"entity {self.entity.type} (DE {self.entity.de}): {message}")
+    def fail(self, message: str, line: int | None = None):
+        """InputError 'path:line: entity T (DE n): message' at the parameter read last."""
+        return fail(self.path, self.line if line is None else line,
+                    f"entity {self.entity.type} (DE {self.entity.de}): {message}")
 
     def _next(self, what: str) -> tuple[str, int]:
         if self.pos >= len(self.tokens):
-            raise self.fail(self.tokens[-1][1], f"its {len(self.tokens) - 1} parameters end before {what}")
+            raise self.fail(f"its {len(self.tokens) - 1} parameters end before {what}")
         self.pos += 1
         return self.tokens[self.pos - 1]
 
@@ -94,13 +114,20 @@ class _Params:
         if token == "":
             return 0.0
         if _REAL.fullmatch(token) is None:
-            raise self.fail(line, f"expected {what} (a number), got {token!r}")
+            raise self.fail(f"expected {what} (a number), got {token!r}")
         value = float(token.replace("D", "E").replace("d", "e"))
         if not np.isfinite(value):
-            raise self.fail(line, f"{what} {token} is too large")
+            raise self.fail(f"{what} {token} is too large")
         return value
 
     def reals(self, count: int, what: str) -> np.ndarray:
+        """(count,) float64; one by one (with the first bad one reported) only if the fast path fails."""
+        chunk = self.tokens[self.pos : self.pos + count]
+        if len(chunk) == count and all(t and _REAL.fullmatch(t) for t, _ in chunk):
+            values = np.array([t.replace("D", "E").replace("d", "e") for t, _ in chunk], dtype=np.float64)
+            if np.all(np.isfinite(values)):
+                self.pos += count
+                return values
         return np.array([self.real(what) for _ in range(count)], dtype=np.float64)
 
     def int(self, what: str, minimum: int | None = None) -> int:
@@ -110,14 +137,23 @@ class _Params:
         elif re.fullmatch(r"[+-]?\d+", token):
             value = int(token)
         else:
-            raise self.fail(line, f"expected {what} (a whole number), got {token!r}")
+            raise self.fail(f"expected {what} (a whole number), got {token!r}")
         if minimum is not None and value < minimum:
-            raise self.fail(line, f"{what} must be at least {minimum}, got {value}")
+            raise self.fail(f"{what} must be at least {minimum}, got {value}")
         return value
+
+    def pointer(self, what: str) -> int:
+        """A DE pointer (0: none). Negative pointers are read as their absolute value."""
+        return abs(self.int(what))
+
+    def skip(self, count: int, what: str) -> None:
+        for _ in range(count):
+            self._next(what)
 
     @property
     def line(self) -> int:
-        return self.tokens[min(self.pos, len(self.tokens) - 1)][1]
+        """File line of the parameter read last (of the first one before any is read)."""
+        return self.tokens[max(1, min(self.pos - 1, len(self.tokens) - 1))][1]
 
 
 def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
@@ -193,6 +229,28 @@ def _delimiters(path: str, records: list[tuple[int, str]]) -> tuple[str, str]:
     return p, r
 
 
+def _resolution(records: list[tuple[int, str]], delims: tuple[str, str]) -> float:
+    """Global parameter 19, the minimum user-intended resolution (model units); 0 if absent or unreadable."""
+    text = "".join(rec[:72] for _, rec in records)
+    pdelim, rdelim = delims
+    fields, i = [], 0
+    while i < len(text) and len(fields) < 19:
+        m = _HOLLERITH.match(text, i)
+        j = m.end() + int(m.group(1)) if m else i
+        ends = [k for k in (text.find(pdelim, j), text.find(rdelim, j)) if k >= 0]
+        if not ends:
+            break
+        end = min(ends)
+        fields.append(text[i:end].strip())
+        if text[end] == rdelim:
+            break
+        i = end + 1
+    if len(fields) < 19 or _REAL.fullmatch(fields[18]) is None:
+        return 0.0
+    value = float(fields[18].replace("D", "E").replace("d", "e"))
+    return value if np.isfinite(value) and value > 0 else 0.0
+
+
 def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict[int, _Entity]:
     """DE number -> entity, checking each pair of D records."""
     if len(records) % 2:
@@ -221,6 +279,7 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
         pstart = field(a, 1, line, "the parameter data pointer", 0)
         xform = field(a, 6, line, "the transformation matrix pointer", 0)
         pcount = field(b, 3, line2, "the parameter line count", 0)
+        form = field(b, 4, line2, "the form number")
         subscript = b[64:72].strip()
         label = b[56:64].strip() + (f"({subscript})" if subscript.lstrip("0") else "")
         if etype != 0 and (pstart < 1 or pcount < 1 or pstart + pcount - 1 > n_params):
@@ -229,14 +288,15 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
                 f"directory entry {k + 1}: its parameter lines "
                 f"{pstart}..{pstart + pcount - 1} are not within the {n_params} P lines",
             )
-        out[k + 1] = _Entity(k + 1, line, etype, pstart, xform, pcount, label)
+        blanked = a[64:66] == "01"
+        out[k + 1] = _Entity(k + 1, line, etype, pstart, xform, pcount, label, form, blanked)
     return out
 
 
 def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims: tuple[str, str]) -> _Params:
     """Tokenise an entity's P records up to the record delimiter (Hollerith strings kept whole)."""
     pdelim, rdelim = delims
-    chars, where = [], []
+    chars, lines = [], []
     for line, rec in precs[entity.pstart - 1 : entity.pstart - 1 + entity.pcount]:
         back = rec[64:72].strip()
         if not back.isdigit() or int(back) != entity.de:
@@ -245,8 +305,28 @@ def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims
                 f"this P line points back to DE {back!r}, but DE {entity.de} says its parameters are here",
             )
         chars.append(rec[:64])
-        where.extend([line] * 64)
+        lines.append(line)
     text = "".join(chars)
+    end = text.find(rdelim)
+    if end >= 0 and "H" not in text[:end] and "h" not in text[:end]:  # no Hollerith string: split at once
+        tokens, i = [], 0
+        for t in text[:end].split(pdelim):
+            tokens.append((t.strip(), lines[i // 64]))
+            i += len(t) + 1
+    else:
+        tokens = _hollerith_tokens(path, entity, text, [x for x in lines for _ in range(64)], delims)
+    if tokens[0][0] != str(entity.type):
+        raise fail(
+            path, tokens[0][1],
+            f"the parameters of DE {entity.de} start with "
+            f"{tokens[0][0]!r}, but the directory says entity {entity.type}",
+        )
+    return _Params(path, entity, tokens)
+
+
+def _hollerith_tokens(path, entity, text, where, delims) -> list[tuple[str, int]]:
+    """Tokens of parameters that may hold Hollerith strings nHxxxx (whose characters may be delimiters)."""
+    pdelim, rdelim = delims
     delimiter = re.compile("[" + re.escape(pdelim + rdelim) + "]")
     tokens, i = [], 0
     while True:
@@ -262,113 +342,105 @@ def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims
             )
         tokens.append((text[i : d.start()].strip(), where[min(i, len(where) - 1)]))
         if d.group() == rdelim:
-            break
+            return tokens
         i = d.end()
-    if tokens[0][0] != str(entity.type):
-        raise fail(
-            path, tokens[0][1],
-            f"the parameters of DE {entity.de} start with "
-            f"{tokens[0][0]!r}, but the directory says entity {entity.type}",
-        )
-    return _Params(path, entity, tokens)
 
 
-def _matrix(path: str, entities, de: int, cache: dict, records, delims, chain=()) -> np.ndarray:
-    """4x4 world-from-local matrix of the 124 at DE ``de`` including the 124s it points to."""
-    if de in cache:
-        return cache[de]
-    entity = entities.get(de)
-    if entity is None or entity.type != 124:
-        what = "nothing" if entity is None else f"entity {entity.type}"
-        first = entities[chain[-1]] if chain else None
-        raise fail(
-            path, first.line if first else 1,
-            f"transformation matrix pointer {de} points to {what}, not to an entity 124",
-        )
-    if de in chain:
-        raise fail(
-            path, entity.line,
-            f"the transformation matrices at DE {', '.join(map(str, chain))} refer to each other in a loop",
-        )
-    params = _parameters(path, entity, records, delims)
-    m = np.eye(4)
-    m[:3, :] = params.reals(12, "a matrix entry").reshape(3, 4)
-    if entity.xform:
-        m = _matrix(path, entities, entity.xform, cache, records, delims, chain + (de,)) @ m
-    cache[de] = m
-    return m
+class IgesFile:
+    """A checked IGES file: its directory, parameters on demand, matrices, and what was used.
+
+    resolution: the Global section's minimum user-intended resolution (model units, 0 if none).
+    used: DEs of the entities that took part in something drawn.
+    cache: memo of converted entities, keyed by (kind, DE).
+    """
+
+    def __init__(self, path: str):
+        self.path = path
+        self.base = os.path.basename(path)
+        sections = _records(path, read_text(path))
+        self.delims = _delimiters(path, sections["G"])
+        self.resolution = _resolution(sections["G"], self.delims)
+        self.precs = sections["P"]
+        self.entities = _directory(path, sections["D"], len(self.precs))
+        self._tokens: dict[int, list] = {}
+        self._matrices: dict[int, np.ndarray] = {}
+        self.used: set[int] = set()
+        self.cache: dict = {}
+
+    def params(self, entity: _Entity) -> _Params:
+        """A fresh reader of the entity's parameters (tokenised once)."""
+        tokens = self._tokens.get(entity.de)
+        if tokens is None:
+            tokens = _parameters(self.path, entity, self.precs, self.delims).tokens
+            self._tokens[entity.de] = tokens
+        return _Params(self.path, entity, tokens)
+
+    def get(self, ref: _Params, de: int, what: str, types=None) -> _Entity:
+        """The entity at DE ``de``, which ``ref`` (just read) names as ``what``.
+
+        types: allowed entity types (None: any). Errors point at ``ref``'s parameter.
+        """
+        target = self.entities.get(de)
+        if target is None or target.type == 0:
+            raise ref.fail(f"its {what} points to DE {de}, which does not exist")
+        if types is not None and target.type not in types:
+            allowed = " or ".join(f"{t} ({ENTITY_NAMES.get(t, 'unknown')})" for t in sorted(types))
+            raise ref.fail(
+                f"its {what} points to DE {de}, an entity {target.type} "
+                f"({ENTITY_NAMES.get(target.type, 'unknown type')}), not an entity {allowed}"
+            )
+        return target
+
+    def fail(self, entity: _Entity, message: str, line: int | None = None):
+        return fail(self.path, entity.line if line is None else line,
+                    f"entity {entity.type} (DE {entity.de}): {message}")
+
+    def matrix(self, entity: _Entity) -> np.ndarray | None:
+        """4x4 model-from-definition matrix of the entity's own 124 chain (None if it has none)."""
+        if not entity.xform:
+            return None
+        return self._matrix(entity.xform, (entity.de,))
+
+    def _matrix(self, de: int, chain: tuple) -> np.ndarray:
+        if de in self._matrices:
+            return self._matrices[de]
+        first = self.entities[chain[-1]]
+        entity = self.entities.get(de)
+        if entity is None or entity.type != 124:
+            what = "nothing" if entity is None else f"entity {entity.type}"
+            raise fail(self.path, first.line, f"entity {first.type} (DE {first.de}): its "
+                       f"transformation matrix pointer {de} points to {what}, not to an entity 124")
+        if de in chain:
+            des = ", ".join(map(str, chain[1:]))
+            raise fail(self.path, entity.line, f"the transformation matrices at DE {des} refer to each other in a loop")
+        params = self.params(entity)
+        m = np.eye(4)
+        m[:3, :] = params.reals(12, "a matrix entry").reshape(3, 4)
+        if entity.xform:
+            m = self._matrix(entity.xform, chain + (de,)) @ m
+        self.used.add(de)
+        self._matrices[de] = m
+        return m
+
+    def name(self, entity: _Entity) -> str:
+        return f"{self.base}#D{entity.de}" + (f" {entity.label}" if entity.label else "")
 
 
-def _surface(path: str, entity: _Entity, params: _Params):
-    which = f"entity 128 (DE {entity.de})"
-    k1, k2 = params.int("K1", 0), params.int("K2", 0)
-    m1, m2 = params.int("M1", 0), params.int("M2", 0)
-    for name in ("PROP1", "PROP2", "PROP3", "PROP4", "PROP5"):
-        params.int(name)
-    ku = params.reals(k1 + m1 + 2, "a u knot")
-    kv = params.reals(k2 + m2 + 2, "a v knot")
-    nu, nv = k1 + 1, k2 + 1
-    w = params.reals(nu * nv, "a weight").reshape(nv, nu).T
-    pts = params.reals(3 * nu * nv, "a control point coordinate").reshape(nv, nu, 3).transpose(1, 0, 2)
-    u0, u1, v0, v1 = (params.real(name) for name in ("U0", "U1", "V0", "V1"))
-    if np.any(w <= 0):
-        raise fail(path, entity.line, f"{which}: every weight must be > 0, found {w.min():g}")
-    surface = build_surface(path, entity.line, which, (m1, m2), ku, kv, pts, w)
-    return cut(path, entity.line, which, surface, ((u0, u1), (v0, v1)), ("U0 U1", "V0 V1"))
+def entity_name(etype: int) -> str:
+    return f"IGES entity {etype} ({ENTITY_NAMES.get(etype, 'unknown type')})"
 
 
 def read(path: str) -> Model:
-    sections = _records(path, read_text(path))
-    delims = _delimiters(path, sections["G"])
-    precs = sections["P"]
-    entities = _directory(path, sections["D"], len(precs))
-    base = os.path.basename(path)
+    from .iges_topology import draw
 
-    surfaces, names, skipped = [], [], {}
-    cache: dict[int, np.ndarray] = {}
-    used_matrices: set[int] = set()
-    trimmed: set[int] = set()
-    trim_types: set[int] = set()
-    for entity in entities.values():
-        if entity.type == 128:
-            surface = _surface(path, entity, _parameters(path, entity, precs, delims))
-            if entity.xform:
-                m = _matrix(path, entities, entity.xform, cache, precs, delims, (entity.de,))
-                with np.errstate(all="ignore"):  # huge entries give non-finite points, reported below
-                    moved = surface.transformed(m).points
-                surface = build_surface(
-                    path, entity.line, f"entity 128 (DE {entity.de}) after its transformation matrix",
-                    surface.degree, surface.knots_u, surface.knots_v, moved, surface.weights,
-                )
-                de = entity.xform
-                while de and de not in used_matrices:
-                    used_matrices.add(de)
-                    de = entities[de].xform
-            surfaces.append(surface)
-            names.append(f"{base}#D{entity.de}" + (f" {entity.label}" if entity.label else ""))
-        elif entity.type in _TRIMMING:
-            params = _parameters(path, entity, precs, delims)
-            for _ in range(_TRIMMING[entity.type]):
-                params.int("a parameter")
-            ptr = params.int("the surface pointer")
-            target = entities.get(ptr)
-            if target is None:
-                raise params.fail(params.line, f"it points to surface DE {ptr}, which does not exist")
-            if target.type == 128:
-                trimmed.add(ptr)
-                trim_types.add(entity.type)
-    for entity in entities.values():
-        if entity.type not in (0, 128) and entity.de not in used_matrices:
-            key = f"IGES entity {entity.type} ({_ENTITY_NAMES.get(entity.type, 'unknown type')})"
+    f = IgesFile(path)
+    surfaces, names, warnings, untrimmed = draw(f)
+    skipped: dict[str, int] = {}
+    for entity in f.entities.values():
+        if entity.type != 0 and entity.de not in f.used and not entity.blanked:
+            key = entity_name(entity.type)
             skipped[key] = skipped.get(key, 0) + 1
     if not surfaces:
         found = ", ".join(f"{n} x {k}" for k, n in skipped.items()) or "no entities"
-        raise fail(path, None, f"the file holds no B-spline surfaces (entity 128), only {found}")
-    warnings = []
-    if trimmed:
-        kinds = "/".join(str(t) for t in sorted(trim_types))
-        are = "surface is" if len(trimmed) == 1 else "surfaces are"
-        warnings.append(
-            f"{len(trimmed)} {are} referenced by trimming entities ({kinds}) and rendered untrimmed"
-        )
-    return Model(path, surfaces, names, skipped, warnings, untrimmed=len(trimmed))
+        raise fail(path, None, f"the file holds no surfaces bsrt can draw, only {found}")
+    return Model(path, surfaces, names, skipped, warnings, untrimmed=untrimmed)

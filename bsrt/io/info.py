@@ -10,16 +10,26 @@ from . import Model
 
 
 def describe(model: Model) -> str:
-    """Multi-line summary: surface count, degrees, rational and trimmed counts,
+    """Multi-line summary: surface count (with trimmed surfaces and their loops, e.g.
+    "213 surfaces (213 trimmed, 427 loops)"), degrees, rational and trimmed counts,
     skipped entities, the bounding box of all control points, and warnings."""
     surfaces = model.surfaces
-    lines = [f"{model.path}: {len(surfaces)} surface{'s' if len(surfaces) != 1 else ''}"]
+    trimmed = [s for s in surfaces if s.is_trimmed]
+    loops = sum(len(s.trims) for s in trimmed)
+    head = f"{model.path}: {len(surfaces)} surface{'s' if len(surfaces) != 1 else ''}"
+    if trimmed:
+        head += f" ({len(trimmed)} trimmed, {loops} loop{'s' if loops != 1 else ''})"
+    lines = [head]
     degrees = Counter(s.degree for s in surfaces)
     lines.append("  degrees (u,v): " + ", ".join(f"({p},{q}) x {n}" for (p, q), n in degrees.most_common()))
     shapes = Counter(s.shape for s in surfaces)
     lines.append("  control nets:  " + ", ".join(f"{a}x{b} x {n}" for (a, b), n in shapes.most_common(5))
                  + (f", ... ({len(shapes)} kinds)" if len(shapes) > 5 else ""))
     lines.append(f"  rational:      {sum(s.is_rational for s in surfaces)}")
+    if trimmed:
+        per = Counter(len(s.trims) for s in trimmed)
+        lines.append("  trim loops:    " + ", ".join(f"{k} loop{'s' if k != 1 else ''} x {n}"
+                                                   for k, n in sorted(per.items())))
     lines.append(f"  rendered untrimmed although trimmed in the file: {model.untrimmed}")
     pts = np.concatenate([s.points.reshape(-1, 3) for s in surfaces]) if surfaces else np.zeros((1, 3))
     lo, hi = pts.min(axis=0), pts.max(axis=0)

@@ -1,0 +1,324 @@
+"""Trimmed surfaces (144), bounded surfaces (143) and B-rep faces (510) as trim loops.
+
+Entities (IGES 5.3):
+
+* 144 trimmed surface: PTS N1 N2 PTO PTI(1..N2). N1 = 0: the outer boundary is
+  the surface's own boundary (bsrt adds its domain rectangle as a loop, so
+  that the even-odd rule keeps the surface minus the inner loops).
+* 142 curve on a surface: CRTN SPTR BPTR CPTR PREF. The parameter-space curve
+  BPTR is used when there is one; otherwise the model-space curve CPTR is
+  carried into (u, v) (``iges_invert``).
+* 143 bounded surface: TYPE SPTR N and N pointers to 141s; 141 boundary:
+  TYPE PREF SPTR N, then per curve CRVPT SENSE K PSCPT(1..K). The K
+  parameter-space curves are used (the group reversed when SENSE = 2), else
+  the model-space curve CRVPT.
+* 186 manifold solid: SHELL SOF NVOID and (VOID, VOF) pairs; 514 shell: N and
+  (FACE, OF) pairs. Solids and shells only gather faces; a face is drawn
+  once, however many shells hold it, and its orientation is ignored (bsrt
+  shades both sides).
+* 510 face: SURF N OF LOOP(1..N). OF = 0 (no outer loop) on a bounded surface:
+  its domain rectangle is added as the outer loop.
+* 508 loop: N, then per edge TYPE EDGE NDX OF K and K (ISOP, CURV) pairs: the
+  K parameter-space curves, reversed as a group when OF = 0, else the model
+  curve of entry NDX (from 1) of the 504 edge list EDGE. A vertex edge
+  (TYPE 1) without parameter-space curves becomes a straight segment in
+  (u, v) between its neighbours (a pole or an apex).
+* 504 edge list: N and per edge CURV SVP SV TVP TV; 502 vertex list: N and
+  the points. They are checked and used, not drawn.
+
+The loops themselves are assembled by ``iges_loops``; :func:`draw` says what a
+file draws (see ``iges``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from .iges import entity_name
+from .iges_bspline import reverse
+from .iges_curves import Unsupported, mark_used
+from .iges_loops import BRIDGE, INVERSION_TOL, Face, LoopBuilder, Piece, RawLoop, Unbounded
+from .iges_surfaces import SURFACE_TYPES, SurfaceDef, surface
+
+# ---------------------------------------------------------------------------
+# The entities
+
+
+def _surface_of(f, params, what: str) -> SurfaceDef:
+    target = f.get(params, params.pointer(what), what)
+    if target.type not in SURFACE_TYPES:
+        raise Unsupported(target, "as a surface")
+    return surface(f, target)
+
+
+def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]:
+    """The pieces of a 142 (its parameter-space curve, else its model-space curve)."""
+    f = b.f
+    e142 = f.get(params, de, what, {142})
+    p = f.params(e142)
+    p.int("CRTN")
+    sptr = p.pointer("the surface pointer SPTR")
+    if sptr != b.sd.entity.de:
+        raise p.fail(f"the curve lies on surface DE {sptr}, but the trimmed surface DE {b.entity.de} "
+                     f"trims surface DE {b.sd.entity.de}")
+    bptr, cptr = p.pointer("the parameter-space curve BPTR"), p.pointer("the model-space curve CPTR")
+    f.used.add(e142.de)
+    if bptr:
+        try:
+            out = b.param_pieces(p, bptr, "parameter-space curve BPTR")
+        except Unsupported:
+            if not cptr:
+                raise
+        else:
+            if cptr:
+                mark_used(f, p, cptr, "model-space curve CPTR")
+            return out
+    if not cptr:
+        raise p.fail("the curve has neither a parameter-space (BPTR) nor a model-space (CPTR) curve")
+    return b.model_pieces(p, cptr, "model-space curve CPTR")
+
+
+def _trimmed_surface(f, entity) -> Face:
+    params = f.params(entity)
+    sd = _surface_of(f, params, "surface pointer PTS")
+    b = LoopBuilder(f, entity, sd)
+    n1 = params.int("N1", 0)
+    n2 = params.int("N2", 0)
+    pto = params.pointer("the outer boundary pointer PTO")
+    raw = []
+    if n1:
+        items = _curve_on_surface(b, params, pto, "outer boundary PTO")
+        raw.append(RawLoop(items, f"its outer boundary (DE {pto})"))
+    for i in range(n2):
+        de = params.pointer("an inner boundary pointer PTI")
+        items = _curve_on_surface(b, params, de, "inner boundary PTI")
+        raw.append(RawLoop(items, f"its inner boundary {i + 1} (DE {de})"))
+    return b.build(raw, outer_is_domain=not n1 and bool(raw))
+
+
+def _bounded_surface(f, entity) -> Face:
+    params = f.params(entity)
+    params.int("TYPE")
+    sd = _surface_of(f, params, "surface pointer SPTR")
+    b = LoopBuilder(f, entity, sd)
+    n = params.int("the boundary count N", 0)
+    raw = []
+    for i in range(n):
+        e141 = f.get(params, params.pointer("a boundary pointer"), "boundary pointer", {141})
+        p = f.params(e141)
+        p.int("TYPE")
+        p.int("PREF")
+        if p.pointer("the surface pointer SPTR") != sd.entity.de:
+            raise p.fail(f"the boundary lies on another surface than the bounded surface DE {entity.de}'s")
+        items = []
+        for _ in range(p.int("the curve count N", 1)):
+            model = p.pointer("a model-space curve CRVPT")
+            sense = p.int("SENSE")
+            k = p.int("the parameter-space curve count K", 0)
+            group = [x for _ in range(k) for x in b.param_pieces(p, p.pointer("a parameter-space curve"),
+                                                                  "parameter-space curve pointer")]
+            if sense == 2:
+                group = [replace(x, curve=reverse(x.curve)) for x in group[::-1]]
+            if group and model:
+                mark_used(f, p, model, "model-space curve CRVPT")
+            if not group:
+                group = b.model_pieces(p, model, "model-space curve CRVPT", backwards=sense == 2)
+            items += group
+        f.used.add(e141.de)
+        raw.append(RawLoop(items, f"its boundary {i + 1} (141 at DE {e141.de})"))
+    return b.build(raw)
+
+
+def _face(f, entity) -> Face:
+    params = f.params(entity)
+    sd = _surface_of(f, params, "surface pointer SURF")
+    b = LoopBuilder(f, entity, sd)
+    n = params.int("the loop count N", 0)
+    outer = params.int("the outer loop flag OF")
+    raw = []
+    for i in range(n):
+        e508 = f.get(params, params.pointer("a loop pointer"), "loop pointer", {508})
+        raw.append(RawLoop(_loop(b, e508), f"its loop {i + 1} (508 at DE {e508.de})"))
+    return b.build(raw, outer_is_domain=not outer and sd.bounded and bool(raw))
+
+
+def _loop(b: LoopBuilder, e508) -> list:
+    f = b.f
+    p = f.params(e508)
+    items = []
+    for _ in range(p.int("the edge count N", 1)):
+        kind = p.int("the edge TYPE")
+        lst = f.get(p, p.pointer("the edge or vertex list pointer EDGE"), "EDGE pointer", {502, 504})
+        ndx = p.int("the list index NDX", 1)
+        model = _list_entry(f, p, lst, ndx, kind)
+        forward = p.int("the orientation flag OF") != 0
+        k = p.int("the parameter-space curve count K", 0)
+        group = []
+        for _ in range(k):
+            p.int("ISOP")
+            group += b.param_pieces(p, p.pointer("a parameter-space curve CURV"), "parameter-space curve CURV")
+        if not forward:
+            group = [replace(x, curve=reverse(x.curve)) for x in group[::-1]]
+        if group:
+            items += group
+            if model:
+                mark_used(f, p, model, "edge curve")
+        elif kind == 0:
+            items += b.model_pieces(p, model, "edge curve", backwards=not forward)
+        else:
+            items.append(BRIDGE)
+    f.used.add(e508.de)
+    return items
+
+
+def _list_entry(f, ref, lst, ndx: int, kind: int) -> int:
+    """Check entry ``ndx`` of an edge (504) or vertex (502) list; the edge's curve DE (0 for a vertex)."""
+    expected = 504 if kind == 0 else 502
+    if lst.type != expected:
+        raise ref.fail(f"an edge of TYPE {kind} must point to an entity {expected}, not {lst.type}")
+    p = f.params(lst)
+    n = p.int("the list length N", 1)
+    if ndx > n:
+        raise ref.fail(f"the index NDX = {ndx} is past the end of the {n}-entry list DE {lst.de}")
+    f.used.add(lst.de)
+    if lst.type == 502:
+        return 0
+    p.skip(5 * (ndx - 1), "an edge entry")
+    de = p.pointer("an edge curve CURV")
+    for _ in range(2):
+        vl = f.get(p, p.pointer("a vertex list pointer"), "vertex list pointer", {502})
+        f.used.add(vl.de)
+        p.int("a vertex index")
+    return de
+
+
+def _shells(f, entity) -> None:
+    """Check a 186 or 514 and mark it (and its shells) used; faces are drawn on their own."""
+    p = f.params(entity)
+    if entity.type == 186:
+        shells = [f.get(p, p.pointer("the shell pointer"), "shell pointer", {514})]
+        p.int("SOF")
+        for _ in range(p.int("the void count NVOID", 0)):
+            shells.append(f.get(p, p.pointer("a void shell pointer"), "void shell pointer", {514}))
+            p.int("VOF")
+        for s in shells:
+            _shells(f, s)
+    else:
+        for _ in range(p.int("the face count N", 0)):
+            f.get(p, p.pointer("a face pointer"), "face pointer", {510})
+            p.int("OF")
+    f.used.add(entity.de)
+
+
+# ---------------------------------------------------------------------------
+# What a file draws
+
+
+def _whole(f, entity) -> object:
+    """A surface entity drawn alone, over its natural range (InputError-free None if unbounded)."""
+    sd = surface(f, entity)
+    if entity.type == 108:
+        return _plane_alone(f, entity, sd)
+    if not sd.bounded:
+        return None
+    return sd.place(None)[0]
+
+
+def _plane_alone(f, entity, sd):
+    params = f.params(entity)
+    params.skip(4, "a plane coefficient")
+    ptr = params.pointer("the boundary pointer PTR")
+    centre = params.reals(3, "a display symbol coordinate")
+    size = params.real("the display symbol size SIZE")
+    if ptr and entity.form == 1:
+        b = LoopBuilder(f, entity, sd)
+        raw = [RawLoop(b.model_pieces(params, ptr, "boundary pointer PTR"), f"its boundary (DE {ptr})")]
+        return b.build(raw).surface
+    if size > 0:
+        m = f.matrix(entity)
+        if m is not None:
+            centre = m[:3, :3] @ centre + m[:3, 3]
+        u, v = sd.invert(centre[None])[0]
+        return sd.place((u - size / 2, u + size / 2, v - size / 2, v + size / 2))[0]
+    return None
+
+
+_TRIMMERS = {144: _trimmed_surface, 143: _bounded_surface, 510: _face}
+
+
+def draw(f):
+    """(surfaces, names, warnings, untrimmed count) of an IgesFile."""
+    trimmed_targets = set()
+    for e in f.entities.values():
+        if e.type in _TRIMMERS:
+            p = f.params(e)
+            if e.type == 143:
+                p.int("TYPE")
+            trimmed_targets.add(p.pointer("the surface pointer"))
+    surfaces, names = [], []
+    untrimmed, unsupported, unbounded = [], {}, {}
+    inverted = 0
+    for e in f.entities.values():
+        if e.type in (186, 514):
+            _shells(f, e)
+        elif e.type in _TRIMMERS:
+            try:
+                face = _TRIMMERS[e.type](f, e)
+            except Unbounded:
+                target = _target(f, e)
+                unbounded[f.entities[target].type] = unbounded.get(f.entities[target].type, 0) + 1
+                f.used.discard(target)
+                continue
+            except Unsupported as u:
+                target = f.entities.get(_target(f, e))
+                try:
+                    s = _whole(f, target) if target is not None and target.type in SURFACE_TYPES else None
+                except (Unsupported, Unbounded):
+                    s = None
+                if s is None:  # the surface itself cannot be drawn: both are left out (skipped)
+                    continue
+                unsupported[u.entity.type] = unsupported.get(u.entity.type, 0) + 1
+                untrimmed.append(e.de)
+                surfaces.append(s)
+            else:
+                surfaces.append(face.surface)
+                inverted += face.inverted
+            f.used.add(e.de)
+            names.append(f.name(e))
+        elif e.type in SURFACE_TYPES and e.de not in trimmed_targets:
+            try:
+                s = _whole(f, e)
+            except Unsupported:
+                continue
+            if s is None:
+                unbounded[e.type] = unbounded.get(e.type, 0) + 1
+                f.used.discard(e.de)
+                continue
+            surfaces.append(s)
+            names.append(f.name(e))
+            f.used.add(e.de)
+    warnings = []
+    if inverted:
+        warnings.append(
+            f"{inverted} trim curve{'s were' if inverted != 1 else ' was'} given only in model space and "
+            f"carried into the surface's (u, v) by point inversion, as degree-1 polylines within "
+            f"{INVERSION_TOL:g} of the parameter domain's size"
+        )
+    if untrimmed:
+        kinds = ", ".join(f"{n} x {entity_name(t)}" for t, n in sorted(unsupported.items()))
+        are = "surface is drawn untrimmed: its" if len(untrimmed) == 1 else "surfaces are drawn untrimmed: their"
+        warnings.append(f"{len(untrimmed)} {are} boundaries use entities bsrt does not convert ({kinds})")
+    if unbounded:
+        n = sum(unbounded.values())
+        kinds = ", ".join(str(t) for t in sorted(unbounded))
+        them = "them are" if n != 1 else "it is"
+        warnings.append(f"{n} unbounded surface{'s' if n != 1 else ''} with nothing to bound {them} left out "
+                        f"(entit{'ies' if len(unbounded) > 1 else 'y'} {kinds})")
+    return surfaces, names, warnings, len(untrimmed)
+
+
+def _target(f, e) -> int:
+    p = f.params(e)
+    if e.type == 143:
+        p.int("TYPE")
+    return p.pointer("the surface pointer")

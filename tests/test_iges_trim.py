@@ -1,0 +1,526 @@
+"""IGES trimmed surfaces, bounded surfaces, B-rep faces, analytic surfaces and curves.
+
+Hand-written files in tests/data/iges (made by tests/data/iges/generate.py,
+whose entity lists also give the broken variants below) checked against
+closed forms, and the shared CAD files in tests/data/models/iges.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bsrt.bspline import evaluate
+from bsrt.cli import main
+from bsrt.errors import InputError
+from bsrt.io import load_model
+from bsrt.io.iges import IgesFile
+from bsrt.io.iges_bspline import ParamMap, arc_curve, evaluate as curve_eval, reverse
+from bsrt.io.iges_curves import curve
+from bsrt.trim import check_loops
+
+HERE = Path(__file__).parent / "data" / "iges"
+MODELS = Path(__file__).parent / "data" / "models" / "iges"
+SHARED = {
+    "bearing": MODELS / "occt" / "bearing.iges",
+    "hammer": MODELS / "occt" / "hammer.iges",
+    "example_45_faces": MODELS / "pythonocc-core" / "example_45_faces.iges",
+    "marsCapsule": MODELS / "overtureframework" / "marsCapsule.igs",
+    "asmo": MODELS / "overtureframework" / "asmo.igs",
+}
+
+_spec = importlib.util.spec_from_file_location("iges_generate", HERE / "generate.py")
+gen = sys.modules.setdefault("iges_generate", importlib.util.module_from_spec(_spec))
+_spec.loader.exec_module(gen)
+
+
+def loop_points(loop, n: int = 40) -> np.ndarray:
+    """(K, 2) points along every curve of a TrimLoop."""
+    return np.concatenate([c.evaluate(np.linspace(*c.domain, n)) for c in loop.curves])
+
+
+def on_surface(s, uv) -> np.ndarray:
+    return evaluate(s, uv[:, 0], uv[:, 1])[0]
+
+
+def assert_closed(loop, size: float, tol: float = 1e-9) -> None:
+    ends = [c.ends() for c in loop.curves]
+    for k in range(len(ends)):
+        assert np.hypot(*(ends[k - 1][1] - ends[k][0])) <= tol * size
+
+
+def domain_size(s) -> float:
+    return math.hypot(s.domain_u[1] - s.domain_u[0], s.domain_v[1] - s.domain_v[0])
+
+
+def surface_grid(s, n: int = 17) -> np.ndarray:
+    u, v = np.meshgrid(np.linspace(*s.domain_u, n), np.linspace(*s.domain_v, n), indexing="ij")
+    return evaluate(s, u.ravel(), v.ravel())[0]
+
+
+def write(tmp_path: Path, entities, name: str = "case.igs") -> Path:
+    path = tmp_path / name
+    path.write_text(gen.iges_text(entities, name))
+    return path
+
+
+def replaced(entities, name: str, new) -> list:
+    return [new if e.name == name else e for e in entities]
+
+
+# ---------------------------------------------------------------------------
+# The hand-written files
+
+
+def test_generated_files_are_up_to_date():
+    for name, build in gen.FILES.items():
+        assert (HERE / name).read_text() == gen.iges_text(build(), name), f"run python {HERE / 'generate.py'}"
+
+
+def test_written_files_are_80_columns_with_consistent_pointers():
+    for name in gen.FILES:
+        lines = (HERE / name).read_text().splitlines()
+        assert all(len(line) == 80 for line in lines), name
+        counts = {c: sum(line[72] == c for line in lines) for c in "SGDP"}
+        assert lines[-1][:32] == "S{S:7d}G{G:7d}D{D:7d}P{P:7d}".format(**counts)
+
+
+def test_144_plane_trimmed_by_a_126_circle_with_a_100_hole_moved_by_a_124():
+    model = load_model(HERE / "plane_circle_144.igs")
+    assert model.skipped == {} and model.warnings == [] and model.untrimmed == 0
+    s, s2 = model.surfaces
+    assert s.domain_u == (0.0, 1.0) and s.domain_v == (0.0, 1.0)
+    outer, hole = s.trims
+    p = loop_points(outer, 200)
+    assert np.abs(np.hypot(p[:, 0] - 0.5, p[:, 1] - 0.5) - 0.4).max() < 1e-12
+    p = loop_points(hole, 200)
+    assert np.abs(np.hypot(p[:, 0] - 0.6, p[:, 1] - 0.45) - 0.1).max() < 1e-12
+    for loop in s.trims:
+        assert_closed(loop, 1.0)
+    # the loop's points are where the plane's points are: x = -1 + 4u, y = -2 + 4v, z = 0
+    uv = loop_points(outer)
+    assert np.allclose(on_surface(s, uv), np.stack([-1 + 4 * uv[:, 0], -2 + 4 * uv[:, 1], 0 * uv[:, 0]], 1),
+                       rtol=0, atol=1e-14)
+    # N1 = 0: the domain's boundary is the outer loop, then the hole
+    rect, hole2 = s2.trims
+    corners = np.array([c.ends()[0] for c in rect.curves])
+    assert sorted(map(tuple, corners)) == [(0.0, 0.0), (0.0, 1.0), (1.0, 0.0), (1.0, 1.0)]
+    assert np.abs(np.hypot(*(loop_points(hole2).T - np.array([[0.6], [0.45]]))) - 0.1).max() < 1e-12
+
+
+def test_143_bounded_surface_with_a_reversed_141_curve():
+    model = load_model(HERE / "plane_143.igs")
+    (s,) = model.surfaces
+    (loop,) = s.trims
+    assert len(loop.curves) == 4
+    assert_closed(loop, 1.0, tol=0.0)
+    p = loop_points(loop)
+    on_square = np.minimum.reduce([abs(p[:, 0] - 0.2), abs(p[:, 0] - 0.8), abs(p[:, 1] - 0.2), abs(p[:, 1] - 0.8)])
+    assert on_square.max() < 1e-15 and p.min() == pytest.approx(0.2) and p.max() == pytest.approx(0.8)
+    # the reversed side runs from (0.2, 0.8) down to (0.2, 0.2), closing the loop
+    assert np.allclose(loop.curves[-1].ends(), [[0.2, 0.8], [0.2, 0.2]])
+    assert model.skipped == {} and model.warnings == []
+
+
+def test_brep_box_six_planar_faces():
+    model = load_model(HERE / "box_brep.igs")
+    assert len(model.surfaces) == 6 and model.skipped == {} and model.warnings == []
+    corners = set()
+    for s in model.surfaces:
+        (loop,) = s.trims
+        assert len(loop.curves) == 4
+        assert_closed(loop, domain_size(s))
+        xyz = on_surface(s, loop_points(loop))
+        # every point of a loop lies on an edge of the box: two coordinates at their bounds
+        at_bound = (np.abs(xyz - 0) < 1e-14) | (np.abs(xyz - [2, 1, 1]) < 1e-14)
+        assert np.all(at_bound.sum(axis=1) >= 2)
+        corners |= {tuple(np.round(on_surface(s, c.ends()[:1])[0], 12)) for c in loop.curves}
+        # the face's plane covers exactly its rectangle
+        box = surface_grid(s, 3)
+        assert np.ptp(box, axis=0).tolist().count(0.0) == 1
+    assert corners == {(x, y, z) for x in (0.0, 2.0) for y in (0.0, 1.0) for z in (0.0, 1.0)}
+
+
+@pytest.mark.parametrize("name", ["cylinder_brep.igs", "cylinder_brep_inverted.igs"])
+def test_brep_cylinder_face_with_a_seam(name):
+    model = load_model(HERE / name)
+    (s,) = model.surfaces
+    assert s.degree == (2, 1)
+    assert s.domain_u[0] == pytest.approx(0, abs=1e-12) and s.domain_u[1] == pytest.approx(2 * math.pi)
+    assert s.domain_v == (0.0, 2.0)
+    (loop,) = s.trims
+    assert_closed(loop, domain_size(s))
+    xyz = on_surface(s, loop_points(loop, 60))
+    assert np.abs(np.hypot(xyz[:, 0], xyz[:, 1]) - 1).max() < 1e-12
+    # bottom circle, top circle or the seam x = 1, y = 0
+    on = np.minimum.reduce([abs(xyz[:, 2]), abs(xyz[:, 2] - 2), np.hypot(xyz[:, 0] - 1, xyz[:, 1])])
+    assert on.max() < 1e-6
+    if name == "cylinder_brep.igs":
+        assert model.warnings == []
+        assert on.max() < 1e-12
+    else:
+        (w,) = model.warnings
+        assert w.startswith("4 trim curves were given only in model space") and "inversion" in w
+    assert model.skipped == {}
+
+
+def test_144_with_only_a_model_space_loop_on_a_128_is_inverted():
+    model = load_model(HERE / "cylinder_128_model_space.igs")
+    (s,) = model.surfaces
+    (w,) = model.warnings
+    assert w.startswith("4 trim curves were given only in model space") and "1e-06" in w
+    (loop,) = s.trims
+    assert len(loop.curves) == 4 and all(c.degree == 1 for c in loop.curves)
+    assert_closed(loop, domain_size(s))
+    xyz = on_surface(s, loop_points(loop, 300))
+    ang = np.arctan2(xyz[:, 1], xyz[:, 0])
+    on = np.minimum.reduce([abs(ang - 0.2), abs(ang - 1.2), abs(xyz[:, 2] - 0.5), abs(xyz[:, 2] - 1.5)])
+    assert on.max() < 1e-6 * domain_size(s)
+    # the surface's v is z / 2: the arcs became the iso-lines v = 0.25 and 0.75
+    assert sorted({round(v, 12) for c in loop.curves for v in c.points[:, 1]}) [:1] == [0.25]
+
+
+def test_inverted_loop_through_a_collapsed_edge(tmp_path):
+    """A 128 triangle (its edge v = 0 collapsed to the apex) bounded by its three model-space
+    edges: at the apex u is undetermined, and the loop crosses the collapsed edge straight."""
+    apex, a, b = (0.0, 0.0, 1.0), (2.0, 0.0, 0.0), (0.0, 3.0, 0.0)
+    entities = [
+        gen.bspline_surface("S", (1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[apex, a], [apex, b]]),
+        gen.line("e1", apex, a), gen.line("e2", a, b), gen.line("e3", b, apex),
+        gen.E(102, [3, gen.R("e1"), gen.R("e2"), gen.R("e3")], name="B"),
+        gen.E(142, [0, gen.R("S"), 0, gen.R("B"), 2], name="C"),
+        gen.E(144, [gen.R("S"), 1, 0, gen.R("C")], name="T"),
+    ]
+    model = load_model(write(tmp_path, entities))
+    (s,) = model.surfaces
+    (loop,) = s.trims
+    assert_closed(loop, 1.0, tol=0.0)
+    p = loop_points(loop, 50)
+    on_edge = np.minimum.reduce([abs(p[:, 0]), abs(p[:, 0] - 1), abs(p[:, 1]), abs(p[:, 1] - 1)])
+    assert on_edge.max() < 1e-6
+    corners = {tuple(np.round(c.ends()[0], 9)) for c in loop.curves}
+    assert corners == {(0.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0, 0.0)}
+
+
+def test_128_cut_to_u0_u1_unless_its_loops_leave_that_range(tmp_path):
+    def plane(u1):
+        e = gen.plane_128("S")
+        return gen.E(128, e.params[:-4] + [0.0, u1, 0.0, 1.0], name="S")
+
+    # the loop is the circle of radius 0.4 around (0.5, 0.5): inside [0, 0.95] but not [0, 0.8]
+    for u1, expected in ((0.95, (0.0, 0.95)), (0.8, (0.0, 1.0))):
+        entities = replaced(gen.plane_circle_144()[:7], "S", plane(u1))
+        s = load_model(write(tmp_path, entities)).surfaces[0]
+        assert s.domain_u == expected
+        assert np.abs(np.hypot(*(loop_points(s.trims[0]).T - 0.5)) - 0.4).max() < 1e-12
+    # drawn alone, the same surface is cut
+    s = load_model(write(tmp_path, [plane(0.8)])).surfaces[0]
+    assert s.domain_u == (0.0, 0.8)
+
+
+def test_brep_face_with_a_pole_vertex_edge_and_no_outer_loop_flag(tmp_path):
+    (s,) = load_model(HERE / "sphere_cap_brep.igs").surfaces
+    assert s.domain_u == (0.0, 2 * math.pi) and s.domain_v == (0.5, math.pi / 2)
+    (loop,) = s.trims
+    assert len(loop.curves) == 4  # circle, seam, the pole's segment in (u, v), seam
+    assert np.allclose(loop.curves[2].ends(), [[2 * math.pi, math.pi / 2], [0, math.pi / 2]])
+    assert_closed(loop, domain_size(s), tol=0.0)
+    xyz = on_surface(s, loop_points(loop))
+    assert np.abs(np.linalg.norm(xyz, axis=1) - 1).max() < 1e-12
+    # OF = 0 on a bounded surface: no outer loop, so the loops are holes in the whole sphere
+    entities = gen.sphere_cap_brep()
+    entities[-1] = gen.E(510, [gen.R("S"), 1, 0, gen.R("loop")], form=1, name="F")
+    (s,) = load_model(write(tmp_path, entities)).surfaces
+    rect, cap = s.trims
+    assert s.domain_u == (0.0, 2 * math.pi) and s.domain_v == (-math.pi / 2, math.pi / 2)
+    assert sorted(map(tuple, (c.ends()[0] for c in rect.curves))) == sorted(
+        (u, v) for u in (0.0, 2 * math.pi) for v in (-math.pi / 2, math.pi / 2))
+
+
+def test_unsupported_boundary_curve_draws_the_surface_untrimmed_with_a_warning(tmp_path):
+    entities = replaced(gen.plane_circle_144()[:7], "outer", gen.E(130, [0.0] * 10, name="outer"))
+    model = load_model(write(tmp_path, entities))
+    s = model.surfaces[0]
+    assert not s.is_trimmed and model.untrimmed == 1 and s.domain_u == (0.0, 1.0)
+    assert model.warnings == ["1 surface is drawn untrimmed: its boundaries use entities bsrt does not convert "
+                              "(1 x IGES entity 130 (offset curve))"]
+
+
+def test_cylinder_192_trimmed_in_angle_and_height():
+    (s,) = load_model(HERE / "cylinder_192.igs").surfaces
+    # C + 2 (cos u X + sin u Y) + v Z with C = (1, 2, 3): the NURBS covers exactly the loop's box
+    p = surface_grid(s)
+    assert np.abs(np.hypot(p[:, 0] - 1, p[:, 1] - 2) - 2).max() < 1e-12
+    ang = np.arctan2(p[:, 1] - 2, p[:, 0] - 1)
+    assert ang.min() == pytest.approx(0.5, abs=1e-12) and ang.max() == pytest.approx(2.5, abs=1e-12)
+    assert p[:, 2].min() == pytest.approx(2.0) and p[:, 2].max() == pytest.approx(5.0)
+    (loop,) = s.trims
+    xyz = on_surface(s, loop_points(loop))
+    ang = np.arctan2(xyz[:, 1] - 2, xyz[:, 0] - 1)
+    on = np.minimum.reduce([abs(ang - 0.5), abs(ang - 2.5), abs(xyz[:, 2] - 2), abs(xyz[:, 2] - 5)])
+    assert on.max() < 1e-12
+
+
+def test_cone_194_with_a_general_trim_curve_mapped_to_1e_9():
+    model = load_model(HERE / "cone_194.igs")
+    (s,) = model.surfaces
+    # L + (1 + v tan 30)(cos u X + sin u Y) + v A with A = y, X = z, Y = A x X = x
+    p = surface_grid(s)
+    v = p[:, 1]
+    assert np.abs(np.hypot(p[:, 0], p[:, 2]) - (1 + v * math.tan(math.radians(30)))).max() < 1e-12
+    (loop,) = s.trims
+    # the 126 pcurve (a quadratic Bezier in (angle, height)) is not a line: its image on the
+    # B-spline is approximated; back in (angle, height) it is within 1e-9 of the original
+    bez = np.array([(0.2, 0.5), (1.5, -0.5), (2.8, 1.5)])
+
+    def b(t):
+        t = np.asarray(t)[..., None]
+        return (1 - t) ** 2 * bez[0] + 2 * t * (1 - t) * bez[1] + t**2 * bez[2]
+
+    def db(t):
+        t = np.asarray(t)[..., None]
+        return 2 * (1 - t) * (bez[1] - bez[0]) + 2 * t * (bez[2] - bez[1])
+
+    def distance(q):  # to the Bezier: the nearest of 2001 samples, then Newton on (B - q) . B' = 0
+        ts = np.linspace(0, 1, 2001)
+        t = ts[np.argmin(np.hypot(*(b(ts) - q).T))]
+        for _ in range(20):
+            r, d = b(t) - q, db(t)
+            t = float(np.clip(t - r @ d / (d @ d + r @ (2 * (bez[0] - 2 * bez[1] + bez[2]))), 0, 1))
+        return float(np.hypot(*(b(t) - q)))
+
+    xyz = on_surface(s, loop_points(loop, 200))
+    back = np.stack([np.arctan2(xyz[:, 0], xyz[:, 2]), xyz[:, 1]], 1)
+    on_lines = np.minimum(abs(back[:, 1] - 1.5), abs(back[:, 0] - 0.2))
+    off = [distance(q) for q, line in zip(back, on_lines) if line > 1e-12]
+    assert len(off) > 100 and max(off) < 1e-9 * domain_size(s)
+    assert_closed(loop, domain_size(s))
+
+
+def test_sphere_and_torus_whole_and_a_sphere_trimmed_in_degrees():
+    sphere, torus, s2 = load_model(HERE / "sphere_torus.igs").surfaces
+    p = surface_grid(sphere, 25)
+    assert np.abs(np.linalg.norm(p - 1, axis=1) - 3).max() < 1e-9
+    assert sphere.domain_u == (0.0, 2 * math.pi) and sphere.domain_v == (-math.pi / 2, math.pi / 2)
+    p = surface_grid(torus, 25)
+    z = np.array([0, 1, 1]) / math.sqrt(2)
+    h = p @ z
+    rho = np.linalg.norm(p - np.outer(h, z), axis=1)
+    assert np.abs((rho - 4) ** 2 + h**2 - 1).max() < 1e-9
+    (loop,) = s2.trims
+    xyz = on_surface(s2, loop_points(loop))
+    assert np.abs(np.linalg.norm(xyz, axis=1) - 2).max() < 1e-12
+    lon, lat = np.degrees(np.arctan2(xyz[:, 1], xyz[:, 0])), np.degrees(np.arcsin(xyz[:, 2] / 2))
+    on = np.minimum.reduce([abs(lon - 30), abs(lon - 120), abs(lat + 45), abs(lat - 60)])
+    assert on.max() < 1e-10
+    assert s2.domain_u == pytest.approx((math.radians(30), math.radians(120)))
+    assert s2.domain_v == pytest.approx((math.radians(-45), math.radians(60)))
+
+
+def test_ruled_revolution_tabulated_spline_and_plane_surfaces():
+    model = load_model(HERE / "surfaces_misc.igs")
+    ruled, rev, tab, spl, bounded, shown, tri = model.surfaces
+    # 118 between radius-1 and radius-2 arcs at z = 0 and 3: a cone frustum r = 1 + z / 3
+    p = surface_grid(ruled)
+    assert np.abs(np.hypot(p[:, 0], p[:, 1]) - (1 + p[:, 2] / 3)).max() < 1e-12
+    assert np.arctan2(p[:, 1], p[:, 0]).min() == pytest.approx(0, abs=1e-12)
+    assert np.arctan2(p[:, 1], p[:, 0]).max() == pytest.approx(2.5)
+    # 120: a circle of radius 1 around (3, 0, 0) turned about z by [0.5, 4]: a torus
+    p = surface_grid(rev)
+    assert np.abs((np.hypot(p[:, 0], p[:, 1]) - 3) ** 2 + p[:, 2] ** 2 - 1).max() < 1e-12
+    ang = np.mod(np.arctan2(p[:, 1], p[:, 0]), 2 * math.pi)
+    assert ang.min() == pytest.approx(0.5) and ang.max() == pytest.approx(4.0)
+    assert rev.domain_v == (0.5, 4.0)  # v is the angle: its B-spline parameter equals it at the knots
+    # 122: an arc of radius 1.5 around (10, 0) swept to z = 4
+    p = surface_grid(tab)
+    assert np.abs(np.hypot(p[:, 0] - 10, p[:, 1]) - 1.5).max() < 1e-12
+    assert (p[:, 2].min(), p[:, 2].max()) == (0.0, 4.0)
+    # 114: x = u, y = v, z = u^2 v + 1, on the same parameters
+    u, v = np.meshgrid(np.linspace(0, 2, 11), np.linspace(0, 1, 7))
+    p = evaluate(spl, u.ravel(), v.ravel())[0]
+    assert np.abs(p - np.stack([u.ravel(), v.ravel(), u.ravel() ** 2 * v.ravel() + 1], 1)).max() < 1e-14
+    # 108 bounded by a circle of radius 2 at z = 5
+    (loop,) = bounded.trims
+    xyz = on_surface(bounded, loop_points(loop))
+    assert np.abs(np.hypot(xyz[:, 0], xyz[:, 1]) - 2).max() < 1e-12 and np.abs(xyz[:, 2] - 5).max() < 1e-14
+    # 108 with a display size: a square of side 3 around (1, 1) at z = -2
+    p = surface_grid(shown, 3)
+    assert p.min(axis=0).tolist() == [-0.5, -0.5, -2.0] and p.max(axis=0).tolist() == [2.5, 2.5, -2.0]
+    # 190 trimmed to a triangle by a 144; the other 190 has no boundary: left out
+    (loop,) = tri.trims
+    assert len(loop.curves) == 3 and np.allclose(on_surface(tri, loop_points(loop))[:, 2], 7)
+    assert model.skipped == {"IGES entity 190 (plane surface)": 1}
+    assert model.warnings == ["1 unbounded surface with nothing to bound it is left out (entity 190)"]
+
+
+def test_curve_entities_against_closed_forms():
+    f = IgesFile(str(HERE / "curves.igs"))
+    by_label = {}
+    for e in f.entities.values():
+        by_label.setdefault(e.type, []).append(e)
+
+    def sample(c, n=101):
+        return curve_eval(c, np.linspace(*c.domain, n))
+
+    # 100 with its 124 (90 degrees about z, then (1, 2, 3)): centre (0, 3, 3.5), radius 2
+    arc = curve(f, by_label[100][0])
+    p = sample(arc)
+    assert np.abs(np.linalg.norm(p - [0, 3, 3.5], axis=1) - 2).max() < 1e-14
+    assert np.allclose(p[[0, -1]], [[0, 5, 3.5], [-2, 3, 3.5]], rtol=0, atol=1e-14)
+    assert arc.domain == (0.0, math.pi / 2)  # the arc's parameter is its angle at the knots
+    # 102: two lines end to end as one curve, parameter [0, 2]
+    comp = curve(f, by_label[102][0])
+    assert comp.domain == (0.0, 2.0)
+    expected = [[0, 0, 0], [0.5, 0, 0], [1, 0, 0], [1, 1, 0], [1, 2, 0]]
+    assert np.allclose(curve_eval(comp, [0.0, 0.5, 1.0, 1.5, 2.0]), expected, rtol=0, atol=1e-15)
+    ellipse, hyperbola, parabola = (curve(f, e) for e in by_label[104])
+    p = sample(ellipse)
+    assert np.abs(p[:, 0] ** 2 / 4 + p[:, 1] ** 2 - 1).max() < 1e-14 and np.all(p[:, 2] == 1)
+    assert np.allclose(p[[0, -1], :2], [[2, 0], [0, 1]]) and p[:, :2].min() > -1e-15
+    p = sample(hyperbola)
+    assert np.abs(p[:, 0] ** 2 / 4 - p[:, 1] ** 2 - 1).max() < 1e-12 and p[:, 0].min() > 0
+    assert np.allclose(p[[0, -1], 1], [math.sinh(-1), math.sinh(1)])
+    p = sample(parabola)
+    assert np.abs(p[:, 1] - p[:, 0] ** 2 / 4).max() < 1e-14
+    assert np.allclose(p[[0, -1], :2], [[-2, 1], [4, 4]])
+    square, poly3 = (curve(f, e) for e in by_label[106])
+    assert square.degree == 1
+    assert np.array_equal(square.points, [[0, 0, 2], [1, 0, 2], [1, 1, 2], [0, 1, 2], [0, 0, 2]])
+    assert np.array_equal(poly3.points, [[0, 0, 0], [1, 1, 1], [2, 0, 3]])
+    # 112: (t, t^2, t^3) on T = -1, 0, 2: exactly, on the same parameter
+    spline = curve(f, by_label[112][0])
+    t = np.linspace(-1, 2, 31)
+    assert spline.domain == (-1.0, 2.0)
+    assert np.abs(curve_eval(spline, t) - np.stack([t, t**2, t**3], 1)).max() < 1e-14
+    # 126 restricted to [0.25, 0.75]: the same cubic Bezier there
+    bs = curve(f, by_label[126][0])
+    assert bs.domain == (0.25, 0.75)
+    t = np.linspace(0.25, 0.75, 11)[:, None]
+    ctrl = np.array([(0, 0, 0), (1, 2, 0), (2, -1, 1), (3, 0, 0)], float)
+    bez = (1 - t) ** 3 * ctrl[0] + 3 * t * (1 - t) ** 2 * ctrl[1] + 3 * t**2 * (1 - t) * ctrl[2] + t**3 * ctrl[3]
+    assert np.abs(curve_eval(bs, t[:, 0]) - bez).max() < 1e-14
+
+
+def test_angle_maps_invert_exactly():
+    arc = arc_curve([0, 0, 0], [1, 0, 0], [0, 1, 0], 1, 1, 0.3, 5.9)
+    x = np.linspace(0.3, 5.9, 57)
+    s = arc.pmap(x)
+    assert np.abs(arc.pmap.inverse(s) - x).max() < 1e-14
+    p = curve_eval(arc, s)
+    assert np.abs(np.unwrap(np.arctan2(p[:, 1], p[:, 0])) - x).max() < 1e-14
+    m = ParamMap.identity(0.0, 2.0)
+    assert m.affine_on(0.5, 1.5) == (1.0, 0.0)
+    assert np.allclose(reverse(reverse(arc)).knots, arc.knots, rtol=0, atol=1e-15)
+
+
+# ---------------------------------------------------------------------------
+# The shared CAD files
+
+
+@pytest.mark.parametrize("name", sorted(SHARED))
+def test_shared_file_trims_load_closed_and_in_their_domains(name):
+    path = SHARED[name]
+    model = load_model(path)
+    f = IgesFile(str(path))
+    n144 = sum(e.type == 144 for e in f.entities.values())
+    trimmed = [s for s in model.surfaces if s.is_trimmed]
+    assert len(trimmed) == n144 > 0 and model.untrimmed == 0
+    for s in trimmed:
+        size = domain_size(s)
+        for loop in s.trims:
+            assert_closed(loop, size)
+        check_loops(s.trims, (*s.domain_u, *s.domain_v))
+    for text in model.warnings + [" ".join(model.skipped)]:
+        for etype in ("144", "142", "102"):
+            assert f"entity {etype} " not in text
+    if name == "marsCapsule":
+        # six arcs and six lines are the model's independent profile curves (in 402 groups)
+        assert model.skipped == {"IGES entity 100 (circular arc)": 6, "IGES entity 110 (line)": 6,
+                                 "IGES entity 402 (associativity instance)": 2}
+    else:
+        assert not any(key.startswith(("IGES entity 126", "IGES entity 110")) for key in model.skipped)
+
+
+def test_hammer_loops_lie_on_their_model_space_curves():
+    """Each 142's parameter-space curve, on the surface, is its model-space curve."""
+    path = SHARED["hammer"]
+    model = load_model(path)
+    f = IgesFile(str(path))
+    by_name = dict(zip(model.names, model.surfaces))
+    from bsrt.io.iges_curves import pieces
+
+    worst = 0.0
+    for e in f.entities.values():
+        if e.type != 144:
+            continue
+        s = by_name[f.name(e)]
+        p = f.params(e)
+        p.pointer("PTS")
+        p.int("N1")
+        p.int("N2")
+        q = f.params(f.entities[p.pointer("PTO")])
+        q.int("CRTN")
+        q.pointer("SPTR")
+        q.pointer("BPTR")
+        model_pts = np.concatenate([curve_eval(c, np.linspace(*c.domain, 3000))
+                                    for c in pieces(f, f.entities[q.pointer("CPTR")])])
+        size = np.ptp(model_pts, axis=0).max()
+        xyz = on_surface(s, np.concatenate([c.ends() for c in s.trims[0].curves]))
+        d = np.sqrt(((xyz[:, None] - model_pts[None]) ** 2).sum(-1)).min(axis=1).max()
+        worst = max(worst, d / size)
+    assert worst < 1e-3
+
+
+def test_info_reports_trimmed_surfaces_and_loops(capsys):
+    assert main(["info", SHARED["hammer"]]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].endswith("hammer.iges: 45 surfaces (45 trimmed, 48 loops)")
+
+
+# ---------------------------------------------------------------------------
+# Bad input: one message naming the file, the line and the entity
+
+
+def assert_one_error(path: Path, capsys, pattern: str) -> str:
+    with pytest.raises(InputError) as err:
+        load_model(path)
+    msg = str(err.value)
+    assert "\n" not in msg and re.match(re.escape(str(path)) + r":\d+: entity \d+ \(DE \d+\): ", msg), msg
+    assert re.search(pattern, msg), msg
+    assert main(["info", path]) == 2
+    captured = capsys.readouterr()
+    assert captured.err.count("\n") == 1 and captured.err.startswith("bsrt: error: ")
+    return msg
+
+
+def test_open_loop(tmp_path, capsys):
+    entities = gen.plane_circle_144()
+    three_quarters = gen.arc("outer", 0.0, (0.5, 0.5), (0.9, 0.5), (0.5, 0.1))
+    msg = assert_one_error(write(tmp_path, replaced(entities, "outer", three_quarters)), capsys,
+                           r"its outer boundary \(DE \d+\) is open")
+    assert "entity 144 (DE 13)" in msg
+
+
+def test_curve_outside_the_domain(tmp_path, capsys):
+    entities = replaced(gen.plane_circle_144(), "outer", gen.circle_126("outer", 0.5, 0.5, 0.7))
+    assert_one_error(write(tmp_path, entities), capsys, r"leaves the surface's domain \[0, 1\] x \[0, 1\]")
+
+
+def test_144_pointing_to_a_missing_entity(tmp_path, capsys):
+    entities = gen.plane_circle_144()
+    t = next(e for e in entities if e.name == "T")
+    entities = replaced(entities, "T", gen.E(144, [99] + t.params[1:], name="T"))
+    msg = assert_one_error(write(tmp_path, entities), capsys, r"points to DE 99, which does not exist")
+    assert "entity 144 (DE 13)" in msg
+
+
+def test_508_loop_that_does_not_close(tmp_path, capsys):
+    entities = replaced(gen.cylinder_brep(), "p1", gen.line("p1", (2 * math.pi, 0.5), (2 * math.pi, 2.0)))
+    msg = assert_one_error(write(tmp_path, entities), capsys, r"its loop 1 \(508 at DE \d+\) is open")
+    assert msg.split(": ")[1].startswith("entity 510 (DE")
