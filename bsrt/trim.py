@@ -221,100 +221,73 @@ class TrimTable(NamedTuple):
     band_pieces: np.ndarray
 
 
-def bezier_pieces(curve: TrimCurve) -> list[np.ndarray]:
-    """The curve's rational Bezier pieces: homogeneous nets (p + 1, 3) in curve order."""
-    from .bspline import _saturate
-
-    p, n = curve.degree, curve.points.shape[0]
-    knots, ctrl = _saturate(curve.knots, curve.homogeneous(), p, n)
-    a, b = curve.knots[p], curve.knots[n]
-    return [ctrl[i - p : i + 1] for i in range(p, ctrl.shape[0]) if knots[i] < knots[i + 1] and a <= knots[i] < b]
-
-
-def _halves(net: np.ndarray):
-    """de Casteljau at s = 1/2 of a homogeneous net (d + 1, 3)."""
-    pts, lo, hi = net, [net[0]], [net[-1]]
-    for _ in range(net.shape[0] - 1):
-        pts = 0.5 * (pts[:-1] + pts[1:])
-        lo.append(pts[0])
-        hi.append(pts[-1])
-    return np.array(lo), np.array(hi[::-1])
-
-
-def _monotone(net: np.ndarray) -> bool:
-    pts = net[:, :2] / net[:, 2:3]
-    d = np.diff(pts, axis=0)
-    return bool(np.all((np.all(d[:, 0] >= 0) | np.all(d[:, 0] <= 0)) & (np.all(d[:, 1] >= 0) | np.all(d[:, 1] <= 0))))
-
-
-def monotone_pieces(net: np.ndarray, cuts: int = 0) -> list[np.ndarray]:
-    """Cut a homogeneous Bezier net until every piece's control polygon is monotone in u and v."""
-    if _monotone(net):
-        return [net]
-    if cuts >= MAX_CUTS:  # a tiny stretch around an axis-parallel tangent: its chord
-        return [net[[0, -1]]]
-    lo, hi = _halves(net)
-    return monotone_pieces(lo, cuts + 1) + monotone_pieces(hi, cuts + 1)
-
-
-def _power(net: np.ndarray) -> np.ndarray:
-    """Power-basis coefficients (d + 1, 3) of a Bezier net (d + 1, 3) on s in [0, 1]."""
-    d = net.shape[0] - 1
-    m = np.array([[comb(d, j) * comb(j, k) * (-1) ** (j - k) if j >= k else 0.0 for j in range(d + 1)]
-                  for k in range(d + 1)])
-    return m.T @ net
-
-
 def build_trim_table(surfaces) -> TrimTable:
     """The TrimTable of a list of BSplineSurface (their ``trims``)."""
+    from .kernels.trim import bezier_spans, monotone_pieces
+
     m_count = len(surfaces)
     trimmed = np.array([bool(s.trims) for s in surfaces], dtype=bool).reshape(m_count)
-    nets, owner = [], []
+    spans, span_owner = [], []
     for m, surf in enumerate(surfaces):
         for loop in surf.trims:
             for curve in loop.curves:
-                for piece in bezier_pieces(curve):
-                    for net in monotone_pieces(piece):
-                        nets.append(net)
-                        owner.append(m)
-    n = len(nets)
-    dmax = max((x.shape[0] for x in nets), default=1)
+                nets = bezier_spans(curve.knots, curve.homogeneous(), curve.degree)
+                spans.append(nets)
+                span_owner.append(np.full(nets.shape[0], m, dtype=np.int64))
+    dmax = max((x.shape[1] for x in spans), default=2)
+    padded = np.zeros((sum(x.shape[0] for x in spans), dmax, 3))
+    span_degree = np.concatenate([np.full(x.shape[0], x.shape[1] - 1) for x in spans]).astype(np.int64) if spans \
+        else np.zeros(0, np.int64)
+    at = 0
+    for x in spans:
+        padded[at : at + x.shape[0], : x.shape[1]] = x
+        at += x.shape[0]
+    nets, degree, which = monotone_pieces(padded, span_degree, MAX_CUTS)
+    owner = np.concatenate(span_owner)[which] if spans else np.zeros(0, np.int64)
+    n = nets.shape[0]
     coef = np.zeros((n, dmax, 3))
-    degree = np.zeros(n, dtype=np.int64)
-    box = np.zeros((n, 4))
-    ends = np.zeros((n, 2))
-    for k, net in enumerate(nets):
-        coef[k, : net.shape[0]] = _power(net)
-        degree[k] = net.shape[0] - 1
-        pts = net[:, :2] / net[:, 2:3]
-        box[k] = pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()
-        ends[k] = pts[0, 1], pts[-1, 1]
-    owner = np.array(owner, dtype=np.int64)
-    band_first = np.zeros(m_count, dtype=np.int64)
-    band_count = np.ones(m_count, dtype=np.int64)
-    band_v0, band_height = np.zeros(m_count), np.ones(m_count)
-    starts, members, total = [0], [], 0
-    for m in range(m_count):
-        band_first[m] = total
-        mine = np.flatnonzero(owner == m)
-        if not mine.size:
-            starts.append(starts[-1])
-            total += 1
-            continue
-        lo, hi = box[mine, 2].min(), box[mine, 3].max()
-        count = int(np.clip(np.sqrt(mine.size) * 2, 1, 512))
-        height = (hi - lo) / count if hi > lo else 1.0
-        band_count[m], band_v0[m], band_height[m] = count, lo, height
-        first = np.clip(((box[mine, 2] - lo) / height).astype(np.int64), 0, count - 1)
-        last = np.clip(((box[mine, 3] - lo) / height).astype(np.int64), 0, count - 1)
-        for b in range(count):
-            inside = mine[(first <= b) & (last >= b)]
-            members.append(inside)
-            starts.append(starts[-1] + inside.size)
-        total += count
-    return TrimTable(trimmed, coef, degree, box, ends, band_first, band_count, band_v0, band_height,
-                     np.array(starts, dtype=np.int64),
-                     np.concatenate(members).astype(np.int64) if members else np.zeros(0, dtype=np.int64))
+    used = np.arange(dmax)[None, :] <= degree[:, None]
+    with np.errstate(all="ignore"):  # unused rows have w = 0
+        pts = np.where(used[..., None], nets[..., :2] / nets[..., 2:3], np.nan)
+    for d in np.unique(degree):  # power-basis coefficients, per degree
+        sel = degree == d
+        coef[sel, : d + 1] = np.einsum("kj,nkc->njc", _bernstein_to_power(d), nets[sel, : d + 1])
+    box = np.stack([np.nanmin(pts[..., 0], 1), np.nanmax(pts[..., 0], 1), np.nanmin(pts[..., 1], 1),
+                    np.nanmax(pts[..., 1], 1)], axis=1) if n else np.zeros((0, 4))
+    ends = np.stack([pts[:, 0, 1], pts[np.arange(n), degree, 1]], axis=1) if n else np.zeros((0, 2))
+    return TrimTable(trimmed, coef, degree, box, ends, *_bands(owner, box, m_count))
+
+
+def _bernstein_to_power(d: int) -> np.ndarray:
+    """(d + 1, d + 1) M with sum_k B_k,d(s) c_k = sum_j s^j (M^T c)_j, i.e. M[k, j] = C(d, j) C(j, k) (-1)^(j - k)."""
+    return np.array([[comb(d, j) * comb(j, k) * (-1) ** (j - k) if j >= k else 0.0 for j in range(d + 1)]
+                     for k in range(d + 1)])
+
+
+def _bands(owner: np.ndarray, box: np.ndarray, m_count: int):
+    """Per surface, horizontal bands over the v-range of its pieces (about 2 sqrt(pieces) of them, at
+    most 512), each listing the pieces whose box meets it: the band fields of TrimTable."""
+    counts_per = np.bincount(owner, minlength=m_count)
+    band_count = np.where(counts_per > 0, np.clip((2 * np.sqrt(counts_per)).astype(np.int64), 1, 512), 1)
+    band_first = np.concatenate([[0], np.cumsum(band_count)[:-1]]).astype(np.int64)
+    v0 = np.zeros(m_count)
+    v1 = np.ones(m_count)
+    if owner.size:
+        np.minimum.at(v0 := np.full(m_count, np.inf), owner, box[:, 2])
+        np.maximum.at(v1 := np.full(m_count, -np.inf), owner, box[:, 3])
+        empty = counts_per == 0
+        v0[empty], v1[empty] = 0.0, 1.0
+    height = np.where(v1 > v0, (v1 - v0) / band_count, 1.0)
+    o = owner
+    first = np.clip(((box[:, 2] - v0[o]) / height[o]).astype(np.int64), 0, band_count[o] - 1) if o.size else o
+    last = np.clip(((box[:, 3] - v0[o]) / height[o]).astype(np.int64), 0, band_count[o] - 1) if o.size else o
+    span = last - first + 1
+    piece = np.repeat(np.arange(o.size), span)
+    band = band_first[np.repeat(o, span)] + np.repeat(first, span) + (np.arange(piece.size) - np.repeat(np.cumsum(span) - span, span))
+    order = np.argsort(band, kind="stable")
+    total = int(band_count.sum())
+    band_start = np.concatenate([[0], np.cumsum(np.bincount(band, minlength=total))]).astype(np.int64)
+    return band_first, band_count.astype(np.int64), v0, height, band_start, piece[order].astype(np.int64)
 
 
 def kept(surface, u, v) -> np.ndarray:

@@ -114,3 +114,116 @@ def rect_states(T, surface, u0, u1, v0, v1):
     f = lambda a: np.ascontiguousarray(a, dtype=np.float64)  # noqa: E731
     _rect_states(T, np.ascontiguousarray(surface, dtype=np.int64), f(u0), f(u1), f(v0), f(v1), out)
     return out
+
+
+# ---------------------------------------------------------------------------
+# Building the table (called by bsrt.trim.build_trim_table)
+
+
+@njit(cache=True)
+def bezier_spans(knots, ctrl, p):
+    """The rational Bezier nets (S, p + 1, 3) of a B-spline curve's spans, in order.
+
+    knots: (n + p + 1,); ctrl: (n, 3) homogeneous (w u, w v, w). Each span's
+    net is the blossom at (a, .., a, b, .., b) of the span [a, b], computed
+    with de Boor's algorithm (any knot vector, clamped or not).
+    """
+    n = ctrl.shape[0]
+    count = 0
+    for i in range(p, n):
+        if knots[i] < knots[i + 1]:
+            count += 1
+    out = np.empty((count, p + 1, 3))
+    d = np.empty((p + 1, 3))
+    s = 0
+    for i in range(p, n):
+        a, b = knots[i], knots[i + 1]
+        if not a < b:
+            continue
+        for k in range(p + 1):
+            for j in range(p + 1):
+                d[j] = ctrl[j + i - p]
+            for r in range(1, p + 1):
+                x = a if r <= p - k else b
+                for j in range(p, r - 1, -1):
+                    lo, hi = knots[j + i - p], knots[j + 1 + i - r]
+                    alpha = (x - lo) / (hi - lo) if hi > lo else 0.0
+                    d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
+            out[s, k] = d[p]
+        s += 1
+    return out
+
+
+@njit(cache=True)
+def _monotone(net, d):
+    up_u = down_u = up_v = down_v = False
+    for i in range(d):
+        du = net[i + 1, 0] / net[i + 1, 2] - net[i, 0] / net[i, 2]
+        dv = net[i + 1, 1] / net[i + 1, 2] - net[i, 1] / net[i, 2]
+        up_u |= du > 0.0
+        down_u |= du < 0.0
+        up_v |= dv > 0.0
+        down_v |= dv < 0.0
+    return not (up_u and down_u) and not (up_v and down_v)
+
+
+@njit(cache=True)
+def _split_monotone(net, d, max_cuts, fill, first, out, out_degree):
+    """Halve one net (d + 1, 3) until monotone; with fill, write the pieces from index first."""
+    stack = np.empty((max_cuts + 2, d + 1, 3))
+    cuts = np.empty(max_cuts + 2, dtype=np.int64)
+    tmp = np.empty((d + 1, 3))
+    stack[0] = net[: d + 1]
+    cuts[0] = 0
+    top, count = 1, 0
+    while top > 0:
+        top -= 1
+        ok = _monotone(stack[top], d)
+        if ok or cuts[top] >= max_cuts:
+            if fill:
+                out[first + count] = 0.0
+                if ok:
+                    out[first + count, : d + 1] = stack[top]
+                    out_degree[first + count] = d
+                else:  # a tiny stretch around an axis-parallel tangent: its chord
+                    out[first + count, 0] = stack[top, 0]
+                    out[first + count, 1] = stack[top, d]
+                    out_degree[first + count] = 1
+            count += 1
+            continue
+        tmp[:] = stack[top]
+        c = cuts[top] + 1
+        hi = top + 1  # de Casteljau at 1/2: lower half in slot top, upper in slot top + 1
+        for r in range(d + 1):
+            stack[top, r] = tmp[0]
+            stack[hi, d - r] = tmp[d - r]
+            for i in range(d - r):
+                tmp[i] = 0.5 * (tmp[i] + tmp[i + 1])
+        # push the upper half below the lower one: pieces come out in curve order
+        for r in range(d + 1):
+            tmp[r] = stack[top, r]
+        stack[top] = stack[hi]
+        stack[hi] = tmp
+        cuts[top], cuts[hi] = c, c
+        top += 2
+    return count
+
+
+@njit(cache=True, parallel=True)
+def monotone_pieces(nets, degree, max_cuts):
+    """Every net (N, D + 1, 3) of degree (N,) halved until monotone in u and v:
+    (pieces (K, D + 1, 3), their degree (K,), the net each came from (K,))."""
+    n = nets.shape[0]
+    counts = np.zeros(n, dtype=np.int64)
+    none, none_d = np.empty((0, nets.shape[1], 3)), np.empty(0, dtype=np.int64)
+    for k in prange(n):
+        counts[k] = _split_monotone(nets[k], degree[k], max_cuts, False, 0, none, none_d)
+    starts = np.zeros(n + 1, dtype=np.int64)
+    starts[1:] = np.cumsum(counts)
+    out = np.zeros((starts[n], nets.shape[1], 3))
+    out_degree = np.empty(starts[n], dtype=np.int64)
+    owner = np.empty(starts[n], dtype=np.int64)
+    for k in prange(n):
+        _split_monotone(nets[k], degree[k], max_cuts, True, starts[k], out, out_degree)
+        owner[starts[k]:starts[k + 1]] = k
+    return out, out_degree, owner
