@@ -21,7 +21,7 @@ import numpy as np
 from . import gl
 from .camera import Camera, clip_from_eye, pixel_footprint
 from .errors import InputError, RenderError
-from .kernels.trim import MIXED, OUTSIDE, rect_states
+from .kernels.trim import OUTSIDE, classify_grid
 from .patches import PatchSet
 from .settings import MAP_MODES
 
@@ -117,28 +117,15 @@ def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):
         i, j = np.meshgrid(np.arange(gu.size - 1), np.arange(gv.size - 1), indexing="ij")
         i, j = i.ravel(), j.ravel()
         if patches.surfaces[m].is_trimmed:  # leave out the cells the trims remove entirely
-            keep = _kept_cells(patches, m, np.unique(b[:, :2]), np.unique(b[:, 2:]), n_u, n_v, gu, gv, i, j)
+            state = np.empty((gu.size - 1, gv.size - 1), dtype=np.int64)
+            classify_grid(patches.trims, m, gu, gv, state)
+            keep = state[i, j] != OUTSIDE
             i, j = i[keep], j[keep]
         corner = i * gv.size + j
         quad = np.stack([corner, corner + gv.size, corner + gv.size + 1, corner + 1], axis=1)
         tris.append(base + np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]))
         base += u.size
     return np.concatenate(verts), np.concatenate(tris).astype(np.uint32)
-
-
-def _kept_cells(patches, m, bu, bv, n_u, n_v, gu, gv, i, j) -> np.ndarray:
-    """(C,) bool for the grid cells (i, j) of surface m: not entirely removed by its trims.
-
-    Knot spans are classified first; only the cells of spans a trim curve
-    crosses are classified one by one."""
-    si, sj = np.meshgrid(np.arange(bu.size - 1), np.arange(bv.size - 1), indexing="ij")
-    si, sj = si.ravel(), sj.ravel()
-    spans = rect_states(patches.trims, np.full(si.size, m), bu[si], bu[si + 1], bv[sj], bv[sj + 1])
-    state = spans.reshape(bu.size - 1, bv.size - 1)[i // n_u, j // n_v]
-    mixed = np.flatnonzero(state == MIXED)
-    state[mixed] = rect_states(patches.trims, np.full(mixed.size, m), gu[i[mixed]], gu[i[mixed] + 1],
-                               gv[j[mixed]], gv[j[mixed] + 1])
-    return state != OUTSIDE
 
 
 def _refined_breaks(breaks: np.ndarray, n: int) -> np.ndarray:

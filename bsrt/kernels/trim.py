@@ -227,3 +227,31 @@ def monotone_pieces(nets, degree, max_cuts):
         _split_monotone(nets[k], degree[k], max_cuts, True, starts[k], out, out_degree)
         owner[starts[k]:starts[k + 1]] = k
     return out, out_degree, owner
+
+
+@njit(cache=True)
+def classify_grid(T, m, gu, gv, out):
+    """State of every cell of the grid gu (I + 1,) x gv (J + 1,) of surface m into out (I, J).
+
+    Quadtree over cell ranges: a range the curves miss takes the state of
+    its centre at once, so only the cells near a curve are tested one by one.
+    """
+    stack = np.empty((64 + 4 * 64, 4), dtype=np.int64)
+    stack[0] = (0, gu.shape[0] - 1, 0, gv.shape[0] - 1)
+    top = 1
+    while top > 0:
+        top -= 1
+        i0, i1, j0, j1 = stack[top]
+        state = rect_state(T, m, gu[i0], gu[i1], gv[j0], gv[j1])
+        if state != MIXED or (i1 - i0 == 1 and j1 - j0 == 1):
+            out[i0:i1, j0:j1] = state
+            continue
+        if i1 - i0 >= j1 - j0:
+            mid = (i0 + i1) // 2
+            stack[top] = (i0, mid, j0, j1)
+            stack[top + 1] = (mid, i1, j0, j1)
+        else:
+            mid = (j0 + j1) // 2
+            stack[top] = (i0, i1, j0, mid)
+            stack[top + 1] = (i0, i1, mid, j1)
+        top += 2
