@@ -40,6 +40,7 @@ from .trim import point_kept
 GRAZING_COSINE = 0.3
 RECT_SLACK = 1e-9
 STACK = 64
+RAY_CHUNK = 256  # rays per scratch allocation (and per parallel work item)
 
 
 class BVHArrays(NamedTuple):
@@ -163,8 +164,11 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
 
 @njit(cache=True)
 def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, max_iterations, retry_depth,
-                 cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv):
-    """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations)."""
+                 cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv, nets, rects, depth, tmp):
+    """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations).
+
+    nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
+    for the retries, S = scratch_size(retry_depth)."""
     m = B.leaf_surface[leaf]
     rect = B.leaf_rect[leaf]
     tol2 = tol * tol
@@ -176,14 +180,9 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
     if retry_depth == 0 or state == 2 or (found and not _grazing(P, k, u, v, dx, dy, dz)):
         return found, best_t, best_u, best_v, best_k, best_res, iterations
-    # Retry on quarters (depth-first; at most 3 siblings wait per level).
+    # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
-    pm, qm = B.leaf_net.shape[1], B.leaf_net.shape[2]
-    size = 4 * retry_depth + 8
-    nets = np.empty((size, pm, qm, 4))
-    rects = np.empty((size, 4))
-    depth = np.empty(size, dtype=np.int64)
-    tmp = np.empty(max(pm, qm))
+    size = nets.shape[0]
     nets[0, : p + 1, : q + 1] = B.leaf_net[leaf, : p + 1, : q + 1]
     rects[0] = rect
     depth[0] = 0
@@ -230,7 +229,7 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
 
 @njit(cache=True)
 def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations, any_hit, retry_depth, cull_tol,
-              ex_m, ex_u, ex_v, ex_ru, ex_rv, stack, stack_t):
+              ex_m, ex_u, ex_v, ex_ru, ex_rv, stack, stack_t, nets, rects, depth, tmp):
     """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations)."""
     e = ray_frame(dx, dy, dz)
     ix = 1.0 / dx if abs(dx) > 1e-300 else np.copysign(1e300, dx)
@@ -259,9 +258,12 @@ def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations
                 lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
                 if not (lo <= hi and hi >= t_min and lo <= t_max and lo < best_t):
                     continue
+                if not _straddles(B.leaf_net[leaf], B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e,
+                                  dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
+                    continue  # the piece's hull misses the ray: no root, no Newton
                 found, t, u, v, k, res, its = _solve_piece(
                     P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, min(t_max, best_t), tol, max_iterations,
-                    retry_depth, cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv)
+                    retry_depth, cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv, nets, rects, depth, tmp)
                 iterations += its
                 if found and t < best_t:
                     best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
@@ -294,11 +296,20 @@ def trace_rays(P, T, B, origin, direction, t_min, t_max, tol, max_iterations, an
     """trace_one for every ray i of origin, direction (N, 3) (unit directions), with
     t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays); results into (N,) outputs."""
     n = direction.shape[0]
-    for i in prange(n):
+    chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
+    pm, qm = B.leaf_net.shape[1], B.leaf_net.shape[2]
+    size = 4 * retry_depth + 8
+    for c in prange(chunks):  # scratch allocated once per chunk of rays
         stack = np.empty(STACK, dtype=np.int64)
         stack_t = np.empty(STACK)
-        h, tt, uu, vv, k, res, its = trace_one(
-            P, T, B, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1], direction[i, 2],
-            t_min[i], t_max[i], tol, max_iterations, any_hit, retry_depth, cull_tol,
-            ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i], stack, stack_t)
-        hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its
+        nets = np.empty((size, pm, qm, 4))
+        rects = np.empty((size, 4))
+        depth = np.empty(size, dtype=np.int64)
+        tmp = np.empty(max(pm, qm))
+        for i in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
+            h, tt, uu, vv, k, res, its = trace_one(
+                P, T, B, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1], direction[i, 2],
+                t_min[i], t_max[i], tol, max_iterations, any_hit, retry_depth, cull_tol,
+                ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i], stack, stack_t, nets, rects, depth,
+                tmp)
+            hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its
