@@ -148,13 +148,18 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
 
 @njit(cache=True)
 def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
-    """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either)."""
+    """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either).
+
+    A root that is the secondary ray's own start counts as 2 even when Newton
+    reached it from a neighbouring piece: a ray leaving the surface there
+    meets a piece that flat again only at grazing angles (see bvh.py), so
+    that piece is not retried either."""
+    if m == ex_m and abs(u - ex_u) <= ex_ru and abs(v - ex_v) <= ex_rv:
+        return 2
     su = RECT_SLACK * (rect[1] - rect[0])
     sv = RECT_SLACK * (rect[3] - rect[2])
     if not (rect[0] - su <= u <= rect[1] + su and rect[2] - sv <= v <= rect[3] + sv):
         return 0
-    if m == ex_m and abs(u - ex_u) <= ex_ru and abs(v - ex_v) <= ex_rv:
-        return 2
     if not (t_min < t < t_max):
         return 0
     if not point_kept(T, m, u, v):
