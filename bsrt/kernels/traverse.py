@@ -255,8 +255,9 @@ def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations
         left = B.node_left[node]
         if left < 0:
             for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
-                lm = B.leaf_surface[leaf]
-                if B.leaf_planar[leaf] and lm == ex_m:  # a ray leaving a plane never meets it again
+                if B.leaf_surface[leaf] == ex_m:
+                    # The piece holding the ray's start: a ray leaving a plane never meets it again,
+                    # and a piece this flat only at grazing angles (bvh.py), so it is not solved.
                     r = B.leaf_rect[leaf]
                     if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
                         continue
