@@ -220,3 +220,27 @@ def test_a_box_of_six_trimmed_faces_has_no_crack(ctx):
     # distance of the entry point to the cube's nearest silhouette edge, roughly: the gap far - near
     margin = np.where(expected, (far - near), (near - far))
     check(scene, expected, margin, expected_t=np.where(expected, near, np.nan))
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda loop: loop["curves"][1]["points"].__setitem__(0, [0.9, 0.2]),
+     "scene.toml: surface[0].trim[0].curves[1]: the loop is open: the curve starts at (0.9, 0.2), "
+     "not where curves[0] ends (1, 0)"),
+    (lambda loop: loop["curves"][2]["points"].__setitem__(1, [0.5, 1.5]),
+     "scene.toml: surface[0].trim[0].curves[2]: the curve leaves the surface's domain [0, 1] x [0, 1]"),
+    (lambda loop: loop["curves"][0].__setitem__("knots", [0, 1, 1]),
+     "scene.toml: surface[0].trim[0].curves[0].knots: expected 4 values (2 points + degree 1 + 1), got 3"),
+    (lambda loop: loop["curves"][0].__setitem__("degree", True),
+     "scene.toml: surface[0].trim[0].curves[0].degree: expected a whole number >= 1, got True"),
+    (lambda loop: loop["curves"][0].__setitem__("colour", 1),
+     "scene.toml: surface[0].trim[0].curves[0].colour: unknown key"),
+])
+def test_bad_trim_loops_name_the_surface_loop_and_curve(edit, message):
+    from bsrt.errors import InputError
+
+    loop = polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
+    edit(loop)
+    with pytest.raises(InputError) as err:
+        parse_scene({"camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0]},
+                     "surface": [plate(0, 1, 0, 1, 0.0, [loop])]}, "scene.toml")
+    assert str(err.value).startswith(message), str(err.value)
