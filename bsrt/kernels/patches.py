@@ -22,8 +22,9 @@ of a scene in the power basis of its local parameters (s, t) in [0, 1]^2:
                  is the patch of span (iu, iv) of surface m.
     patch_grid:  (P,) int64.
 
-Evaluation is Horner's scheme in t then s, with derivatives, per component;
-no temporary arrays, so a kernel can call it per iteration of a per-ray loop.
+Evaluation is Horner's scheme in t then s, all components (and derivatives)
+in one pass; no temporary arrays, so a kernel can call it per iteration of a
+per-ray loop.
 """
 
 from __future__ import annotations
@@ -52,69 +53,59 @@ class PatchArrays(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _component(coef, row0, p, q, dim, c, s, t):
-    """(value, d/ds, d/dt) of one homogeneous component at local (s, t)."""
-    b = 0.0
-    bs = 0.0
-    bt = 0.0
-    for i in range(p, -1, -1):
-        row = row0 + (i * dim + c) * (q + 1)
-        a = coef[row + q]
-        at = 0.0
-        for j in range(q - 1, -1, -1):
-            at = at * t + a
-            a = a * t + coef[row + j]
-        bs = bs * s + b
-        b = b * s + a
-        bt = bt * s + at
-    return b, bs, bt
+def _horner(coef, base, p, q, dim, s, t, derivatives):
+    """Homogeneous value (and d/ds, d/dt) of one patch at local (s, t), all components in one pass.
 
-
-@njit(cache=True, inline="always")
-def _value(coef, row0, p, q, dim, c, s, t):
-    """Value of one homogeneous component at local (s, t)."""
-    b = 0.0
+    Returns 12 floats: (x, y, z, w), (xs, ys, zs, ws), (xt, yt, zt, wt); w = 1
+    and its derivatives 0 for a polynomial patch (dim 3)."""
+    stride = q + 1
+    x = y = z = 0.0
+    w = 1.0 if dim == 3 else 0.0
+    xs = ys = zs = ws = xt = yt = zt = wt = 0.0
     for i in range(p, -1, -1):
-        row = row0 + (i * dim + c) * (q + 1)
-        a = coef[row + q]
+        row = base + i * dim * stride
+        ax, ay, az = coef[row + q], coef[row + stride + q], coef[row + 2 * stride + q]
+        aw = coef[row + 3 * stride + q] if dim == 4 else 0.0
+        tx = ty = tz = tw = 0.0
         for j in range(q - 1, -1, -1):
-            a = a * t + coef[row + j]
-        b = b * s + a
-    return b
+            if derivatives:
+                tx, ty, tz, tw = tx * t + ax, ty * t + ay, tz * t + az, tw * t + aw
+            ax = ax * t + coef[row + j]
+            ay = ay * t + coef[row + stride + j]
+            az = az * t + coef[row + 2 * stride + j]
+            if dim == 4:
+                aw = aw * t + coef[row + 3 * stride + j]
+        if derivatives:
+            xs, ys, zs = xs * s + x, ys * s + y, zs * s + z
+            xt, yt, zt = xt * s + tx, yt * s + ty, zt * s + tz
+            if dim == 4:
+                ws, wt = ws * s + w, wt * s + tw
+        x, y, z = x * s + ax, y * s + ay, z * s + az
+        if dim == 4:
+            w = w * s + aw
+    return x, y, z, w, xs, ys, zs, ws, xt, yt, zt, wt
 
 
 @njit(cache=True)
 def point(P, k, u, v):
     """S(u, v) of patch k at global parameters: (x, y, z)."""
-    p, q, dim = P.degree[k, 0], P.degree[k, 1], P.dim[k]
-    base = P.coef_start[k]
     s = (u - P.bounds[k, 0]) * P.inv_size[k, 0]
     t = (v - P.bounds[k, 2]) * P.inv_size[k, 1]
-    x = _value(P.coef, base, p, q, dim, 0, s, t)
-    y = _value(P.coef, base, p, q, dim, 1, s, t)
-    z = _value(P.coef, base, p, q, dim, 2, s, t)
-    if dim == 4:
-        w = _value(P.coef, base, p, q, dim, 3, s, t)
-        return x / w, y / w, z / w
-    return x, y, z
+    h = _horner(P.coef, P.coef_start[k], P.degree[k, 0], P.degree[k, 1], P.dim[k], s, t, False)
+    return h[0] / h[3], h[1] / h[3], h[2] / h[3]
 
 
 @njit(cache=True)
 def frame(P, k, u, v):
     """S, S_u, S_v of patch k at global (u, v): 9 floats (x, y, z, xu, yu, zu, xv, yv, zv)."""
-    p, q, dim = P.degree[k, 0], P.degree[k, 1], P.dim[k]
-    base = P.coef_start[k]
     du, dv = P.inv_size[k, 0], P.inv_size[k, 1]
     s = (u - P.bounds[k, 0]) * du
     t = (v - P.bounds[k, 2]) * dv
-    x, xs, xt = _component(P.coef, base, p, q, dim, 0, s, t)
-    y, ys, yt = _component(P.coef, base, p, q, dim, 1, s, t)
-    z, zs, zt = _component(P.coef, base, p, q, dim, 2, s, t)
-    if dim == 4:  # quotient rule on the homogeneous point
-        w, ws, wt = _component(P.coef, base, p, q, dim, 3, s, t)
-        x, y, z = x / w, y / w, z / w
-        xs, ys, zs = (xs - x * ws) / w, (ys - y * ws) / w, (zs - z * ws) / w
-        xt, yt, zt = (xt - x * wt) / w, (yt - y * wt) / w, (zt - z * wt) / w
+    x, y, z, w, xs, ys, zs, ws, xt, yt, zt, wt = _horner(P.coef, P.coef_start[k], P.degree[k, 0], P.degree[k, 1],
+                                                       P.dim[k], s, t, True)
+    x, y, z = x / w, y / w, z / w  # the quotient rule (w = 1, ws = wt = 0 for a polynomial patch)
+    xs, ys, zs = (xs - x * ws) / w, (ys - y * ws) / w, (zs - z * ws) / w
+    xt, yt, zt = (xt - x * wt) / w, (yt - y * wt) / w, (zt - z * wt) / w
     return x, y, z, xs * du, ys * du, zs * du, xt * dv, yt * dv, zt * dv
 
 
