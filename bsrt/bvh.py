@@ -91,6 +91,7 @@ from .hits import Hits
 from .patches import PatchSet
 from .kernels.flatten import build_tree, flatten_patches
 from .kernels.trim import OUTSIDE, rect_states
+from .kernels.threads import run_chunks
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
 from .solve import Rays
 
@@ -330,7 +331,7 @@ def intersect(
     else:
         ex = Exclusion(*(np.ascontiguousarray(a, dtype=dt) for a, dt in zip(exclude, (np.int64,) + (np.float64,) * 4)))
     iterations = np.zeros(n, dtype=np.int64)
-    trace_rays(bvh.patches.arrays, bvh.patches.trims, bvh.arrays, rays.origin, rays.direction, t_min, t_max,
+    run_chunks(trace_rays, n, bvh.patches.arrays, bvh.patches.trims, bvh.arrays, rays.origin, rays.direction, t_min, t_max,
                float(tolerance), int(max_iterations), bool(any_hit), int(retry_depth), bvh.padding + float(tolerance),
                ex, hits.hit, hits.t, hits.u, hits.v, hits.patch, hits.residual, iterations)
     miss = ~hits.hit

@@ -10,6 +10,7 @@ import numpy as np
 
 from .hits import Hits
 from .kernels.shading import LIGHT_KINDS, blinn_phong, frames_many
+from .kernels.threads import run_chunks
 from .patches import PatchSet
 from .scene import Scene
 
@@ -25,7 +26,7 @@ def facing_frames(patches: PatchSet, hits: Hits, directions: np.ndarray):
     hit = np.flatnonzero(hits.hit)
     if hit.size:
         pos, nrm, spd = np.empty((hit.size, 3)), np.empty((hit.size, 3)), np.empty((hit.size, 2))
-        frames_many(patches.arrays, hits.patch[hit], hits.u[hit], hits.v[hit],
+        run_chunks(frames_many, hit.size, patches.arrays, hits.patch[hit], hits.u[hit], hits.v[hit],
                     np.ascontiguousarray(directions[hit], dtype=np.float64), pos, nrm, spd)
         position[hit], normal[hit], speed[hit] = pos, nrm, spd
     return position, normal, speed

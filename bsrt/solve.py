@@ -13,6 +13,7 @@ import numpy as np
 
 from .hits import Hits
 from .kernels.roots import METHOD_IDS, solve_items
+from .kernels.threads import run_chunks
 from .kernels.trim import kept_many
 from .patches import PatchSet
 
@@ -100,8 +101,8 @@ def find_roots(
     )
     if m == 0:
         return out
-    solve_items(
-        patches.arrays, rays.origin, rays.direction, np.ascontiguousarray(ray, dtype=np.int64),
+    run_chunks(
+        solve_items, m, patches.arrays, rays.origin, rays.direction, np.ascontiguousarray(ray, dtype=np.int64),
         np.ascontiguousarray(surface, dtype=np.int64), np.ascontiguousarray(u, dtype=np.float64),
         np.ascontiguousarray(v, dtype=np.float64), METHOD_IDS[method], float(tolerance), int(max_iterations),
         bool(stop_on_growth), out.converged, out.u, out.v, out.patch, out.t, out.residual, out.iterations,

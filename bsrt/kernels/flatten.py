@@ -12,32 +12,34 @@ output arrays are allocated once, both parallel over patches.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
 @njit(cache=True)
 def measures(net, p, q):
     """(dev, dev_u, dev_v, twist, size) of one homogeneous net ([:p+1, :q+1, 4])."""
     dev = dev_u = dev_v = 0.0
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
     w00 = net[0, 0, 3]
     uneven = False
     for i in range(p + 1):
         for j in range(q + 1):
             if net[i, j, 3] != w00:
                 uneven = True
-    c00, cp0, c0q, cpq = net[0, 0], net[p, 0], net[0, q], net[p, q]
     for i in range(p + 1):
         s = i / p
         for j in range(q + 1):
             t = j / q
             w = net[i, j, 3]
             e = e_u = e_v = 0.0
+            x0, x1, x2 = net[i, j, 0] / w, net[i, j, 1] / w, net[i, j, 2] / w
+            lo0, lo1, lo2 = min(lo0, x0), min(lo1, x1), min(lo2, x2)
+            hi0, hi1, hi2 = max(hi0, x0), max(hi1, x1), max(hi2, x2)
             for k in range(3):
                 x = net[i, j, k] / w
-                lo[k], hi[k] = min(lo[k], x), max(hi[k], x)
-                a00, ap0, a0q, apq = c00[k] / c00[3], cp0[k] / cp0[3], c0q[k] / c0q[3], cpq[k] / cpq[3]
+                a00, ap0 = net[0, 0, k] / net[0, 0, 3], net[p, 0, k] / net[p, 0, 3]
+                a0q, apq = net[0, q, k] / net[0, q, 3], net[p, q, k] / net[p, q, 3]
                 bil = (1 - s) * ((1 - t) * a00 + t * a0q) + s * ((1 - t) * ap0 + t * apq)
                 row = (1 - s) * net[0, j, k] / net[0, j, 3] + s * net[p, j, k] / net[p, j, 3]
                 col = (1 - t) * net[i, 0, k] / net[i, 0, 3] + t * net[i, q, k] / net[i, q, 3]
@@ -45,10 +47,11 @@ def measures(net, p, q):
                 e_u += (x - row) ** 2
                 e_v += (x - col) ** 2
             dev, dev_u, dev_v = max(dev, np.sqrt(e)), max(dev_u, np.sqrt(e_u)), max(dev_v, np.sqrt(e_v))
-    size = np.sqrt(((hi - lo) ** 2).sum())
+    size = np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
     twist = 0.0
     for k in range(3):
-        twist += (c00[k] / c00[3] - cp0[k] / cp0[3] - c0q[k] / c0q[3] + cpq[k] / cpq[3]) ** 2
+        twist += (net[0, 0, k] / net[0, 0, 3] - net[p, 0, k] / net[p, 0, 3] - net[0, q, k] / net[0, q, 3]
+                  + net[p, q, k] / net[p, q, 3]) ** 2
     twist = 0.25 * np.sqrt(twist)
     if uneven:  # uneven weights bend the parametrisation even of a flat piece
         spread_u = spread_v = 0.0
@@ -90,13 +93,25 @@ def split_half(src, lo, hi, p, q, axis):
 
 
 @njit(cache=True)
+def _copy_net(src, dst, p, q):
+    for i in range(p + 1):
+        for j in range(q + 1):
+            for c in range(4):
+                dst[i, j, c] = src[i, j, c]
+
+
+@njit(cache=True)
 def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth, out_net):
-    """Cut one patch depth-first; with fill, write its leaves from index first. Returns the leaf count."""
+    """Cut one patch depth-first; with fill, write its leaves from index first. Returns the leaf count.
+
+    (Element loops, not array slices: numba compiles those far faster.)"""
     stack = np.empty((max_depth + 2, net.shape[0], net.shape[1], 4))
     rects = np.empty((max_depth + 2, 4))
     depth = np.empty(max_depth + 2, dtype=np.int64)
-    stack[0] = net
-    rects[0] = rect
+    piece = np.empty((net.shape[0], net.shape[1], 4))
+    _copy_net(net, stack[0], p, q)
+    for k in range(4):
+        rects[0, k] = rect[k]
     depth[0] = 0
     top, count = 1, 0
     while top > 0:
@@ -104,28 +119,27 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
         dev, dev_u, dev_v, twist, size = measures(stack[top], p, q)
         if not ((dev > eps or max(dev, twist) > bend * size) and depth[top] < max_depth):
             if fill:
-                out_rect[first + count] = rects[top]
+                for k in range(4):
+                    out_rect[first + count, k] = rects[top, k]
                 out_depth[first + count] = depth[top]
-                out_net[first + count] = stack[top]
+                _copy_net(stack[top], out_net[first + count], p, q)
             count += 1
             continue
         axis = 0 if dev_u >= dev_v else 1
-        piece = stack[top].copy()
-        r = rects[top].copy()
-        d = depth[top] + 1
+        _copy_net(stack[top], piece, p, q)
         split_half(piece, stack[top], stack[top + 1], p, q, axis)
-        mid = 0.5 * (r[2 * axis] + r[2 * axis + 1])
-        rects[top] = r
-        rects[top + 1] = r
+        mid = 0.5 * (rects[top, 2 * axis] + rects[top, 2 * axis + 1])
+        for k in range(4):
+            rects[top + 1, k] = rects[top, k]
         rects[top, 2 * axis + 1] = mid
         rects[top + 1, 2 * axis] = mid
-        depth[top] = d
-        depth[top + 1] = d
+        depth[top] += 1
+        depth[top + 1] = depth[top]
         top += 2
     return count
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def flatten_patches(nets, degree, rects, eps, bend, max_depth):
     """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
 
@@ -135,7 +149,7 @@ def flatten_patches(nets, degree, rects, eps, bend, max_depth):
     n = nets.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     dummy_r, dummy_d, dummy_n = np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0,) + nets.shape[1:])
-    for k in prange(n):
+    for k in range(n):
         counts[k] = _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, 0,
                          dummy_r, dummy_d, dummy_n)
     starts = np.zeros(n + 1, dtype=np.int64)
@@ -145,7 +159,7 @@ def flatten_patches(nets, degree, rects, eps, bend, max_depth):
     out_rect = np.empty((total, 4))
     out_depth = np.empty(total, dtype=np.int64)
     out_net = np.zeros((total,) + nets.shape[1:])
-    for k in prange(n):
+    for k in range(n):
         _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True, starts[k],
              out_rect, out_depth, out_net)
         patch[starts[k]:starts[k + 1]] = k
@@ -159,6 +173,18 @@ SAH_BINS = 16
 def _area(lo, hi):
     dx, dy, dz = max(hi[0] - lo[0], 0.0), max(hi[1] - lo[1], 0.0), max(hi[2] - lo[2], 0.0)
     return dx * dy + dy * dz + dz * dx
+
+
+@njit(cache=True)
+def _reset(lo, hi):
+    for k in range(3):
+        lo[k], hi[k] = np.inf, -np.inf
+
+
+@njit(cache=True)
+def _grow(lo, hi, bin_lo, bin_hi, j):
+    for k in range(3):
+        lo[k], hi[k] = min(lo[k], bin_lo[j, k]), max(hi[k], bin_hi[j, k])
 
 
 @njit(cache=True)
@@ -188,22 +214,27 @@ def build_tree(box_min, box_max, leaf_size):
     below, above = np.empty(SAH_BINS - 1), np.empty(SAH_BINS - 1)
     while node < made:
         f, c = first[node], count[node]
-        lo[:], hi[:], clo[:], chi[:] = np.inf, -np.inf, np.inf, -np.inf
+        for k in range(3):
+            lo[k], hi[k], clo[k], chi[k] = np.inf, -np.inf, np.inf, -np.inf
         for i in range(f, f + c):
             b = order[i]
             for k in range(3):
                 lo[k], hi[k] = min(lo[k], box_min[b, k]), max(hi[k], box_max[b, k])
                 clo[k], chi[k] = min(clo[k], centre[b, k]), max(chi[k], centre[b, k])
-        node_min[node] = lo
-        node_max[node] = hi
+        for k in range(3):
+            node_min[node, k], node_max[node, k] = lo[k], hi[k]
         if c > leaf_size:
-            axis = np.argmax(chi - clo)
+            axis = 0
+            for k in (1, 2):
+                if chi[k] - clo[k] > chi[axis] - clo[axis]:
+                    axis = k
             extent = chi[axis] - clo[axis]
             half = c // 2
             if extent > 0.0:
-                bin_count[:] = 0
-                bin_lo[:] = np.inf
-                bin_hi[:] = -np.inf
+                for j in range(SAH_BINS):
+                    bin_count[j] = 0
+                    for k in range(3):
+                        bin_lo[j, k], bin_hi[j, k] = np.inf, -np.inf
                 scale = SAH_BINS * (1.0 - 1e-9) / extent
                 for i in range(f, f + c):
                     b = order[i]
@@ -212,19 +243,15 @@ def build_tree(box_min, box_max, leaf_size):
                     for k in range(3):
                         bin_lo[j, k], bin_hi[j, k] = min(bin_lo[j, k], box_min[b, k]), max(bin_hi[j, k], box_max[b, k])
                 # areas of the boxes of bins below / above each plane, by a sweep from each end
-                run_lo[:] = np.inf
-                run_hi[:] = -np.inf
+                _reset(run_lo, run_hi)
                 for j in range(SAH_BINS - 1):
                     if bin_count[j]:
-                        run_lo[:] = np.minimum(run_lo, bin_lo[j])
-                        run_hi[:] = np.maximum(run_hi, bin_hi[j])
+                        _grow(run_lo, run_hi, bin_lo, bin_hi, j)
                     below[j] = _area(run_lo, run_hi)
-                run_lo[:] = np.inf
-                run_hi[:] = -np.inf
+                _reset(run_lo, run_hi)
                 for j in range(SAH_BINS - 1, 0, -1):
                     if bin_count[j]:
-                        run_lo[:] = np.minimum(run_lo, bin_lo[j])
-                        run_hi[:] = np.maximum(run_hi, bin_hi[j])
+                        _grow(run_lo, run_hi, bin_lo, bin_hi, j)
                     above[j - 1] = _area(run_lo, run_hi)
                 best, best_cost, nl = -1, np.inf, 0
                 for s in range(1, SAH_BINS):

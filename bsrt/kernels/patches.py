@@ -52,7 +52,7 @@ class PatchArrays(NamedTuple):
     patch_grid: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _horner(coef, base, p, q, dim, s, t, derivatives):
     """Homogeneous value (and d/ds, d/dt) of one patch at local (s, t), all components in one pass.
 
@@ -109,7 +109,7 @@ def frame(P, k, u, v):
     return x, y, z, xs * du, ys * du, zs * du, xt * dv, yt * dv, zt * dv
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _span(breaks, first, stop, x):
     """Index (0-based within the surface) of the span of sorted breaks[first:stop] holding x."""
     lo, hi = first, stop - 2  # spans first .. stop - 2
@@ -139,7 +139,7 @@ def locate(P, m, u, v):
     return P.patch_grid[P.grid_start[m] + iu * (sv - fv - 1) + iv]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def inside_patch(P, k, u, v):
     b = P.bounds[k]
     return b[0] <= u <= b[1] and b[2] <= v <= b[3]

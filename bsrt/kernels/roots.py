@@ -37,7 +37,7 @@ whose clipped step is zero is stuck and fails.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .patches import clamp, frame, inside_patch, locate, point
 
@@ -46,7 +46,7 @@ GRADIENT, FAST, NEWTON = 0, 1, 2
 MAX_HALVINGS = 60
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def ray_frame(dx, dy, dz):
     """e1, e2 (6 floats) perpendicular to the unit direction d and to each other
     (Duff et al. 2017, "Building an orthonormal basis, revisited")."""
@@ -158,13 +158,14 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
     return converged, u, v, k, t, np.sqrt(w), iterations
 
 
-@njit(cache=True, parallel=True)
-def solve_items(P, origin, direction, ray, surface, u0, v0, method, tolerance, max_iterations, stop_on_growth,
-                converged, u, v, patch, t, residual, iterations):
-    """solve_one for every item i: ray[i] (into origin, direction (N, 3), unit
-    directions), surface[i], start (u0[i], v0[i]); results into the (M,) outputs."""
+@njit(cache=True, nogil=True)
+def solve_items(start, stop, P, origin, direction, ray, surface, u0, v0, method, tolerance, max_iterations,
+                stop_on_growth, converged, u, v, patch, t, residual, iterations):
+    """solve_one for items start..stop-1: item i is ray[i] (into origin, direction
+    (N, 3), unit directions), surface[i], start (u0[i], v0[i]); results into
+    the (M,) outputs. Called on slices by threads.run_chunks."""
     tol2 = tolerance * tolerance
-    for i in prange(ray.shape[0]):
+    for i in range(start, stop):
         r = ray[i]
         ok, uu, vv, k, tt, res, its = solve_one(
             P, surface[i], u0[i], v0[i], origin[r, 0], origin[r, 1], origin[r, 2],

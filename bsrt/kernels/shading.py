@@ -7,7 +7,7 @@ directional. Everything in linear RGB, float64.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .patches import frame
 
@@ -15,8 +15,8 @@ LIGHT_KINDS = {"ambient": 0, "point": 1, "directional": 2}
 POLE_STEPS = (1e-7, 1e-5, 1e-3)
 
 
-@njit(cache=True, parallel=True)
-def frames_many(P, patch, u, v, towards, position, normal, speed):
+@njit(cache=True, nogil=True)
+def frames_many(start, stop, P, patch, u, v, towards, position, normal, speed):
     """Position, unit normal and |S_u|, |S_v| at each hit i (patch[i], u[i], v[i]).
 
     towards: (K, 3) the ray directions: the normal is flipped to face the
@@ -25,7 +25,7 @@ def frames_many(P, patch, u, v, towards, position, normal, speed):
     vanishes (a pole, a collapsed edge) the limit normal is taken a step of
     1e-7 (then 1e-5, 1e-3) of the patch toward its centre; if all vanish, 0.
     """
-    for i in prange(patch.shape[0]):
+    for i in range(start, stop):
         k = patch[i]
         x, y, z, xu, yu, zu, xv, yv, zv = frame(P, k, u[i], v[i])
         position[i, 0], position[i, 1], position[i, 2] = x, y, z
@@ -51,7 +51,7 @@ def frames_many(P, patch, u, v, towards, position, normal, speed):
         normal[i, 0], normal[i, 1], normal[i, 2] = nx / length, ny / length, nz / length
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def blinn_phong(position, normal, view, material, albedo, specular, shininess, kind, light_position, light_direction,
                 strength, visibility, out):
     """Radiance toward the viewer at K points into out (K, 3).
@@ -62,7 +62,7 @@ def blinn_phong(position, normal, view, material, albedo, specular, shininess, k
     (directional: the unit direction toward the light), strength (L, 3) =
     colour x intensity; visibility: (K, L), 1 where the light reaches the point.
     """
-    for i in prange(position.shape[0]):
+    for i in range(position.shape[0]):
         m = material[i]
         r = g = b = 0.0
         for j in range(kind.shape[0]):

@@ -31,7 +31,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from .patches import frame
 from .roots import NEWTON, ray_frame, solve_one
@@ -40,7 +40,6 @@ from .trim import point_kept
 GRAZING_COSINE = 0.3
 RECT_SLACK = 1e-9
 STACK = 64
-RAY_CHUNK = 256  # rays per scratch allocation (and per parallel work item)
 
 
 class BVHArrays(NamedTuple):
@@ -71,7 +70,7 @@ class Exclusion(NamedTuple):
     radius_v: np.ndarray
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _slab(b, ox, oy, oz, ix, iy, iz):
     """Entry and exit distances of a ray (origin, inverse direction) into box b (6,)."""
     t1, t2 = (b[0] - ox) * ix, (b[3] - ox) * ix
@@ -82,7 +81,7 @@ def _slab(b, ox, oy, oz, ix, iy, iz):
     return max(near, min(t1, t2)), min(far, max(t1, t2))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     """Entry and exit distances of a ray into an oriented box (15,)."""
     rx, ry, rz = ox - obb[0], oy - obb[1], oz - obb[2]
@@ -99,13 +98,21 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     return near, far
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _grazing(P, k, u, v, dx, dy, dz):
     f = frame(P, k, u, v)
     nx = f[4] * f[8] - f[5] * f[7]
     ny = f[5] * f[6] - f[3] * f[8]
     nz = f[3] * f[7] - f[4] * f[6]
     return abs(nx * dx + ny * dy + nz * dz) < GRAZING_COSINE * np.sqrt(nx * nx + ny * ny + nz * nz)
+
+
+@njit(cache=True)
+def _copy_net(src, dst, p, q):
+    for i in range(p + 1):
+        for j in range(q + 1):
+            for c in range(4):
+                dst[i, j, c] = src[i, j, c]
 
 
 @njit(cache=True)
@@ -188,8 +195,9 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
     size = nets.shape[0]
-    nets[0, : p + 1, : q + 1] = B.leaf_net[leaf, : p + 1, : q + 1]
-    rects[0] = rect
+    _copy_net(B.leaf_net[leaf], nets[0], p, q)
+    for k in range(4):
+        rects[0, k] = rect[k]
     depth[0] = 0
     top = 1
     while top > 0:
@@ -201,13 +209,13 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
         _split(nets[top], nets[a], nets[b2], p, q, 0, tmp)
         _split(nets[a], nets[top], nets[top + 1], p, q, 1, tmp)
         _split(nets[b2], nets[top + 2], nets[top + 3], p, q, 1, tmp)
-        r = rects[top].copy()
-        um, vm = 0.5 * (r[0] + r[1]), 0.5 * (r[2] + r[3])
+        r0, r1, r2, r3 = rects[top, 0], rects[top, 1], rects[top, 2], rects[top, 3]
+        um, vm = 0.5 * (r0 + r1), 0.5 * (r2 + r3)
         d = depth[top] + 1
-        rects[top, 0], rects[top, 1], rects[top, 2], rects[top, 3] = r[0], um, r[2], vm
-        rects[top + 1, 0], rects[top + 1, 1], rects[top + 1, 2], rects[top + 1, 3] = r[0], um, vm, r[3]
-        rects[top + 2, 0], rects[top + 2, 1], rects[top + 2, 2], rects[top + 2, 3] = um, r[1], r[2], vm
-        rects[top + 3, 0], rects[top + 3, 1], rects[top + 3, 2], rects[top + 3, 3] = um, r[1], vm, r[3]
+        rects[top, 0], rects[top, 1], rects[top, 2], rects[top, 3] = r0, um, r2, vm
+        rects[top + 1, 0], rects[top + 1, 1], rects[top + 1, 2], rects[top + 1, 3] = r0, um, vm, r3
+        rects[top + 2, 0], rects[top + 2, 1], rects[top + 2, 2], rects[top + 2, 3] = um, r1, r2, vm
+        rects[top + 3, 0], rects[top + 3, 1], rects[top + 3, 2], rects[top + 3, 3] = um, r1, vm, r3
         first = top
         for s in range(first, first + 4):
             if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
@@ -225,8 +233,9 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
                 again = _grazing(P, k, u, v, dx, dy, dz)
             if again and d < retry_depth:  # keep it: move it down to the stack's top
                 if s != top:
-                    nets[top] = nets[s]
-                    rects[top] = rects[s]
+                    _copy_net(nets[s], nets[top], p, q)
+                    for k in range(4):
+                        rects[top, k] = rects[s, k]
                 depth[top] = d
                 top += 1
     return found, best_t, best_u, best_v, best_k, best_res, iterations
@@ -296,26 +305,23 @@ def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations
     return best_k >= 0, best_t, best_u, best_v, best_k, best_res, iterations
 
 
-@njit(cache=True, parallel=True)
-def trace_rays(P, T, B, origin, direction, t_min, t_max, tol, max_iterations, any_hit, retry_depth, cull_tol,
-               ex, hit, t, u, v, patch, residual, iterations):
-    """trace_one for every ray i of origin, direction (N, 3) (unit directions), with
-    t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays); results into (N,) outputs."""
-    n = direction.shape[0]
-    chunks = (n + RAY_CHUNK - 1) // RAY_CHUNK
+@njit(cache=True, nogil=True)
+def trace_rays(start, stop, P, T, B, origin, direction, t_min, t_max, tol, max_iterations, any_hit, retry_depth,
+               cull_tol, ex, hit, t, u, v, patch, residual, iterations):
+    """trace_one for rays start..stop-1 of origin, direction (N, 3) (unit directions),
+    with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays);
+    results into (N,) outputs. Called on slices by threads.run_chunks."""
     pm, qm = B.leaf_net.shape[1], B.leaf_net.shape[2]
     size = 4 * retry_depth + 8
-    for c in prange(chunks):  # scratch allocated once per chunk of rays
-        stack = np.empty(STACK, dtype=np.int64)
-        stack_t = np.empty(STACK)
-        nets = np.empty((size, pm, qm, 4))
-        rects = np.empty((size, 4))
-        depth = np.empty(size, dtype=np.int64)
-        tmp = np.empty(max(pm, qm))
-        for i in range(c * RAY_CHUNK, min(n, (c + 1) * RAY_CHUNK)):
-            h, tt, uu, vv, k, res, its = trace_one(
-                P, T, B, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1], direction[i, 2],
-                t_min[i], t_max[i], tol, max_iterations, any_hit, retry_depth, cull_tol,
-                ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i], stack, stack_t, nets, rects, depth,
-                tmp)
-            hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its
+    stack = np.empty(STACK, dtype=np.int64)  # scratch, once per slice
+    stack_t = np.empty(STACK)
+    nets = np.empty((size, pm, qm, 4))
+    rects = np.empty((size, 4))
+    depth = np.empty(size, dtype=np.int64)
+    tmp = np.empty(max(pm, qm))
+    for i in range(start, stop):
+        h, tt, uu, vv, k, res, its = trace_one(
+            P, T, B, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1], direction[i, 2],
+            t_min[i], t_max[i], tol, max_iterations, any_hit, retry_depth, cull_tol,
+            ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i], stack, stack_t, nets, rects, depth, tmp)
+        hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its

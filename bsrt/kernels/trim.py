@@ -13,13 +13,13 @@ u' > u: decided by the piece's box, or else by solving V(s) = v on the piece
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 OUTSIDE, INSIDE, MIXED = 0, 1, 2
 BISECTIONS = 64
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _horner(coef, k, d, c, s):
     a = coef[k, d, c]
     for i in range(d - 1, -1, -1):
@@ -49,7 +49,7 @@ def _crosses_right(T, k, u, v):
     return _horner(T.coef, k, d, 0, s) / _horner(T.coef, k, d, 2, s) > u
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _band(T, m, v):
     count = T.band_count[m]
     b = int((v - T.band_v0[m]) / T.band_height[m]) if v > T.band_v0[m] else 0
@@ -88,15 +88,15 @@ def rect_state(T, m, u0, u1, v0, v1):
     return INSIDE if point_kept(T, m, 0.5 * (u0 + u1), 0.5 * (v0 + v1)) else OUTSIDE
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _kept_many(T, surface, u, v, out):
-    for i in prange(surface.shape[0]):
+    for i in range(surface.shape[0]):
         out[i] = point_kept(T, surface[i], u[i], v[i])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _rect_states(T, surface, u0, u1, v0, v1, out):
-    for i in prange(surface.shape[0]):
+    for i in range(surface.shape[0]):
         out[i] = rect_state(T, surface[i], u0[i], u1[i], v0[i], v1[i])
 
 
@@ -169,11 +169,15 @@ def _monotone(net, d):
 
 @njit(cache=True)
 def _split_monotone(net, d, max_cuts, fill, first, out, out_degree):
-    """Halve one net (d + 1, 3) until monotone; with fill, write the pieces from index first."""
+    """Halve one net (d + 1, 3) until monotone; with fill, write the pieces from index first.
+
+    (Element loops, not array slices: numba compiles those far faster.)"""
     stack = np.empty((max_cuts + 2, d + 1, 3))
     cuts = np.empty(max_cuts + 2, dtype=np.int64)
     tmp = np.empty((d + 1, 3))
-    stack[0] = net[: d + 1]
+    for r in range(d + 1):
+        for c in range(3):
+            stack[0, r, c] = net[r, c]
     cuts[0] = 0
     top, count = 1, 0
     while top > 0:
@@ -181,49 +185,53 @@ def _split_monotone(net, d, max_cuts, fill, first, out, out_degree):
         ok = _monotone(stack[top], d)
         if ok or cuts[top] >= max_cuts:
             if fill:
-                out[first + count] = 0.0
+                k = first + count
+                for r in range(out.shape[1]):
+                    for c in range(3):
+                        out[k, r, c] = 0.0
                 if ok:
-                    out[first + count, : d + 1] = stack[top]
-                    out_degree[first + count] = d
+                    for r in range(d + 1):
+                        for c in range(3):
+                            out[k, r, c] = stack[top, r, c]
+                    out_degree[k] = d
                 else:  # a tiny stretch around an axis-parallel tangent: its chord
-                    out[first + count, 0] = stack[top, 0]
-                    out[first + count, 1] = stack[top, d]
-                    out_degree[first + count] = 1
+                    for c in range(3):
+                        out[k, 0, c] = stack[top, 0, c]
+                        out[k, 1, c] = stack[top, d, c]
+                    out_degree[k] = 1
             count += 1
             continue
-        tmp[:] = stack[top]
-        c = cuts[top] + 1
-        hi = top + 1  # de Casteljau at 1/2: lower half in slot top, upper in slot top + 1
         for r in range(d + 1):
-            stack[top, r] = tmp[0]
-            stack[hi, d - r] = tmp[d - r]
+            for c in range(3):
+                tmp[r, c] = stack[top, r, c]
+        hi = top + 1  # de Casteljau at 1/2: the lower half in slot hi (popped first), the upper in slot top
+        for r in range(d + 1):
+            for c in range(3):
+                stack[hi, r, c] = tmp[0, c]
+                stack[top, d - r, c] = tmp[d - r, c]
             for i in range(d - r):
-                tmp[i] = 0.5 * (tmp[i] + tmp[i + 1])
-        # push the upper half below the lower one: pieces come out in curve order
-        for r in range(d + 1):
-            tmp[r] = stack[top, r]
-        stack[top] = stack[hi]
-        stack[hi] = tmp
-        cuts[top], cuts[hi] = c, c
+                for c in range(3):
+                    tmp[i, c] = 0.5 * (tmp[i, c] + tmp[i + 1, c])
+        cuts[hi] = cuts[top] = cuts[top] + 1
         top += 2
     return count
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def monotone_pieces(nets, degree, max_cuts):
     """Every net (N, D + 1, 3) of degree (N,) halved until monotone in u and v:
     (pieces (K, D + 1, 3), their degree (K,), the net each came from (K,))."""
     n = nets.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     none, none_d = np.empty((0, nets.shape[1], 3)), np.empty(0, dtype=np.int64)
-    for k in prange(n):
+    for k in range(n):
         counts[k] = _split_monotone(nets[k], degree[k], max_cuts, False, 0, none, none_d)
     starts = np.zeros(n + 1, dtype=np.int64)
     starts[1:] = np.cumsum(counts)
     out = np.zeros((starts[n], nets.shape[1], 3))
     out_degree = np.empty(starts[n], dtype=np.int64)
     owner = np.empty(starts[n], dtype=np.int64)
-    for k in prange(n):
+    for k in range(n):
         _split_monotone(nets[k], degree[k], max_cuts, True, starts[k], out, out_degree)
         owner[starts[k]:starts[k + 1]] = k
     return out, out_degree, owner

@@ -1,0 +1,33 @@
+"""Running a compiled loop on every core: chunks of its index range on a thread pool.
+
+The kernels are compiled without ``parallel=True`` (numba's parallel loops
+cost most of the compile time) and with ``nogil=True``; ``run_chunks`` calls
+one on consecutive slices from as many threads as there are cores, and the
+slices run at once because the kernel releases the GIL.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+_POOL: ThreadPoolExecutor | None = None
+MIN_CHUNK = 2048
+
+
+def workers() -> int:
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
+def run_chunks(kernel, n: int, *args) -> None:
+    """kernel(start, stop, *args) over [0, n) in about 4 slices per core (at least MIN_CHUNK items each)."""
+    global _POOL
+    count = min(4 * workers(), max(1, n // MIN_CHUNK))
+    if count <= 1:
+        kernel(0, n, *args)
+        return
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=workers(), thread_name_prefix="bsrt-kernel")
+    bounds = [n * i // count for i in range(count + 1)]
+    for future in [_POOL.submit(kernel, a, b, *args) for a, b in zip(bounds[:-1], bounds[1:])]:
+        future.result()
