@@ -12,12 +12,14 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import time
 from pathlib import Path
 
+from . import __version__
 from .errors import InputError, RenderError
-from .scene import MAP_MODES, METHODS
+from .settings import MAP_MODES, METHODS
 
 
 def _positive_int(text: str) -> int:
@@ -32,6 +34,7 @@ def _positive_int(text: str) -> int:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bsrt", description="Ray-trace B-spline surfaces directly.")
+    parser.add_argument("--version", action="version", version=f"bsrt {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     r = sub.add_parser("render", help="render a scene or a model file to a PNG image")
@@ -45,6 +48,9 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--map", choices=MAP_MODES, dest="map_mode", help="preliminary map precision")
     r.add_argument("--aov", metavar="FILE.npz", help="also write per-pixel arrays (hit, t, surface, u, v, ...)")
     r.add_argument("--stats", action="store_true", help="print timings and counters as JSON on stdout")
+    r.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress on stderr: a bar with time left, then a summary line (default: only on a "
+                        "terminal, not in CI; --progress elsewhere writes plain lines)")
 
     m = sub.add_parser("map", help="write the preliminary map as a picture (paper's Figure 1)")
     m.add_argument("scene", help="scene file (.toml) or model file")
@@ -66,6 +72,9 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--size", type=_positive_int, default=512, help="film width and height (default 512)")
     b.add_argument("--repeat", type=_positive_int, default=3, help="timed runs per method; the median is shown")
     b.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+    b.add_argument("--models", nargs="+", metavar="MODEL",
+                   help="instead: whole renders of model files with and without their trims (the cost of trimming)")
+    b.add_argument("--full", action="store_true", help="also show whole renders by stage (shadows, mirrors) and rays per second")
 
     from .preview import add_arguments as _preview_arguments
 
@@ -138,42 +147,50 @@ def _check_output(path: str, suffix: str) -> Path:
     return out
 
 
-def _progress():
-    if not sys.stderr.isatty():
-        return None
-    start = time.perf_counter()
+def _progress(args):
+    """`bsrt render`'s progress (bsrt/progress.py): a bar on a terminal (not with
+    --no-progress, nor in CI), plain lines elsewhere only with --progress."""
+    from .progress import wanted
 
-    def report(stage: str, fraction: float = 0.0) -> None:
-        print(f"\rbsrt: {stage}... ({time.perf_counter() - start:.1f} s)", end="", file=sys.stderr, flush=True)
-
-    return report
+    return wanted(sys.stderr, args.progress)
 
 
 def _cmd_render(args) -> int:
     from .image import write_npz, write_png
     from .render import render
+    from .settings import RenderOptions
 
     out = _check_output(args.output, ".png")
     aov = _check_output(args.aov, ".npz") if args.aov else None
     scene = _load_input(args)
-    progress = _progress()
-    result = render(scene, method=args.method, map_mode=args.map_mode, width=args.width, height=args.height,
-                    spp=args.spp, progress=progress)
-    clock = time.perf_counter()
-    written = []
+    options = RenderOptions.resolve(scene, method=args.method, map=args.map_mode, width=args.width,
+                                    height=args.height, spp=args.spp)
+    _say_if_compiling()
+    progress = _progress(args)
     try:
-        write_png(out, result.pixels)
-        written.append(out)
-        if aov:
-            write_npz(aov, result.aovs())
-            written.append(aov)
+        if progress:
+            progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
+        result = render(scene, options, progress=progress)
+        clock = time.perf_counter()
+        written = []
+        try:
+            write_png(out, result.pixels)
+            written.append(out)
+            if aov:
+                write_npz(aov, result.aovs())
+                written.append(aov)
+        except BaseException:
+            for path in written:
+                path.unlink(missing_ok=True)
+            raise
     except BaseException:
-        for path in written:
-            path.unlink(missing_ok=True)
+        if progress:
+            progress.clear()  # the error message gets a clean line
         raise
     result.stats["seconds"]["write"] = time.perf_counter() - clock
     if progress:
-        print(file=sys.stderr)
+        progress.finish(f"rendered {out}{f' (AOVs: {aov})' if aov else ''} {options.width}x{options.height}, "
+                        f"{options.spp} spp, {options.method}, {progress.elapsed():.1f} s")
     if args.stats:
         print(json.dumps(result.stats, indent=2))
     return 0
@@ -233,8 +250,23 @@ def _cmd_doctor(args) -> int:
     print(f"OpenGL vendor:   {ctx.info['GL_VENDOR']}")
     chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
     print(f"device chosen:   {chosen if chosen is not None else 'first that works'} (set GLCONTEXT_DEVICE_INDEX=N to pick)")
+    from .kernels import compile as kernels
+
+    cached = kernels.is_cached()
+    seconds = kernels.warm_up()
+    print(f"kernels:         {'loaded from the cache' if cached else 'compiled'} in {seconds:.1f} s "
+          f"(cache: {kernels.cache_folder() or 'none'})")
     print("OK: bsrt can render headless")
     return 0
+
+
+def _say_if_compiling() -> None:
+    """On a terminal, say that the first render on this machine compiles the kernels (once)."""
+    from .kernels import compile as kernels
+
+    if sys.stderr.isatty() and not kernels.is_cached():
+        print("bsrt: compiling the ray-tracing kernels for this machine (once; about a minute)...", file=sys.stderr,
+              flush=True)
 
 
 def _cmd_bench(args) -> int:
@@ -257,8 +289,39 @@ def _cmd_preview(args) -> int:
 COMMANDS = {"render": _cmd_render, "map": _cmd_map, "info": _cmd_info, "doctor": _cmd_doctor, "bench": _cmd_bench, "preview": _cmd_preview}
 
 
+# Values that start with '-': `--camera-eye -1,-2,3`, `--camera-look-at
+# -4281,19153,5738`. argparse takes every argument that starts with '-' for an
+# option unless it matches its own negative-number pattern, which (up to Python
+# 3.13) accepts '-5' and '-.5' but not '-1,-2,3' or '-1e3', so those failed with
+# "expected one argument". That pattern is private and set per parser (each
+# subcommand is a separate parser), and parse_args has no switch for it, but
+# argparse's documented `--option=value` spelling hands any value over
+# unchanged. So before parsing, a long option directly followed by an argument
+# that starts with '-' and a digit ('-.' and a digit, '-inf', '-nan') is
+# rewritten to that spelling. Such an argument can never be an option (no bsrt
+# option looks like that), so this changes nothing else: it works in every
+# subcommand, with abbreviated options too; the value still goes through the
+# option's own type and checks (`--fov -5` is still "must be between 0 and 180",
+# a malformed vector still "expected three numbers"); nothing after a '--'
+# separator is touched.
+_NEGATIVE_VALUE = re.compile(r"-(\.?\d|inf|nan)", re.IGNORECASE)
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    joined: list[str] = []
+    for arg in argv:
+        prev = joined[-1] if joined else ""
+        if (prev.startswith("--") and prev != "--" and "=" not in prev and "--" not in joined
+                and _NEGATIVE_VALUE.match(arg)):
+            joined[-1] = f"{prev}={arg}"
+        else:
+            joined.append(arg)
+    return joined
+
+
 def main(argv=None) -> int:
-    args = _parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
+    args = _parser().parse_args(_join_negative_values(argv))
     try:
         return COMMANDS[args.command](args)
     except InputError as exc:

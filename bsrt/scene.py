@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -276,11 +276,14 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             t = _Table(where, raw, f"import[{i}]")
             model = _load_import(t, folder)
             material = _material_for(t, materials, by_name)
+            colored = None if t.has("material") or t.has("color") else _colour_materials(
+                model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
             matrix = _transform(t, "transform") if t.has("transform") else None
             t.finish()
             notes += [f"{model.path}: {w}" for w in model.warnings] + _skipped_notes(model)
-            for geometry, name in zip(model.surfaces, model.names):
-                surfaces.append(SceneSurface(geometry if matrix is None else geometry.transformed(matrix), material, name))
+            for k, (geometry, name) in enumerate(zip(model.surfaces, model.names)):
+                mat = material if colored is None or colored[k] is None else colored[k]
+                surfaces.append(SceneSurface(geometry if matrix is None else geometry.transformed(matrix), mat, name))
             continue
         t = _Table(where, raw, f"surface[{i}]")
         name = t.string("name", f"surface-{i}")
@@ -339,11 +342,31 @@ def _load_import(t: _Table, folder: Path | None):
     from .io import FORMATS, load_model
 
     file = t.string("file", required=True)
-    fmt = t.string("format", "auto", choices=("auto",) + tuple(sorted(set(FORMATS.values()))))
+    fmt = t.string("format", "auto", choices=("auto", "occt") + tuple(sorted(set(FORMATS.values()))))
     path = Path(file) if folder is None or Path(file).is_absolute() else folder / file
     if not path.is_file():
         t.fail("file", f"no such file: {path}")
     return load_model(path, fmt)
+
+
+def _colour_materials(model, materials: list, base: Material, prefix: str) -> list | None:
+    """The model file's own colours (STEP) as materials appended to ``materials``: per surface,
+    the index of its colour's material, or None where the file gives none. None if it has no colours."""
+    colors = getattr(model, "colors", None)
+    if not colors or all(c is None for c in colors):
+        return None
+    index: dict = {}
+    out = []
+    for c in colors:
+        if c is None:
+            out.append(None)
+            continue
+        key = tuple(float(x) for x in c)
+        if key not in index:
+            index[key] = len(materials)
+            materials.append(replace(base, name=f"{prefix}rgb({key[0]:.4g},{key[1]:.4g},{key[2]:.4g})", color=key))
+        out.append(index[key])
+    return out
 
 
 def _skipped_notes(model) -> list[str]:
@@ -485,13 +508,15 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
         Light("point", color=(1.0, 0.97, 0.92), intensity=float(np.sum((key_pos - centre) ** 2)), position=tuple(key_pos)),
         Light("directional", color=(0.8, 0.85, 1.0), intensity=0.35, direction=(-1.0, 0.8, -0.6)),
     )
-    surfaces = tuple(SceneSurface(g, 0, n) for g, n in zip(model.surfaces, model.names))
+    materials = [MODEL_MATERIAL]
+    colored = _colour_materials(model, materials, MODEL_MATERIAL, "") or [None] * len(model.surfaces)
+    surfaces = tuple(SceneSurface(g, 0 if c is None else c, n) for g, n, c in zip(model.surfaces, model.names, colored))
     notes = tuple(f"{model.path}: {w}" for w in model.warnings) + tuple(_skipped_notes(model))
     return Scene(
         Film(width, height, (0.03, 0.03, 0.04)),
         Camera(eye, look, up, fov, "y"),
         RenderSettings(),
-        (MODEL_MATERIAL,),
+        tuple(materials),
         lights,
         surfaces,
         str(model.path),

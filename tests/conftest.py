@@ -3,10 +3,48 @@ created the test fails (it is never skipped)."""
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from bsrt import gl
+
+MODELS = Path(__file__).resolve().parent / "data" / "models"
+"""Third-party model files (IGES, STEP, .bez, .g2, .nurbs) kept in the repository
+for the tests; MODELS / "SOURCES.md" says where each comes from, under which
+licence, and its sha256."""
+
+
+@functools.cache
+def model_files() -> tuple[Path, ...]:
+    """Every model file listed in MODELS/SOURCES.md, in its order.
+
+    Checked first: each listed file exists with the listed sha256, and no
+    other file sits beside them (licence texts, SOURCES.md and .gitattributes
+    aside). A broken checkout fails the collection of the modules that use
+    this, with one message naming every problem; it is never skipped."""
+    table = (MODELS / "SOURCES.md").read_text(encoding="utf-8")
+    listed = re.findall(r"^\| `([^`]+)` \|.*\| `([0-9a-f]{64})` \|$", table, re.MULTILINE)
+    problems = []
+    for name, digest in listed:
+        path = MODELS / name
+        if not path.is_file():
+            problems.append(f"{name}: missing")
+        elif hashlib.sha256(path.read_bytes()).hexdigest() != digest:
+            problems.append(f"{name}: sha256 differs from SOURCES.md")
+    names = {name for name, _ in listed}
+    for path in sorted(MODELS.rglob("*")):
+        rel = path.relative_to(MODELS)
+        if path.is_file() and rel.parts[0] != "LICENSES" and rel.name not in ("SOURCES.md", ".gitattributes") \
+                and rel.as_posix() not in names:
+            problems.append(f"{rel.as_posix()}: not listed in SOURCES.md")
+    if problems or not listed:
+        raise AssertionError(f"{MODELS}: " + ("; ".join(problems) or "SOURCES.md lists no files"))
+    return tuple(MODELS / name for name, _ in listed)
 
 
 @pytest.fixture(scope="session")

@@ -137,3 +137,83 @@ def test_outputs_get_ordinary_permissions(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert out.stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def test_version(capsys):
+    import bsrt
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out == f"bsrt {bsrt.__version__}\n"  # "bsrt 0.2.0"
+
+
+NEGATIVE_CAMERA = [("--camera-eye", "-1.5,-4,0.5"), ("--camera-look-at", "-0.25,0,-0.125"), ("--camera-up", "-0.1,0,1")]
+
+
+@pytest.mark.parametrize("command", ["render", "map"])
+def test_vector_options_take_negative_first_components(tmp_path, command):
+    """`--camera-eye -1.5,-4,0.5` (argparse alone takes '-1.5,...' for an option) gives
+    the same picture as `--camera-eye=-1.5,-4,0.5`, and not the scene's own camera."""
+    def run(name, camera):
+        out = tmp_path / name
+        assert main([command, str(SCENES / "quad.toml"), "-o", str(out), *camera]) == 0
+        return np.asarray(Image.open(out))
+
+    separate = run("separate.png", [arg for option, value in NEGATIVE_CAMERA for arg in (option, value)])
+    joined = run("joined.png", [f"{option}={value}" for option, value in NEGATIVE_CAMERA])
+    default = run("default.png", [])
+    assert np.array_equal(separate, joined)
+    assert not np.array_equal(separate, default)
+    # abbreviated options and '-.5'-style numbers too
+    short = run("short.png", ["--camera-e", "-1.5,-4,.5", "--camera-l", "-.25,0,-.125", "--camera-u", "-.1,0,1"])
+    assert np.array_equal(short, joined)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--camera-eye", "-1,a,3"], "argument --camera-eye: expected three numbers like 1,2,3, got '-1,a,3'"),
+    (["--camera-look-at", "-1,2"], "argument --camera-look-at: expected three numbers like 1,2,3, got '-1,2'"),
+    (["--camera-up", "-inf,0,1"], "argument --camera-up: expected three numbers like 1,2,3, got '-inf,0,1'"),
+    (["--camera-eye"], "argument --camera-eye: expected one argument"),
+])
+def test_malformed_vectors_exit_2_with_one_message(tmp_path, capsys, args, message):
+    out = tmp_path / "x.png"
+    with pytest.raises(SystemExit) as exc:
+        main(["render", str(SCENES / "quad.toml"), "-o", str(out), *args])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert errors == [f"bsrt render: error: {message}"], err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("fov", ["-5", "-1e3", "-.5"])
+def test_negative_fov_is_refused_with_one_message(tmp_path, capsys, fov):
+    out = tmp_path / "x.png"
+    assert main(["render", str(SCENES / "quad.toml"), "-o", str(out), "--fov", fov]) == 2
+    err = capsys.readouterr().err
+    assert err == f"bsrt: error: --fov: must be between 0 and 180 degrees, got {float(fov):g}\n"
+    assert not out.exists()
+
+
+def test_negative_values_are_joined_only_to_a_preceding_long_option():
+    from bsrt.cli import _join_negative_values as join
+
+    assert join(["render", "s.toml", "--camera-eye", "-1,-2,3", "--fov", "-5"]) == \
+        ["render", "s.toml", "--camera-eye=-1,-2,3", "--fov=-5"]
+    assert join(["--camera-eye=-1,2,3", "-4"]) == ["--camera-eye=-1,2,3", "-4"]  # already has its value
+    assert join(["-o", "-1.png"]) == ["-o", "-1.png"]  # short options are left to argparse
+    assert join(["--width", "-x"]) == ["--width", "-x"]  # not a number: argparse's own error
+    assert join(["--", "--camera-eye", "-1,2,3"]) == ["--", "--camera-eye", "-1,2,3"]  # after '--': untouched
+
+
+def test_negative_vectors_in_a_fresh_process(tmp_path):
+    """The console entry point (sys.argv, not an argument list) joins them too."""
+    out = tmp_path / "q.png"
+    run = subprocess.run([sys.executable, "-m", "bsrt.cli", "render", str(SCENES / "quad.toml"), "-o", str(out),
+                          "--camera-look-at", "-4281,19153,5738", "--camera-eye", "-4281,19149,5738"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert out.exists()
+    version = subprocess.run([sys.executable, "-m", "bsrt.cli", "--version"], capture_output=True, text=True, timeout=60)
+    assert version.returncode == 0 and version.stdout.startswith("bsrt ")

@@ -1,6 +1,6 @@
 """Tests of the model-file importers in bsrt.io against the real files in
-/work/shared/data/spline-surfaces (see its SOURCES.md) and small hand-written
-files in tests/data."""
+tests/data/models (see its SOURCES.md) and small hand-written files in
+tests/data."""
 
 from __future__ import annotations
 
@@ -20,14 +20,15 @@ from bsrt.io import FORMATS, Model, load_model, restrict
 from bsrt.io.bez import newell_from_qt3d
 from bsrt.io.info import describe
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "spline-surfaces"
+from conftest import MODELS as DATA
+from conftest import model_files
+
 HERE = Path(__file__).resolve().parent / "data"
-# The shared model files are part of the test set (present in CI): missing, the run fails.
-assert DATA.is_dir(), f"{DATA} is missing: the tests read the shared model files from there"
 
 
 def real_files() -> list[Path]:
-    return sorted(p for p in DATA.rglob("*") if p.is_file() and p.suffix != ".gif" and p.name != "SOURCES.md")
+    # Every file listed in tests/data/models/SOURCES.md; a missing or changed one fails the run.
+    return list(model_files())
 
 
 def grid(a: float, b: float, c: float, d: float, n: int = 9):
@@ -57,14 +58,7 @@ def assert_located(err: pytest.ExceptionInfo, path: Path, line: int | None = Non
 
 @pytest.mark.parametrize("path", real_files(), ids=lambda p: str(p.relative_to(DATA)))
 def test_every_real_file_loads_or_is_refused_in_one_sentence(path):
-    if path.suffix.lower() in (".stp", ".step"):
-        with pytest.raises(InputError) as err:
-            load_model(path)
-        msg = str(err.value)
-        assert "\n" not in msg and msg.count(". ") == 0
-        assert "STEP" in msg and "IGES" in msg and path.name in msg
-        return
-    model = load_model(path)
+    model = load_model(path)  # STEP too: OpenCASCADE (the cad extra) is installed wherever the tests run
     assert isinstance(model, Model) and len(model.surfaces) >= 1
     assert len(model.names) == len(model.surfaces) == len(set(model.names))
     for s in model.surfaces:
@@ -72,7 +66,7 @@ def test_every_real_file_loads_or_is_refused_in_one_sentence(path):
         assert again.shape == s.shape
 
 
-# name, surfaces, degree counts, rational count, rendered-untrimmed count
+# name, surfaces, degree counts, rational count, trimmed count (every IGES trim is read: none is drawn untrimmed)
 EXPECTED = [
     ("bezier-teaset/qt3d/teapot.bez", 32, {(3, 3): 32}, 0, 0),
     ("bezier-teaset/qt3d/teapot-body.bez", 24, {(3, 3): 24}, 0, 0),
@@ -111,17 +105,15 @@ EXPECTED = [
 ]
 
 
-@pytest.mark.parametrize("name, count, degrees, rational, untrimmed", EXPECTED, ids=[e[0] for e in EXPECTED])
-def test_counts_and_degrees_match_sources_md(name, count, degrees, rational, untrimmed):
+@pytest.mark.parametrize("name, count, degrees, rational, trimmed", EXPECTED, ids=[e[0] for e in EXPECTED])
+def test_counts_and_degrees_match_sources_md(name, count, degrees, rational, trimmed):
     model = load_model(DATA / name)
     assert len(model.surfaces) == count
     assert Counter(s.degree for s in model.surfaces) == degrees
     assert sum(s.is_rational for s in model.surfaces) == rational
-    assert model.untrimmed == untrimmed
-    trim_warnings = [w for w in model.warnings if "untrimmed" in w]
-    assert len(trim_warnings) == (1 if untrimmed else 0)
-    if untrimmed:
-        assert trim_warnings[0].startswith(f"{untrimmed} surfaces are referenced by trimming entities (144)")
+    assert sum(s.is_trimmed for s in model.surfaces) == trimmed
+    assert model.untrimmed == 0
+    assert not [w for w in model.warnings if "untrimmed" in w]
 
 
 def test_control_net_shapes_and_skipped_entities():
@@ -136,11 +128,8 @@ def test_control_net_shapes_and_skipped_entities():
     assert np.all(duck.points[:, 0] == duck.points[0, 0]) and not np.all(duck.points[0, :] == duck.points[0, 0])
     assert sorted(np.unique(duck.weights)) == [0.5, 1.0] and np.count_nonzero(duck.weights == 0.5) == 2
     hammer = load_model(DATA / "iges/occt/hammer.iges")
-    assert hammer.skipped == {
-        "IGES entity 126 (B-spline curve)": 416, "IGES entity 102 (composite curve)": 96,
-        "IGES entity 142 (curve on a parametric surface)": 48, "IGES entity 144 (trimmed surface)": 45,
-        "IGES entity 402 (associativity instance)": 1,
-    }
+    # the 144s, their 142s and every curve of theirs are read: only the group is left
+    assert hammer.skipped == {"IGES entity 402 (associativity instance)": 1}
     surf = load_model(DATA / "iges/pyIGES-benchmarks/surf128.igs")
     # the four 124s are applied, so only the drawing/view/property entities are skipped
     assert surf.skipped == {"IGES entity 404 (drawing)": 1, "IGES entity 406 (property)": 3, "IGES entity 410 (view)": 1}
@@ -368,7 +357,8 @@ def test_bpt_fixture():
 
 def test_formats_table_and_selection(tmp_path):
     assert FORMATS == {".bez": "bez", ".bpt": "bpt", ".g2": "g2", ".igs": "iges", ".iges": "iges",
-                       ".obj": "obj", ".nurbs": "nurbs"}
+                       ".obj": "obj", ".nurbs": "nurbs", ".step": "step", ".stp": "step", ".p21": "step",
+                       ".brep": "brep", ".brp": "brep"}
     upper = tmp_path / "PATCHES.BPT"
     upper.write_bytes((HERE / "patches.bpt").read_bytes())
     assert len(load_model(upper).surfaces) == 2
@@ -377,11 +367,9 @@ def test_formats_table_and_selection(tmp_path):
     with pytest.raises(InputError, match=r"unknown model file extension '\.txt'; supported extensions are \.bez"):
         load_model(other)
     assert len(load_model(other, format="bpt").surfaces) == 2
-    with pytest.raises(InputError, match="unknown model format 'stl'; supported formats are bez, bpt, g2, iges, nurbs, obj"):
+    with pytest.raises(InputError, match="unknown model format 'stl'; supported formats are bez, bpt, brep, g2, iges, "
+                                         "nurbs, obj, occt, step"):
         load_model(other, format="stl")
-    for name in ("a.stp", "b.STEP"):
-        with pytest.raises(InputError, match=r"STEP files are not supported; convert the model to IGES"):
-            load_model(tmp_path / name)
     with pytest.raises(InputError, match="cannot read the file"):
         load_model(tmp_path / "missing.bez")
 
@@ -397,9 +385,11 @@ def test_describe_summarises_a_model():
 
 def test_describe_iges():
     text = describe(load_model(DATA / "iges/occt/hammer.iges"))
-    assert text.splitlines()[0].endswith("hammer.iges: 45 surfaces")
+    assert text.splitlines()[0].endswith("hammer.iges: 45 surfaces (45 trimmed, 48 loops)")
     assert "(1,2) x 15, (1,1) x 14, (2,2) x 12, (3,1) x 4" in text
-    assert "rational:      27" in text and "416  IGES entity 126 (B-spline curve)" in text
+    assert "trim loops:    1 loop x 42, 2 loops x 3" in text
+    assert "rational:      27" in text and "1  IGES entity 402 (associativity instance)" in text
+    assert "rendered untrimmed although trimmed in the file: 0" in text
 
 
 # ---------------------------------------------------------------------------

@@ -6,7 +6,9 @@
 for any malformed input, with one sentence of the form
 ``FILE:LINE: what is wrong``.
 
-Supported formats (extension -> name): see :data:`FORMATS`. STEP is refused.
+Supported formats (extension -> name): see :data:`FORMATS`. STEP and BREP
+(and IGES with format "occt") are read through OpenCASCADE, the optional
+extra ``bsrt[cad]`` (:mod:`bsrt.io.occt`); without it they give one message.
 
 This module also holds the small helpers the readers share: decoding the file
 (:func:`read_text`), strict number parsing, error formatting, building a
@@ -39,6 +41,8 @@ class Model:
     skipped: description of something bsrt cannot draw -> how many there are.
     warnings: full sentences about approximations (e.g. trimming ignored).
     untrimmed: how many of the surfaces are trimmed in the file but drawn whole.
+    colors: empty (the file gives no colours), or one per surface: a linear RGB
+      colour (r, g, b), each in 0..1, or None where the file gives none.
     """
 
     path: str
@@ -47,6 +51,7 @@ class Model:
     skipped: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     untrimmed: int = 0
+    colors: list[tuple[float, float, float] | None] = field(default_factory=list)
 
 
 #: extension (lower case, with dot) -> format name
@@ -58,35 +63,42 @@ FORMATS: dict[str, str] = {
     ".iges": "iges",
     ".obj": "obj",
     ".nurbs": "nurbs",
+    ".step": "step",
+    ".stp": "step",
+    ".p21": "step",
+    ".brep": "brep",
+    ".brp": "brep",
 }
 
-_STEP_EXTENSIONS = (".stp", ".step", ".p21")
+#: formats read through OpenCASCADE (bsrt.io.occt); "occt" picks the reader by extension, IGES included
+OCCT_FORMATS = ("step", "brep", "occt")
 
 
 def load_model(path, format: str = "auto") -> Model:
     """Read a model file.
 
     format: "auto" (by extension, case-insensitive) or one of the names in
-    :data:`FORMATS` ("bez", "bpt", "g2", "iges", "obj", "nurbs").
+    :data:`FORMATS` ("bez", "bpt", "brep", "g2", "iges", "obj", "nurbs",
+    "step"), or "occt" (STEP, BREP or IGES through OpenCASCADE, by extension).
     """
     path = os.fspath(path)
     format = format.lower()
-    names = sorted(set(FORMATS.values()))
+    names = sorted(set(FORMATS.values()) | set(OCCT_FORMATS))
     if format == "auto":
         ext = os.path.splitext(path)[1].lower()
-        if ext in _STEP_EXTENSIONS:
-            format = "step"
-        elif ext in FORMATS:
+        if ext in FORMATS:
             format = FORMATS[ext]
         else:
             exts = ", ".join(FORMATS)
             raise InputError(
                 f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}"
             )
-    if format == "step":
-        raise InputError(
-            f"{path}: STEP files are not supported; convert the model to IGES (.igs) and load that instead"
-        )
+    if format in OCCT_FORMATS:
+        from . import occt
+
+        if not occt.available():
+            raise InputError(occt.needs_message(path, occt.kind_of(path, format)))
+        return occt.read(path, format)
     if format not in names:
         raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
     reader = importlib.import_module(f".{format}", __name__)
