@@ -1,0 +1,740 @@
+"""The Python API: load, build, save and render scenes from scripts and notebooks.
+
+Everything here is re-exported from the package (``bsrt.load``,
+``bsrt.Scene``, ``bsrt.render``, ...); ``docs/python-api.md`` is the guide.
+
+One rule keeps the API and the scene files in step: a scene built in Python
+is turned into the same document a TOML file gives (tables, lists and
+numbers; arrays through ``.tolist()``, which keeps every float64 exactly) and
+goes through :func:`bsrt.scene.parse_scene`, so every check and every error
+message is the scene format's own (``<python>: surface[0].knots_u: expected
+12 values (8 points + degree 3 + 1), got 11``). Values the API does not
+recognise are passed through unchanged, so they meet the same checks a
+wrong value in a file would. :meth:`Scene.to_toml` writes the other way: a
+file that :func:`load` reads back to the same scene, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+import operator
+import os
+import re
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, fields, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Union
+
+import numpy as np
+
+from . import __version__
+from . import scene as _scene
+from .bspline import BSplineSurface
+from .camera import Camera as _Camera
+from .errors import InputError
+from .scene import Film, Material, RenderSettings
+from .settings import MAP_MODES, METHODS
+
+if TYPE_CHECKING:
+    from .render import RenderResult
+
+__all__ = ["Camera", "Film", "Import", "Light", "Material", "RenderSettings", "Scene", "Surface", "load", "render"]
+
+WHERE = "<python>"  # the "file name" in the messages about a scene built in Python
+
+ArrayLike = Union[np.ndarray, Sequence]
+Vector3 = Union[np.ndarray, Sequence[float]]
+ProgressArg = Union[bool, Callable[[str, float], None], None]
+
+
+# ---------------------------------------------------------------------------
+# The parts of a scene
+
+
+class Camera(_Camera):
+    """A pinhole camera, as the scene format's ``[camera]`` table.
+
+    eye, look_at: (3,) points; up: (3,) direction, default +z (need not be
+    orthogonal to the view, must not be parallel to it); fov: full angle in
+    degrees, 0 < fov < 180, along fov_axis ("y": vertical, or "x").
+    Array-likes are stored as (3,) float64 arrays; the values are checked
+    when the camera is used (:meth:`Scene.build`, :func:`render`), with the
+    messages of a scene file.
+    """
+
+    def __init__(self, eye: Vector3, look_at: Vector3, up: Vector3 = (0.0, 0.0, 1.0), fov: float = 40.0,
+                 fov_axis: str = "y"):
+        for key, value in (("eye", eye), ("look_at", look_at), ("up", up)):
+            object.__setattr__(self, key, _as_vector3(value))
+        object.__setattr__(self, "fov", fov)
+        object.__setattr__(self, "fov_axis", fov_axis)
+
+
+class Light(_scene.Light):
+    """A light, as a ``[[light]]`` table: ``Light(kind, color, intensity, position, direction)``.
+
+    Easier through the constructors :meth:`point`, :meth:`directional` and
+    :meth:`ambient`. Colours are linear RGB; ``color * intensity`` is the
+    strength (a point light falls off with the square of the distance).
+    Equal to a :class:`bsrt.scene.Light` with the same values.
+    """
+
+    @classmethod
+    def point(cls, position: Vector3, color: Vector3 = (1.0, 1.0, 1.0), intensity: float = 1.0) -> Light:
+        """A point light at ``position`` (3,)."""
+        return cls("point", _as_tuple(color), intensity, position=_as_tuple(position))
+
+    @classmethod
+    def directional(cls, direction: Vector3, color: Vector3 = (1.0, 1.0, 1.0), intensity: float = 1.0) -> Light:
+        """A distant light whose light travels along ``direction`` (3,) (no falloff)."""
+        return cls("directional", _as_tuple(color), intensity, direction=_as_tuple(direction))
+
+    @classmethod
+    def ambient(cls, color: Vector3 = (1.0, 1.0, 1.0), intensity: float = 1.0) -> Light:
+        """Light from everywhere: adds ``color * intensity * albedo`` to every visible point."""
+        return cls("ambient", _as_tuple(color), intensity)
+
+    def __eq__(self, other):
+        if isinstance(other, _scene.Light):
+            return all(getattr(self, f.name) == getattr(other, f.name) for f in fields(_scene.Light))
+        return NotImplemented
+
+    __hash__ = _scene.Light.__hash__
+
+
+@dataclass(frozen=True, eq=False)
+class Surface:
+    """One B-spline (or NURBS) surface, as a ``[[surface]]`` table.
+
+    degree: (p, q), each >= 1 (degree, not order).
+    knots_u: (nu + p + 1,) non-decreasing; knots_v: (nv + q + 1,).
+    points: (nu, nv, 3), points[i, j] = P(i, j), i along u.
+    weights: (nu, nv), all > 0, or None (not rational).
+    material: the name of a material of the scene, or a :class:`Material`
+      (added to the scene's materials); color: (3,) linear RGB instead of a
+      material; neither: a default grey.
+    name: a label (default ``surface-<index>``).
+    trims: trim loops in the surface's (u, v) domain, each a sequence of
+      curves ``{"degree": p, "knots": (n + p + 1,), "points": (n, 2),
+      "weights": (n,) or None}`` (mappings, or objects with those
+      attributes, such as :class:`bsrt.trim.TrimCurve`); see the README's
+      "Trimmed surfaces" (even-odd rule).
+    transform: ``{"scale": s or (3,), "rotate": (ax, ay, az, degrees),
+      "translate": (3,)}``, applied in that order.
+
+    Values are kept as given and checked when the scene is built, with the
+    messages of a scene file. Other libraries' surfaces: :meth:`from_object`.
+    """
+
+    degree: tuple[int, int]
+    knots_u: ArrayLike
+    knots_v: ArrayLike
+    points: ArrayLike
+    weights: ArrayLike | None = None
+    material: str | Material | None = None
+    color: Vector3 | None = None
+    name: str | None = None
+    trims: Sequence = ()
+    transform: Mapping | None = None
+
+    @classmethod
+    def from_object(cls, obj, **kwargs) -> Surface:
+        """A Surface from a Splipy ``Surface`` (``TrimmedSurface``: with its loops),
+        a geomdl ``BSpline.Surface`` / ``NURBS.Surface``, a :class:`bsrt.bspline.BSplineSurface`
+        or a scene's :class:`bsrt.scene.SceneSurface` (its geometry and name; its
+        material is an index into its own scene's materials, so give
+        ``material=``); recognised by their attributes (neither library is
+        imported). kwargs: the other fields (material, color, name,
+        transform, trims)."""
+        from .adapters import surface_from_object
+
+        return surface_from_object(obj, **kwargs)
+
+    def geometry(self) -> BSplineSurface:
+        """The checked surface (transform applied, trims attached), as the
+        renderer holds it; errors are the scene format's, for ``surface[0]``."""
+        table = {k: v for k, v in _surface_doc(self, []).items() if k not in ("material", "color")}
+        probe = {"camera": _PROBE_CAMERA, "surface": [table]}
+        return _scene.parse_scene(probe, WHERE).surfaces[0].geometry
+
+    def __repr__(self) -> str:
+        shape = np.shape(self.points) if _is_array_like(self.points) else "?"
+        extra = "".join([", rational" if self.weights is not None else "",
+                         f", {len(self.trims)} trim loop(s)" if self.trims else "",
+                         f", name={self.name!r}" if self.name is not None else ""])
+        degree = tuple(self.degree) if _is_array_like(self.degree) else self.degree
+        return f"Surface(degree={degree!r}, points {shape}{extra})"
+
+
+@dataclass(frozen=True)
+class Import:
+    """Surfaces from a model file, as an ``[[import]]`` table: every surface of
+    ``file`` (relative to ``folder`` of :meth:`Scene.build`, default the
+    current folder), with ``material`` and ``transform`` as for a Surface."""
+
+    file: str | os.PathLike
+    format: str = "auto"
+    material: str | Material | None = None
+    transform: Mapping | None = None
+
+
+# ---------------------------------------------------------------------------
+# The scene
+
+
+class Scene(_scene.Scene):
+    """A checked scene, ready to render: a :class:`bsrt.scene.Scene` (frozen) with
+    constructors and writers.
+
+    Fields: film (Film), camera (:class:`bsrt.camera.Camera`), render
+    (RenderSettings), materials, lights, surfaces (SceneSurface: geometry in
+    world space, material index, name), path (the file or label), notes.
+    Make one with :func:`load` or :meth:`build`; change one with
+    ``dataclasses.replace``.
+    """
+
+    @classmethod
+    def build(
+        cls,
+        surfaces: Iterable,
+        camera: Camera | Mapping | None = None,
+        *,
+        lights: Iterable[Light | Mapping] | None = None,
+        materials: Iterable[Material | Mapping] = (),
+        film: Film | Mapping | None = None,
+        render: RenderSettings | Mapping | None = None,
+        name: str = WHERE,
+        folder: str | os.PathLike | None = None,
+    ) -> Scene:
+        """A scene from parts made in Python.
+
+        surfaces: :class:`Surface`, :class:`Import`, or anything
+        :meth:`Surface.from_object` takes (Splipy, geomdl, bsrt surfaces),
+        numbered in this order. camera: None frames the surfaces
+        automatically, as for a model file (a three-quarter view from
+        above, +z up). lights: None gives the model files' key, fill and
+        ambient light; ``[]`` none. materials: the named materials that
+        surfaces refer to (Materials given on surfaces are added after
+        them). film, render: the ``[film]`` and ``[render]`` values
+        (defaults: 512x512, black; the scene format's defaults). name: the
+        label in error messages and ``Scene.path``. folder: where Import
+        files are looked up.
+
+        Raises InputError with the scene format's messages, e.g.
+        ``<python>: surface[0].knots_u: expected 6 values (3 points + degree 2 + 1), got 5``.
+        """
+        data, order = _document(list(surfaces), camera, lights, materials, film, render)
+        scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order)
+        if camera is None or lights is None:
+            scene = _automatic(scene, camera is None, lights is None)
+        return _wrap(scene)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, **overrides) -> Scene:
+        """The same as :func:`bsrt.load`."""
+        return load(path, **overrides)
+
+    def to_toml(self) -> str:
+        """The scene as a scene file (TOML) that :func:`load` reads back to the same scene.
+
+        Surfaces are written in world space (transforms applied, imports
+        expanded), floats with ``repr`` (so every array comes back bit for
+        bit), every material by name; notes become comments.
+        """
+        return dumps_toml(scene_document(self), header=_header(self))
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write :meth:`to_toml` to ``path`` (``.toml``), atomically."""
+        from .image import write_text
+
+        path = Path(path)
+        if path.suffix.lower() != ".toml":
+            raise InputError(f"{path}: a scene file name must end in .toml")
+        if not path.parent.is_dir():
+            raise InputError(f"{path}: the folder {str(path.parent)!r} does not exist")
+        write_text(path, self.to_toml())
+
+    def __repr__(self) -> str:
+        n = len(self.surfaces)
+        return (f"Scene({self.path!r}, {n} surface{'s' if n != 1 else ''}, {len(self.lights)} light"
+                f"{'s' if len(self.lights) != 1 else ''}, {self.film.width}x{self.film.height}, "
+                f"{self.render.method}, spp={self.render.spp})")
+
+
+def _wrap(scene: _scene.Scene) -> Scene:
+    return scene if type(scene) is Scene else Scene(**{f.name: getattr(scene, f.name) for f in fields(scene)})
+
+
+# ---------------------------------------------------------------------------
+# Loading
+
+
+def load(
+    path: str | os.PathLike,
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    method: str | None = None,
+    spp: int | None = None,
+    map: str | None = None,
+    tolerance: float | None = None,
+    max_iterations: int | None = None,
+    max_depth: int | None = None,
+    camera_eye: Vector3 | None = None,
+    camera_look_at: Vector3 | None = None,
+    camera_up: Vector3 | None = None,
+    fov: float | None = None,
+    format: str = "auto",
+) -> Scene:
+    """Read a scene file (.toml) or a model file (.igs, .bez, .g2, ...).
+
+    A model file gets the automatic scene of ``bsrt render MODEL``: a camera
+    framing it from a three-quarter view above (+z up unless camera_up says
+    otherwise), key, fill and ambient lights, one neutral material.
+    Overrides, as the command line's options: width, height (the film),
+    method, spp, map, tolerance, max_iterations, max_depth (``[render]``),
+    camera_eye, camera_look_at, camera_up ((3,) each), fov (degrees) and
+    format (model files: "auto", by extension, or a format name). The
+    overrides become part of the scene (``to_toml`` writes them).
+
+    Raises InputError naming the file, table and key (or the override).
+    """
+    vectors = {k: _override_vector(k, v) for k, v in
+               (("camera_eye", camera_eye), ("camera_look_at", camera_look_at), ("camera_up", camera_up))}
+    if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float, np.number))
+                            or not 0.0 < float(fov) < 180.0):
+        raise InputError(f"fov: must be between 0 and 180 degrees, got {fov!r}")
+    settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
+                                 max_iterations=max_iterations, max_depth=max_depth)
+    if not isinstance(format, str):
+        raise InputError(f"format: expected a string, got {format!r}")
+    path = Path(path)
+    if path.suffix.lower() == ".toml":
+        if format != "auto":
+            raise InputError(f"format: only for model files; {path.name} is a scene file (.toml)")
+        scene = _scene.load_scene(path)
+        cam = scene.camera
+        camera = replace(
+            cam,
+            eye=cam.eye if vectors["camera_eye"] is None else vectors["camera_eye"],
+            look_at=cam.look_at if vectors["camera_look_at"] is None else vectors["camera_look_at"],
+            up=cam.up if vectors["camera_up"] is None else vectors["camera_up"],
+            fov=cam.fov if fov is None else float(fov),
+        )
+        if any(v is not None for v in vectors.values()):
+            _check_view(camera.eye, camera.look_at, camera.up)
+        scene = replace(scene, camera=camera)
+    else:
+        from .io import load_model
+
+        if not path.is_file():
+            raise InputError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
+        model = load_model(path, format)
+        up = vectors["camera_up"] if vectors["camera_up"] is not None else (0.0, 0.0, 1.0)
+        if not np.any(up):
+            raise InputError("camera_up: must not be the zero vector")
+        try:
+            scene = _scene.scene_for_model(model, settings.get("width", 512), settings.get("height", 512),
+                                           vectors["camera_eye"], vectors["camera_look_at"], fov, up)
+        except InputError as exc:  # the command line's option names -> the keywords'
+            text = str(exc)
+            for option in ("eye", "look-at", "up"):
+                text = text.replace(f"--camera-{option}", f"camera_{option.replace('-', '_')}")
+            raise InputError(text) from None
+    return _wrap(_with_settings(scene, settings))
+
+
+def _with_settings(scene: _scene.Scene, settings: dict) -> _scene.Scene:
+    """The scene with checked film and [render] overrides applied."""
+    film = replace(scene.film, **{k: settings[k] for k in ("width", "height") if k in settings})
+    render = replace(scene.render, **{k: v for k, v in settings.items() if k not in ("width", "height")})
+    return replace(scene, film=film, render=render)
+
+
+def _render_overrides(**values) -> dict:
+    """The given (not None) overrides, checked, with the messages of RenderOptions."""
+    out = {}
+    for key, value in values.items():
+        if value is None:
+            continue
+        if key in ("width", "height", "spp", "max_iterations", "max_depth"):
+            lo = 0 if key == "max_depth" else 1
+            try:
+                number = operator.index(value) if not isinstance(value, bool) else None
+            except TypeError:
+                number = None
+            if number is None or number < lo:
+                raise InputError(f"{key}: expected a whole number >= {lo}, got {value!r}")
+            out[key] = int(number)
+        elif key == "tolerance":
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not 0.0 < value <= 1.0:
+                raise InputError(f"tolerance: expected a number in (0, 1], got {value!r}")
+            out[key] = float(value)
+        else:
+            choices = METHODS if key == "method" else MAP_MODES
+            if value not in choices:
+                raise InputError(f"{key}: expected one of {', '.join(choices)}, got {value!r}")
+            out[key] = value
+    return out
+
+
+def _override_vector(key: str, value) -> np.ndarray | None:
+    if value is None:
+        return None
+    try:
+        v = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = None
+    if v is None or v.shape != (3,) or isinstance(value, str) or not np.all(np.isfinite(v)):
+        raise InputError(f"{key}: expected three finite numbers like (1, 2, 3), got {value!r}")
+    return v
+
+
+def _check_view(eye, look_at, up) -> None:
+    view = np.asarray(look_at) - np.asarray(eye)
+    if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
+        raise InputError("camera_eye / camera_look_at / camera_up: the view direction must not be zero or parallel "
+                         "to up")
+
+
+# ---------------------------------------------------------------------------
+# Rendering
+
+
+def render(
+    scene: Scene | _scene.Scene | str | os.PathLike,
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    method: str | None = None,
+    spp: int | None = None,
+    map: str | None = None,
+    tolerance: float | None = None,
+    max_iterations: int | None = None,
+    max_depth: int | None = None,
+    camera: Camera | Mapping | None = None,
+    progress: ProgressArg = None,
+) -> RenderResult:
+    """Render a scene (or a scene or model file, loaded with :func:`load`).
+
+    The keywords override the scene's own settings for this render only
+    (None: the scene's value): width, height, method ("newton", "gradient",
+    "fast", "martin"), spp, map ("float", "rgba8"), tolerance,
+    max_iterations, max_depth, camera (a :class:`Camera`). progress: a
+    function called as ``progress(stage, fraction)`` (stage "map", "solve",
+    "shade", "aov" or "done"; fraction 0..1 of the whole render; it may
+    raise to abandon the render), or True for a progress bar on stderr
+    (lines when stderr is not a terminal) ended by a one-line summary.
+
+    Returns a :class:`bsrt.render.RenderResult`: ``pixels`` (H, W, 3) uint8
+    sRGB, ``linear`` (H, W, 3) float64, ``aovs()`` (the per-pixel arrays of
+    ``--aov``: hit, t, surface, u, v, position, normal, iterations,
+    residual), ``stats`` (timings and counters), ``save(path)`` (PNG);
+    a notebook shows it as an image.
+    """
+    from .render import render as pipeline
+    from .settings import RenderOptions
+
+    if isinstance(scene, (str, os.PathLike)):
+        scene = load(scene)
+    if not isinstance(scene, _scene.Scene):
+        raise TypeError(f"render() needs a bsrt.Scene (bsrt.load or bsrt.Scene.build), got {type(scene).__name__}")
+    settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
+                                 max_iterations=max_iterations, max_depth=max_depth)
+    if camera is not None:
+        settings["camera"] = _checked_camera(camera)
+    options = RenderOptions.resolve(scene, **settings)
+    bar = None
+    if progress is True:
+        from .progress import wanted
+
+        bar = report = wanted(sys.stderr, True)
+    elif progress in (None, False):
+        report = None
+    elif callable(progress):
+        report = progress
+    else:
+        raise TypeError(f"progress: expected a function progress(stage, fraction), True or None, got {progress!r}")
+    try:
+        if bar is not None:
+            bar("setup", 0.0)
+        result = pipeline(scene, options, progress=report)
+    except BaseException:
+        if bar is not None:
+            bar.clear()
+        raise
+    if bar is not None:
+        bar.finish(f"rendered {options.width}x{options.height}, {options.spp} spp, {options.method}, "
+                   f"{bar.elapsed():.1f} s")
+    return result
+
+
+_PROBE_CAMERA = {"eye": [0.0, -1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 0.0, 1.0]}
+_PROBE_SURFACE = {"degree": [1, 1], "knots_u": [0.0, 0.0, 1.0, 1.0], "knots_v": [0.0, 0.0, 1.0, 1.0],
+                  "points": [[[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0], [1.0, 0.0, 1.0]]]}
+
+
+def _checked_camera(camera) -> _Camera:
+    """A camera checked as a [camera] table (the messages of a scene file)."""
+    probe = {"camera": _camera_doc(camera), "surface": [_PROBE_SURFACE]}
+    return _scene.parse_scene(probe, WHERE).camera
+
+
+# ---------------------------------------------------------------------------
+# Python objects -> a scene document (what tomllib gives for the same file)
+
+
+def _document(surfaces: list, camera, lights, materials, film, render) -> tuple[dict, list]:
+    mats = list(materials)
+    data: dict[str, Any] = {"camera": _PROBE_CAMERA if camera is None else _camera_doc(camera)}
+    if film is not None:
+        data["film"] = _plain(asdict(film)) if isinstance(film, Film) else _plain(film)
+    if render is not None:
+        data["render"] = _plain(asdict(render)) if isinstance(render, RenderSettings) else _plain(render)
+    data["light"] = [_light_doc(light) for light in (lights or ())]
+    tables = {"surface": [], "import": []}
+    order = []
+    for item in surfaces:
+        if isinstance(item, Import):
+            kind, doc = "import", _import_doc(item, mats)
+        elif isinstance(item, Surface):
+            kind, doc = "surface", _surface_doc(item, mats)
+        elif isinstance(item, Mapping):
+            kind, doc = "surface", _plain(item)
+        else:
+            kind, doc = "surface", _surface_doc(Surface.from_object(item), mats)
+        tables[kind].append(doc)
+        order.append(kind)
+    data["material"] = [_plain(asdict(m)) if isinstance(m, Material) else _plain(m) for m in mats]
+    data.update({k: v for k, v in tables.items() if v})
+    return data, order
+
+
+def _camera_doc(camera) -> dict:
+    if isinstance(camera, _Camera):
+        return {"eye": _plain(camera.eye), "look_at": _plain(camera.look_at), "up": _plain(camera.up),
+                "fov": _plain(camera.fov), "fov_axis": camera.fov_axis}
+    return _plain(camera)
+
+
+def _light_doc(light) -> dict:
+    if isinstance(light, _scene.Light):
+        doc = {"kind": light.kind, "color": light.color, "intensity": light.intensity}
+        if light.position is not None:
+            doc["position"] = light.position
+        if light.direction is not None:
+            doc["direction"] = light.direction
+        return _plain(doc)
+    return _plain(light)
+
+
+def _material_ref(material, mats: list):
+    """A surface's material as the document holds it: a name (a Material object joins ``mats``)."""
+    if isinstance(material, Material):
+        if not any(m is material or m == material for m in mats):
+            mats.append(material)
+        return material.name
+    return _plain(material)
+
+
+def _surface_doc(s: Surface, mats: list) -> dict:
+    doc = {"degree": _plain(s.degree), "knots_u": _plain(s.knots_u), "knots_v": _plain(s.knots_v),
+           "points": _plain(s.points)}
+    if s.weights is not None:
+        doc["weights"] = _plain(s.weights)
+    if s.name is not None:
+        doc["name"] = s.name
+    if s.material is not None:
+        doc["material"] = _material_ref(s.material, mats)
+    if s.color is not None:
+        doc["color"] = _plain(s.color)
+    if s.trims is not None and (not _is_array_like(s.trims) or len(s.trims)):
+        doc["trim"] = [_loop_doc(loop) for loop in s.trims] if _is_array_like(s.trims) else _plain(s.trims)
+    if s.transform is not None:
+        doc["transform"] = _plain(s.transform)
+    return doc
+
+
+def _loop_doc(loop):
+    if isinstance(loop, Mapping):
+        return _plain(loop)
+    curves = getattr(loop, "curves", loop)  # a TrimLoop, or a sequence of curves
+    return {"curves": [_curve_doc(c) for c in curves] if _is_array_like(curves) else _plain(curves)}
+
+
+def _curve_doc(curve):
+    if isinstance(curve, Mapping):
+        doc = dict(curve)
+        if doc.get("weights", 0) is None:
+            del doc["weights"]
+        return _plain(doc)
+    if all(hasattr(curve, k) for k in ("degree", "knots", "points")):
+        doc = {"degree": curve.degree, "knots": curve.knots, "points": curve.points}
+        if getattr(curve, "weights", None) is not None:
+            doc["weights"] = curve.weights
+        return _plain(doc)
+    return _plain(curve)
+
+
+def _import_doc(item: Import, mats: list) -> dict:
+    doc = {"file": os.fspath(item.file), "format": item.format}
+    if item.material is not None:
+        doc["material"] = _material_ref(item.material, mats)
+    if item.transform is not None:
+        doc["transform"] = _plain(item.transform)
+    return doc
+
+
+def _plain(value):
+    """NumPy arrays and scalars, tuples and mappings as the lists, numbers and dicts of a TOML document."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _is_array_like(value) -> bool:
+    return isinstance(value, (list, tuple, np.ndarray))
+
+
+def _as_vector3(value):
+    try:
+        v = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return value  # checked (and refused) when the camera is used
+    return v if v.shape == (3,) and not isinstance(value, str) else value
+
+
+def _as_tuple(value):
+    try:
+        return tuple(float(x) for x in value)
+    except (TypeError, ValueError):
+        return value  # checked (and refused) when the scene is built
+
+
+def _automatic(scene: _scene.Scene, camera: bool, lights: bool) -> _scene.Scene:
+    """The model files' automatic camera and/or lights for a built scene."""
+    from .io import Model
+
+    model = Model(scene.path, [s.geometry for s in scene.surfaces], [s.name for s in scene.surfaces])
+    auto = _scene.scene_for_model(model, scene.film.width, scene.film.height)
+    return replace(scene, camera=auto.camera if camera else scene.camera,
+                   lights=auto.lights if lights else scene.lights)
+
+
+# ---------------------------------------------------------------------------
+# A scene -> a scene file
+
+
+def scene_document(scene: _scene.Scene) -> dict:
+    """The document (tables, lists, numbers) of a scene file for ``scene``:
+    surfaces in world space with their trims, materials by (unique) name."""
+    names, used = [], set()
+    for i, m in enumerate(scene.materials):
+        name = m.name
+        while name in used:  # a material called "default" beside the automatic one
+            name = f"{m.name}-{i}"
+            i += 1
+        used.add(name)
+        names.append(name)
+    doc: dict[str, Any] = {
+        "film": {"width": scene.film.width, "height": scene.film.height, "background": list(scene.film.background)},
+        "camera": _camera_doc(scene.camera),
+        "render": asdict(scene.render),
+        "material": [{**asdict(m), "name": n} for m, n in zip(scene.materials, names)],
+        "light": [_light_doc(light) for light in scene.lights],
+        "surface": [],
+    }
+    for s in scene.surfaces:
+        g = s.geometry
+        table = {"name": s.name, "material": names[s.material], "degree": list(g.degree), "knots_u": g.knots_u,
+                 "knots_v": g.knots_v, "points": g.points}
+        if g.weights is not None:
+            table["weights"] = g.weights
+        if g.trims:
+            table["trim"] = [_loop_doc(loop) for loop in g.trims]
+        doc["surface"].append(_plain(table))
+    return _plain(doc)
+
+
+def _header(scene: _scene.Scene) -> str:
+    lines = [f"Scene file (bsrt scene format version 1), written by bsrt {__version__} from {scene.path}."]
+    lines += [f"note: {n}" for n in scene.notes]
+    return "\n".join(lines)
+
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def dumps_toml(doc: Mapping, header: str = "") -> str:
+    """A scene document as TOML text: top-level tables, then arrays of tables
+    (``[[surface]]`` with its ``[[surface.trim]]`` loops). Floats are written
+    with ``repr``, which tomllib reads back to the same float64."""
+    out = [f"# {line}".rstrip() for line in header.splitlines()]
+    for key, value in doc.items():
+        if isinstance(value, Mapping):
+            out += ["", f"[{_key(key)}]"] + _table_body(value)
+        elif isinstance(value, list) and value and all(isinstance(v, Mapping) for v in value):
+            for item in value:
+                subtables = {k: v for k, v in item.items() if isinstance(v, list) and v
+                             and all(isinstance(x, Mapping) for x in v)}
+                out += ["", f"[[{_key(key)}]]"] + _table_body({k: v for k, v in item.items() if k not in subtables})
+                for sub, loops in subtables.items():
+                    for loop in loops:
+                        out += [f"[[{_key(key)}.{_key(sub)}]]"] + _table_body(loop)
+        elif not (isinstance(value, list) and not value):
+            out.append(f"{_key(key)} = {_value(value)}")
+    return "\n".join(out).lstrip("\n") + "\n"
+
+
+def _table_body(table: Mapping) -> list[str]:
+    lines = []
+    for key, value in table.items():
+        if isinstance(value, list) and value and isinstance(value[0], (list, Mapping)):
+            # one element per line: rows of points, the curves of a loop
+            lines.append(f"{_key(key)} = [")
+            lines += [f"  {_value(v)}," for v in value]
+            lines.append("]")
+        else:
+            lines.append(f"{_key(key)} = {_value(value)}")
+    return lines
+
+
+def _key(key: str) -> str:
+    return key if _BARE_KEY.fullmatch(key) else _string(key)
+
+
+def _value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str):
+        return _string(value)
+    if isinstance(value, Mapping):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + " }" if value else "{}"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} to TOML")
+
+
+_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+
+
+def _string(text: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped."""
+    return '"' + "".join(
+        _ESCAPES.get(c) or (f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c) for c in text
+    ) + '"'
