@@ -37,7 +37,7 @@ from .scene import Film, Material, RenderSettings
 from .settings import MAP_MODES, METHODS
 
 if TYPE_CHECKING:
-    from .render import RenderResult
+    from .pipeline import RenderResult
 
 __all__ = ["Camera", "Film", "Import", "Light", "Material", "RenderSettings", "Scene", "Surface", "load", "render"]
 
@@ -427,13 +427,13 @@ def render(
     raise to abandon the render), or True for a progress bar on stderr
     (lines when stderr is not a terminal) ended by a one-line summary.
 
-    Returns a :class:`bsrt.render.RenderResult`: ``pixels`` (H, W, 3) uint8
+    Returns a :class:`bsrt.pipeline.RenderResult`: ``pixels`` (H, W, 3) uint8
     sRGB, ``linear`` (H, W, 3) float64, ``aovs()`` (the per-pixel arrays of
     ``--aov``: hit, t, surface, u, v, position, normal, iterations,
     residual), ``stats`` (timings and counters), ``save(path)`` (PNG);
     a notebook shows it as an image.
     """
-    from .render import render as pipeline
+    from .pipeline import render as pipeline
     from .settings import RenderOptions
 
     if isinstance(scene, (str, os.PathLike)):

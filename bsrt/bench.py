@@ -21,7 +21,7 @@ import numpy as np
 from .errors import InputError
 from .image import write_text
 from .settings import RenderOptions
-from .render import Geometry, render
+from .pipeline import Geometry, render
 from .scene import load_scene
 
 PAPER = {  # Sisojevs & Glazs, 512x512, 1 ray/pixel, 3.2 GHz Xeon: seconds

@@ -157,7 +157,7 @@ def _progress(args):
 
 def _cmd_render(args) -> int:
     from .image import write_npz, write_png
-    from .render import render
+    from .pipeline import render
     from .settings import RenderOptions
 
     out = _check_output(args.output, ".png")
@@ -199,7 +199,7 @@ def _cmd_render(args) -> int:
 def _cmd_map(args) -> int:
     from .image import write_png
     from .prelim import render_map
-    from .render import Geometry
+    from .pipeline import Geometry
 
     out = _check_output(args.output, ".png")
     scene = _load_input(args)

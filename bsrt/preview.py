@@ -6,7 +6,7 @@ camera moves the window draws a fast GL view: the preliminary map's
 tessellation (``prelim.tessellate``) shaded with the scene's lights. When it
 stops, the window refines to the exact ray-traced image, coarse to fine
 (``LEVELS``: 1/4, 1/2, then the full framebuffer), through the one pipeline,
-:func:`bsrt.render.render`.
+:func:`bsrt.pipeline.render`.
 
 Processes. The main thread owns the glfw window and its moderngl context:
 it handles input, draws every frame and rasterises each level's preliminary
@@ -291,7 +291,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the window's business
 
-    from .render import Geometry, render
+    from .pipeline import Geometry, render
 
     geometry = Geometry(scene)
     try:
@@ -608,7 +608,7 @@ class Preview:
     """The window, its GL resources and the refinement state. Main thread only."""
 
     def __init__(self, scene, scene_path: Path, args, commands: list[Command]):
-        from .render import Geometry
+        from .pipeline import Geometry
 
         self.scene, self.scene_path, self.args = scene, scene_path, args
         self.map_mode = args.map_mode or scene.render.map

@@ -20,7 +20,7 @@ from PIL import Image
 
 from bsrt.image import write_png
 from bsrt.settings import RenderOptions
-from bsrt.render import render
+from bsrt.pipeline import render
 from bsrt.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]

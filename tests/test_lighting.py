@@ -6,7 +6,7 @@ import numpy as np
 
 from bsrt.camera import pixel_rays
 from bsrt.settings import RenderOptions
-from bsrt.render import render
+from bsrt.pipeline import render
 from bsrt.scene import parse_scene
 from bsrt.shade import shade
 

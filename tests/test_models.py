@@ -10,7 +10,7 @@ from bsrt.bspline import make_surface
 from bsrt.cli import main
 from bsrt.io import Model, load_model
 from bsrt.io.bez import newell_from_qt3d
-from bsrt.render import render
+from bsrt.pipeline import render
 from bsrt.scene import load_scene, scene_for_model
 
 from conftest import MODELS as DATA

@@ -61,7 +61,7 @@ from bsrt.camera import pixel_rays
 from bsrt.cli import main
 from bsrt.errors import InputError
 from bsrt.io import Model, load_model, occt
-from bsrt.render import render
+from bsrt.pipeline import render
 from bsrt.scene import scene_for_model
 
 MODELS = Path(__file__).resolve().parent / "data" / "models"

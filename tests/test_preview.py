@@ -24,7 +24,7 @@ from bsrt import preview
 from bsrt.camera import Camera
 from bsrt.errors import InputError
 from bsrt.settings import RenderOptions
-from bsrt.render import Geometry, render
+from bsrt.pipeline import Geometry, render
 from bsrt.scene import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from bsrt.camera import pixel_rays
-from bsrt.render import Geometry, render
+from bsrt.pipeline import Geometry, render
 from bsrt.scene import parse_scene
 from bsrt.settings import METHODS, RenderOptions
 
