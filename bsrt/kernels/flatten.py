@@ -72,10 +72,10 @@ def measures(net, p, q):
 
 
 @njit(cache=True)
-def split_half(src, lo, hi, p, q, axis):
-    """de Casteljau at the midpoint of net src along axis 0 (u) or 1 (v) into lo, hi."""
+def split_half(src, lo, hi, p, q, axis, tmp):
+    """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)
+    into lo, hi; tmp: scratch of at least max(p, q) + 1 floats."""
     n, other = (p, q) if axis == 0 else (q, p)
-    tmp = np.empty(n + 1)
     for j in range(other + 1):
         for c in range(4):
             for i in range(n + 1):
@@ -93,7 +93,7 @@ def split_half(src, lo, hi, p, q, axis):
 
 
 @njit(cache=True)
-def _copy_net(src, dst, p, q):
+def copy_net(src, dst, p, q):
     for i in range(p + 1):
         for j in range(q + 1):
             for c in range(4):
@@ -109,7 +109,8 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
     rects = np.empty((max_depth + 2, 4))
     depth = np.empty(max_depth + 2, dtype=np.int64)
     piece = np.empty((net.shape[0], net.shape[1], 4))
-    _copy_net(net, stack[0], p, q)
+    tmp = np.empty(max(net.shape[0], net.shape[1]))
+    copy_net(net, stack[0], p, q)
     for k in range(4):
         rects[0, k] = rect[k]
     depth[0] = 0
@@ -122,12 +123,12 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
                 for k in range(4):
                     out_rect[first + count, k] = rects[top, k]
                 out_depth[first + count] = depth[top]
-                _copy_net(stack[top], out_net[first + count], p, q)
+                copy_net(stack[top], out_net[first + count], p, q)
             count += 1
             continue
         axis = 0 if dev_u >= dev_v else 1
-        _copy_net(stack[top], piece, p, q)
-        split_half(piece, stack[top], stack[top + 1], p, q, axis)
+        copy_net(stack[top], piece, p, q)
+        split_half(piece, stack[top], stack[top + 1], p, q, axis, tmp)
         mid = 0.5 * (rects[top, 2 * axis] + rects[top, 2 * axis + 1])
         for k in range(4):
             rects[top + 1, k] = rects[top, k]

@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from .flatten import copy_net, split_half
 from .patches import frame
 from .roots import NEWTON, ray_frame, solve_one
 from .trim import point_kept
@@ -108,34 +109,6 @@ def _grazing(P, k, u, v, dx, dy, dz):
 
 
 @njit(cache=True)
-def _copy_net(src, dst, p, q):
-    for i in range(p + 1):
-        for j in range(q + 1):
-            for c in range(4):
-                dst[i, j, c] = src[i, j, c]
-
-
-@njit(cache=True)
-def _split(src, lo, hi, p, q, axis, tmp):
-    """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)."""
-    n, other = (p, q) if axis == 0 else (q, p)
-    for j in range(other + 1):
-        for c in range(4):
-            for i in range(n + 1):
-                tmp[i] = src[i, j, c] if axis == 0 else src[j, i, c]
-            for r in range(n + 1):
-                if r > 0:
-                    for i in range(n - r + 1):
-                        tmp[i] = 0.5 * (tmp[i] + tmp[i + 1])
-                if axis == 0:
-                    lo[r, j, c] = tmp[0]
-                    hi[n - r, j, c] = tmp[n - r]
-                else:
-                    lo[j, r, c] = tmp[0]
-                    hi[j, n - r, c] = tmp[n - r]
-
-
-@njit(cache=True)
 def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     """Can the ray meet the piece with this net before t_far? (its hull, in the ray's frame)."""
     xlo = ylo = zlo = np.inf
@@ -195,7 +168,7 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
     size = nets.shape[0]
-    _copy_net(B.leaf_net[leaf], nets[0], p, q)
+    copy_net(B.leaf_net[leaf], nets[0], p, q)
     for k in range(4):
         rects[0, k] = rect[k]
     depth[0] = 0
@@ -206,9 +179,9 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
             continue
         # cut the popped piece into quarters in slots top .. top + 3 (two spare slots for the halves)
         a, b2 = top + 4, top + 5
-        _split(nets[top], nets[a], nets[b2], p, q, 0, tmp)
-        _split(nets[a], nets[top], nets[top + 1], p, q, 1, tmp)
-        _split(nets[b2], nets[top + 2], nets[top + 3], p, q, 1, tmp)
+        split_half(nets[top], nets[a], nets[b2], p, q, 0, tmp)
+        split_half(nets[a], nets[top], nets[top + 1], p, q, 1, tmp)
+        split_half(nets[b2], nets[top + 2], nets[top + 3], p, q, 1, tmp)
         r0, r1, r2, r3 = rects[top, 0], rects[top, 1], rects[top, 2], rects[top, 3]
         um, vm = 0.5 * (r0 + r1), 0.5 * (r2 + r3)
         d = depth[top] + 1
@@ -233,7 +206,7 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
                 again = _grazing(P, k, u, v, dx, dy, dz)
             if again and d < retry_depth:  # keep it: move it down to the stack's top
                 if s != top:
-                    _copy_net(nets[s], nets[top], p, q)
+                    copy_net(nets[s], nets[top], p, q)
                     for k in range(4):
                         rects[top, k] = rects[s, k]
                 depth[top] = d
