@@ -217,7 +217,10 @@ def _cmd_info(args) -> int:
         scene = load_scene(path)
         degrees = sorted({s.geometry.degree for s in scene.surfaces})
         rational = sum(s.geometry.is_rational for s in scene.surfaces)
-        print(f"{path}: scene, {len(scene.surfaces)} surfaces, degrees {degrees}, {rational} rational, "
+        trimmed = sum(s.geometry.is_trimmed for s in scene.surfaces)
+        loops = sum(len(s.geometry.trims) for s in scene.surfaces)
+        print(f"{path}: scene, {len(scene.surfaces)} surfaces ({trimmed} trimmed, {loops} loops), degrees {degrees}, "
+              f"{rational} rational, "
               f"{len(scene.lights)} lights, {len(scene.materials)} materials, film {scene.film.width}x{scene.film.height}")
         for note in scene.notes:
             print(f"  {note}")

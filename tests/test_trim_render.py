@@ -244,3 +244,15 @@ def test_bad_trim_loops_name_the_surface_loop_and_curve(edit, message):
         parse_scene({"camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0]},
                      "surface": [plate(0, 1, 0, 1, 0.0, [loop])]}, "scene.toml")
     assert str(err.value).startswith(message), str(err.value)
+
+
+def test_info_counts_trimmed_surfaces_and_loops(tmp_path, capsys):
+    from bsrt.api import dumps_toml
+    from bsrt.cli import main
+
+    doc = {"camera": {"eye": [0.5, 0.5, 5.0], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0]},
+           "surface": [plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.3), circle(0.5, 0.5, 0.1)]), plate(0, 1, 0, 1, 1.0)]}
+    path = tmp_path / "two.toml"
+    path.write_text(dumps_toml(doc), encoding="utf-8")
+    assert main(["info", str(path)]) == 0
+    assert "2 surfaces (1 trimmed, 2 loops)" in capsys.readouterr().out
