@@ -14,11 +14,12 @@ from __future__ import annotations
 import os
 import time
 
-import numpy as np
+from . import flatten, patches, roots, shading, traverse, trim
 
-from . import patches, roots, traverse, trim
-
-ENTRY_KERNELS = (roots.solve_items, traverse.trace_rays, patches.evaluate_many, patches.locate_many)
+# the kernels called from Python (the rest are compiled as part of them)
+ENTRY_KERNELS = (roots.solve_items, traverse.trace_rays, patches.evaluate_many, patches.locate_many,
+                 flatten.flatten_patches, flatten.build_tree, shading.frames_many, shading.blinn_phong,
+                 trim._kept_many, trim._rect_states, trim.classify_grid, trim.bezier_spans, trim.monotone_pieces)
 
 
 def cache_folder() -> str | None:
@@ -30,7 +31,7 @@ def cache_folder() -> str | None:
 
 def is_cached() -> bool:
     """Whether every entry kernel has machine code on disk from an earlier run."""
-    for kernel in ENTRY_KERNELS + (trim.kept_many,):
+    for kernel in ENTRY_KERNELS:
         cache_file = getattr(getattr(kernel, "_cache", None), "_cache_file", None)
         index = getattr(cache_file, "_index_path", None)
         if index is None or not os.path.exists(index):
@@ -39,22 +40,25 @@ def is_cached() -> bool:
 
 
 def warm_up() -> float:
-    """Compile (or load) every kernel on a one-patch scene; returns the seconds it took."""
-    from ..bspline import make_surface
-    from ..bvh import build_bvh, intersect
-    from ..patches import PatchSet
-    from ..solve import Rays, find_roots
-    from ..trim import TrimLoop, make_trim_curve
+    """Compile (or load) every kernel by rendering a tiny trimmed scene with each method and a
+    shadow-casting light (GL included); returns the seconds it took."""
+    from ..pipeline import render
+    from ..scene import parse_scene
+    from ..settings import METHODS, RenderOptions
 
-    clock = time.perf_counter()
-    plane = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]])
-    square = [make_trim_curve(1, [0, 0, 1, 1], [a, b]) for a, b in
+    square = [{"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]} for a, b in
               (([0.2, 0.2], [0.8, 0.2]), ([0.8, 0.2], [0.8, 0.8]), ([0.8, 0.8], [0.2, 0.8]), ([0.2, 0.8], [0.2, 0.2]))]
-    table = PatchSet([plane, plane.with_trims([TrimLoop(tuple(square))])])
-    rays = Rays.from_arrays(np.array([[0.5, 0.5, 1.0]]), np.array([[0.0, 0.0, -1.0]]))
-    one = np.zeros(1, dtype=np.int64)
-    for method in roots.METHOD_IDS:
-        find_roots(table, rays, one, one + 1, np.full(1, 0.4), np.full(1, 0.6), method=method)
-    intersect(build_bvh(table), rays.origin, rays.direction, any_hit=False)
-    table.evaluate(one, np.full(1, 0.5), np.full(1, 0.5))
+    plate = {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+             "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]]}
+    scene = parse_scene({
+        "film": {"width": 8, "height": 8},
+        "camera": {"eye": [0.5, -1.0, 2.0], "look_at": [0.5, 0.5, 0.0]},
+        "light": [{"kind": "point", "position": [0.5, 0.5, 3.0], "intensity": 9.0}],
+        "material": [{"name": "mirror", "reflectance": 0.5}],
+        "surface": [{**plate, "material": "mirror"}, {**plate, "trim": [{"curves": square}],
+                                                      "transform": {"translate": [0.0, 0.0, 0.5]}}],
+    }, "<warm-up>")
+    clock = time.perf_counter()
+    for method in METHODS:
+        render(scene, RenderOptions.resolve(scene, method=method))
     return time.perf_counter() - clock
