@@ -619,3 +619,31 @@ def test_hits_agree_against_occt_intersector(tmp_path, name):
     assert np.array_equal(aovs["hit"][inside], hit[inside])
     assert np.array_equal(ours[inside], theirs[inside])
     assert np.max(np.abs(aovs["t"][both] - t[both])) < TOL * size
+
+
+@pytest.mark.parametrize("brep_mode", [0, 1])
+def test_step_and_iges_through_bsrts_own_reader_render_the_same_hits(tmp_path, brep_mode):
+    """The box with a filleted hole written as STEP (read through OpenCASCADE) and as IGES
+    (faces, or B-rep mode 186/514/510, read by bsrt's own IGES reader): the same hits."""
+    from bsrt.scene import scene_for_model
+    from bsrt.settings import RenderOptions
+
+    shape = box_with_filleted_hole()
+    step = load_model(write_step(shape, tmp_path / "part.step"))
+    iges = load_model(write_iges(shape, tmp_path / "part.igs", brep_mode), format="iges")
+    assert len(iges.surfaces) == len(step.surfaces)
+    assert all(s.is_trimmed for s in iges.surfaces)
+    scene = scene_for_model(step, 96, 96)
+    results = []
+    for model in (step, iges):
+        other = scene_for_model(model, 96, 96)
+        other = type(other)(scene.film, scene.camera, other.render, other.materials, other.lights,
+                            other.surfaces, other.path, other.notes)
+        results.append(render(other, RenderOptions.resolve(other)).hits)
+    a, b = results
+    size = diagonal(read_back(tmp_path / "part.step"))
+    interior = _interior(np.where(a.hit, 1, 0).reshape(96, 96)).ravel()
+    np.testing.assert_array_equal(a.hit[interior], b.hit[interior])
+    both = a.hit & b.hit & interior
+    assert both.sum() > 1000
+    np.testing.assert_allclose(a.t[both], b.t[both], atol=1e-7 * size)

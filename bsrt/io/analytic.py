@@ -114,10 +114,11 @@ def sphere(centre, x, y, z, radius, box):
 
 
 def torus(centre, x, y, z, major, minor, box):
-    """C + (R + r cos v)(cos u X + sin u Y) + r sin v Z."""
+    """C + (R + r cos u)(cos v X + sin v Y) + r sin u Z: u the minor angle, v the major one
+    (IGES 198 as OpenCASCADE writes and reads it)."""
     u0, u1, v0, v1 = box
     c = np.asarray(centre, float)
-    return revolve(_arc(c + major * x, x, z, minor, v0, v1), c, z, u0, u1, angle_first=True)
+    return revolve(_arc(c + major * x, x, z, minor, u0, u1), c, z, v0, v1, angle_first=False)
 
 
 def extrusion(directrix: Curve, vector, dmap: ParamMap):

@@ -32,7 +32,9 @@ perpendicular to it, or any perpendicular one for the unparametrised form 0):
 * 192 cylinder: L + R (cos u X + sin u Y) + v Z, u an angle in radians.
 * 194 cone (SANGLE in degrees): L + (R + v tan SANGLE)(cos u X + sin u Y) + v Z.
 * 196 sphere: C + R cos v (cos u X + sin u Y) + R sin v Z, v in [-pi/2, pi/2].
-* 198 torus: C + (R + r cos v)(cos u X + sin u Y) + r sin v Z.
+* 198 torus: C + (R + r cos u)(cos v X + sin v Y) + r sin u Z: u the minor
+  angle, v the major one, as OpenCASCADE writes and reads IGES (a B-rep
+  written by OpenCASCADE renders with the same hits as its STEP twin).
 
 The analytic surfaces (108, 190-198) are unbounded or periodic: their
 B-spline covers exactly the box their trim loops use (a sphere's and a
@@ -317,7 +319,7 @@ def _axis_surface(f, entity, params, m, kind: str) -> SurfaceDef:
     else:
         natural = (0.0, TWO_PI, 0.0, TWO_PI)
         build = lambda box: analytic.torus(loc, x, y, z, k * radius, k * minor, box)  # noqa: E731
-        inv = lambda a, b, c: np.stack([np.arctan2(b, a), np.arctan2(c, np.hypot(a, b) - radius)], 1)  # noqa: E731
+        inv = lambda a, b, c: np.stack([np.arctan2(c, np.hypot(a, b) - radius), np.arctan2(b, a)], 1)  # noqa: E731
 
     def invert(pts):
         d = (np.asarray(pts, float) - loc) / k
