@@ -169,6 +169,7 @@ def render(
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     linear = np.zeros((height, width, 3))
+    pixels = np.zeros((height, width, 3), dtype=np.uint8)
     primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
     for first in range(0, sample_h, band):
@@ -177,7 +178,9 @@ def render(
         shader.begin_band(hits, (first / total, stop / total))
         with stats.timer("shade"):
             colour = shader.shade(hits, directions)
-        linear[first // rows : stop // rows] = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
+        band_rows = slice(first // rows, stop // rows)
+        linear[band_rows] = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
+        pixels[band_rows] = srgb_encode(linear[band_rows])  # per band: no film-sized temporaries
         if spp == 1:
             primary.put(slice(first * width, stop * width), hits)
     if spp > 1:  # the AOVs: pixel-centre rays
@@ -193,7 +196,7 @@ def render(
     stats.fields.update(pixels=width * height, hits=int(hits.hit.sum()),
                         iterations_mean=float(work.mean()) if work.size else 0.0,
                         iterations_max=int(hits.iterations.max()))
-    return RenderResult(srgb_encode(linear), linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
+    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
 
 
 class _Shader:
