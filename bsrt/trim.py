@@ -7,25 +7,64 @@ nested islands and loops of either orientation all work, and a surface with
 no loop is whole.
 
 This module holds the data (:class:`TrimCurve`, :class:`TrimLoop`), their
-validation (every error names the loop and the curve), and the preparation
-for the compiled test "is (u, v) kept?" (:func:`build_trim_table`; the test
-itself is ``kernels/trim.py``).
+validation (:func:`make_trim_curve`, :func:`check_loops`: every error names
+the loop and the curve), and the preparation for the compiled test "is
+(u, v) kept?" (:func:`build_trim_table`; the tests themselves, ``point_kept``
+and ``rect_state``, are in ``kernels/trim.py``; :func:`kept` is the
+Python-level convenience).
 
-Why the answer is exact at the curve. Every curve is cut into rational
-Bezier pieces (knot insertion), and each piece is cut in half (de Casteljau,
-homogeneous) until its control polygon is monotone in u and in v. With
-positive weights a rational Bezier curve crosses any line no more often than
-its control polygon (variation diminishing), so each final piece is itself
-monotone: a horizontal line v = const meets it at most once, and whether
-that crossing lies right of u is decided either by the piece's box (u left
-of the box: it does; right of it: it does not) or, when u falls inside the
-box, by solving V(s) = v on the piece itself (bisection to machine
-precision) and comparing U(s) with u. No rasterised mask, no polyline. A
-piece that is still not monotone after MAX_CUTS halvings (it holds a
-tangent parallel to an axis in a stretch shorter than 2^-MAX_CUTS of its
-span) is replaced by its chord, an error far below 1e-12 of the domain.
-Pieces are indexed per surface in horizontal bands over v, so a query looks
-only at the pieces of its band.
+The algorithm
+-------------
+Preparation (once per scene). Every curve is cut into its rational Bezier
+spans (each span's net is the blossom at (a..a, b..b): the same as inserting
+every knot to full multiplicity), and each span is cut further (de
+Casteljau, in homogeneous coordinates) until its control polygon is monotone
+in u and in v: at the turning point of the coordinate that turns back (the
+root of its slope, found by bisection) when the end slopes show one, else
+at the middle. Steps of the polygon within 64 ulps of the coordinates count
+as flat, so the cut at a turning point settles at once. A net that is one
+point is dropped (it crosses nothing); a piece still turning back after
+MAX_DEPTH cuts (met in none of the test models: their curves give 1.0 to
+1.1 pieces per span) is replaced by its chord. Consecutive pieces of a loop share their end
+points bit for bit: each piece's start is set to the previous piece's end
+(this also closes the gaps, up to 1e-9 of the domain, that check_loops lets
+through between curves). Each piece is stored in the power basis of its
+parameter s in [0, 1], in coordinates relative to its start (so rounding is
+relative to the piece, not to the domain). Per trimmed surface, horizontal
+bands over v (two per piece, at most MAX_BANDS) list the pieces whose box
+meets them, each band sorted by decreasing u_max: a query reads a few
+entries whatever the loops' size.
+
+The query (``kernels/trim.point_kept``): a ray from (u, v) toward +u. A
+piece counts when v lies in its half-open v-range
+[min(v_a, v_b), max(v_a, v_b)) and its crossing lies right of u. The band
+scan stops at the first piece wholly left of u; a piece wholly right of u
+counts at once; a piece whose end points lie on one side of u is decided by
+them; a segment (degree 1) by one cross product; any other piece by solving
+V(s) = v on the curve itself (Newton steps kept in a bracket, with
+bisection), only as far as needed to see on which side of u the crossing
+lies: the bracket's two ends on one side of u decide, since U is monotone.
+
+Why it is exact at the curve. With positive weights a rational Bezier
+curve crosses any line no more often than its control polygon (variation
+diminishing: the numerator of X(s) - c has the Bernstein coefficients
+w_i (x_i - c)), so a piece with a monotone polygon is itself monotone in u
+and v: the line v = const meets it at most once, and its part between two
+parameters lies in the box of their two points. Counting a piece when v is
+in its half-open end range gives the parity of its crossings with the whole
+line exactly (a continuous arc from v_a to v_b crosses v = c an odd number
+of times iff c lies between them), with no tolerance, and the shared end
+points make the count consistent from piece to piece (a ray through a
+vertex counts it once where the loop passes through, and 0 or 2 times at a
+turning point). Which side of u the single crossing lies on is decided
+with the monotone curve's own values, so the only wrong answers are for
+points within rounding (about 1e-15 of the coordinates) of the curve. No
+rasterised mask, no polyline.
+
+``rect_state`` (culling): a rectangle that no piece can touch (its box
+misses it, or halving the monotone piece shows it passes by; both with a
+margin of 1e-12 of the coordinates) holds one state, its centre's;
+otherwise it is MIXED.
 """
 
 from __future__ import annotations
@@ -39,6 +78,7 @@ import numpy as np
 from .errors import InputError
 
 CLOSE_TOLERANCE = 1e-9  # loop gaps allowed, as a fraction of the domain's size
+DOMAIN_TOLERANCE = 1e-5  # how far a curve may stray outside the domain, as a fraction of its size
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,13 +189,19 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
     """Check that every loop closes and lies in the surface's domain.
 
     loops: sequence of TrimLoop. domain: (umin, umax, vmin, vmax). Gaps up to
-    CLOSE_TOLERANCE x the domain's diagonal are allowed. Errors name
-    ``trim[i].curves[j]``.
+    CLOSE_TOLERANCE x the domain's diagonal are allowed. A curve may stray
+    outside the domain by up to DOMAIN_TOLERANCE x its diagonal: CAD files'
+    trim curves do (hammer.iges by 2e-6), and it is harmless, as the even-odd
+    rule reads the loops wherever they run; the check is there for curves
+    in the wrong domain. It is exact: a curve whose control points lie in the
+    domain lies in it (convex hull); otherwise its monotone pieces (see the
+    module doc) are checked by their end points, which span each piece.
+    Errors name ``trim[i].curves[j]``.
     """
     umin, umax, vmin, vmax = domain
     size = float(np.hypot(umax - umin, vmax - vmin))
     gap = CLOSE_TOLERANCE * size
-    slack = CLOSE_TOLERANCE * size
+    slack = DOMAIN_TOLERANCE * size
     for i, loop in enumerate(loops):
         if not loop.curves:
             raise InputError(f"trim[{i}].curves: a loop needs at least one curve")
@@ -163,99 +209,178 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
         for j, (curve, e) in enumerate(zip(loop.curves, ends)):
             prev = ends[j - 1][1]
             if np.hypot(*(e[0] - prev)) > gap:
-                what = "the last curve ends" if len(ends) > 1 else "it ends"
-                raise InputError(
-                    f"trim[{i}].curves[{j}]: the loop is open: the curve starts at ({e[0][0]:g}, {e[0][1]:g}) "
-                    f"but {what} at ({prev[0]:g}, {prev[1]:g})" if j == 0 else
-                    f"trim[{i}].curves[{j}]: the loop is open: the curve starts at ({e[0][0]:g}, {e[0][1]:g}), "
-                    f"not where curves[{j - 1}] ends ({prev[0]:g}, {prev[1]:g})"
-                )
-            lo, hi = curve.domain
-            pts = curve.evaluate(np.linspace(lo, hi, 16 * (curve.points.shape[0] + 1)))
-            out = (pts[:, 0] < umin - slack) | (pts[:, 0] > umax + slack) | (pts[:, 1] < vmin - slack) | (
-                pts[:, 1] > vmax + slack)
-            if np.any(out):
-                k = int(np.argmax(out))
-                raise InputError(
-                    f"trim[{i}].curves[{j}]: the curve leaves the surface's domain [{umin:g}, {umax:g}] x "
-                    f"[{vmin:g}, {vmax:g}] (it passes ({pts[k, 0]:g}, {pts[k, 1]:g}))"
-                )
+                if j == 0:
+                    what = "the last curve ends" if len(ends) > 1 else "it ends"
+                    raise InputError(f"trim[{i}].curves[{j}]: the loop is open: the curve starts at "
+                                     f"({e[0][0]:g}, {e[0][1]:g}) but {what} at ({prev[0]:g}, {prev[1]:g})")
+                raise InputError(f"trim[{i}].curves[{j}]: the loop is open: the curve starts at "
+                                 f"({e[0][0]:g}, {e[0][1]:g}), not where curves[{j - 1}] ends "
+                                 f"({prev[0]:g}, {prev[1]:g})")
+            pts = curve.points
+            if not _all_within(pts, umin - slack, umax + slack, vmin - slack, vmax + slack):
+                pts = _curve_extent_points(curve)
+                out = (pts[:, 0] < umin - slack) | (pts[:, 0] > umax + slack) | (pts[:, 1] < vmin - slack) | (
+                    pts[:, 1] > vmax + slack)
+                if np.any(out):
+                    far = pts[int(np.argmax(out))]
+                    raise InputError(
+                        f"trim[{i}].curves[{j}]: the curve leaves the surface's domain [{umin:g}, {umax:g}] x "
+                        f"[{vmin:g}, {vmax:g}] (it passes ({far[0]:g}, {far[1]:g}))"
+                    )
     return tuple(loops)
+
+
+def _all_within(pts: np.ndarray, u0: float, u1: float, v0: float, v1: float) -> bool:
+    return bool(np.all((pts[:, 0] >= u0) & (pts[:, 0] <= u1) & (pts[:, 1] >= v0) & (pts[:, 1] <= v1)))
+
+
+def _writable(a) -> np.ndarray:
+    """A C-contiguous, writable float64 copy: the kernels see one array type (numba compiles
+    read-only arrays, like make_trim_curve's, separately)."""
+    return np.array(a, dtype=np.float64, order="C")
+
+
+def _curve_extent_points(curve: TrimCurve) -> np.ndarray:
+    """(P, 2) points on the curve whose box is the curve's box: its monotone pieces' end points."""
+    from .kernels.trim import bezier_spans, monotone_pieces
+
+    nets = bezier_spans(_writable(curve.knots), _writable(curve.homogeneous()), int(curve.degree))
+    pieces, degree, _ = monotone_pieces(nets, np.full(nets.shape[0], curve.degree, dtype=np.int64), MAX_DEPTH)
+    last = pieces[np.arange(degree.size), degree]
+    ends = np.concatenate([pieces[:, 0], last])
+    return np.concatenate([ends[:, :2] / ends[:, 2:3], curve.ends()])
 
 
 # ---------------------------------------------------------------------------
 # The table for the kernels
 
-MAX_CUTS = 30
+MAX_DEPTH = 48  # cuts of one Bezier span before a piece still turning back becomes its chord
+BANDS_PER_PIECE = 2.0  # 1 to 4 measured within 10 % of each other; 2 the best on 200-piece loops
+MAX_BANDS = 4096  # per surface
 
 
 class TrimTable(NamedTuple):
-    """Every trimmed surface's loops as monotone rational Bezier pieces, flat.
+    """Every trimmed surface's loops as monotone rational Bezier pieces, in flat arrays.
 
-    M surfaces, N pieces, D the largest piece degree, B bands in all:
-      trimmed: (M,) bool, the surface has loops (False: everything is kept).
-      coef: (N, D + 1, 3) float64, each piece's (w u, w v, w) in the power
-        basis of its parameter s in [0, 1] (rows above its degree are 0).
-      degree: (N,) int64.
-      box: (N, 4) float64, (umin, umax, vmin, vmax) of its control points.
-      ends: (N, 2) float64, v at s = 0 and at s = 1.
-      band_first: (M,) int64, the surface's first band; band_count: (M,)
-        int64; band_v0, band_height: (M,) float64, band b covers
-        [band_v0 + b h, band_v0 + (b + 1) h) (the first and last extend to
-        infinity).
-      band_start: (B + 1,) int64, band k's pieces are
-        band_pieces[band_start[k] : band_start[k + 1]].
-      band_pieces: (E,) int64.
+    One argument for the kernels (numba takes a NamedTuple of arrays). M
+    surfaces (in the order given to build_trim_table), K pieces, D the
+    largest piece degree, B bands in all, E band entries. Every array is
+    C-contiguous; float64 unless said otherwise.
+
+    Per surface:
+      trimmed: (M,) bool, the surface has loops (False: every (u, v) is kept,
+        and the kernels answer at once).
+      band_first: (M,) int64, the surface's first band (an index into
+        band_start); band_count: (M,) int64, its number of bands (>= 1).
+      band_v0: (M,); band_scale: (M,), bands per unit of v: v lies in the
+        surface's band int((v - band_v0) * band_scale), clamped to
+        [0, band_count - 1] (the end bands reach to -inf and +inf).
+      magnitude: (M,), the largest |u| or |v| of the surface's pieces' boxes
+        (0 without pieces): rect_state's margin scales with it.
+    Per piece (a rational Bezier curve monotone in u and in v; the pieces of
+    a loop are consecutive and in order along it):
+      degree: (K,) int64, d >= 1.
+      coef: (K, D + 1, 3), the piece's (w (u - u_a), w (v - v_a), w) in the
+        power basis of its parameter s in [0, 1]: row i multiplies s^i, rows
+        above d are 0. (u_a, v_a) is its start (ends[:, :2]).
+      ends: (K, 4), (u_a, v_a, u_b, v_b): its start and end, exactly the
+        previous piece's end and the next piece's start.
+      box: (K, 4), (u_min, u_max, v_min, v_max) of its control points and
+        ends: it holds the piece.
+    Bands:
+      band_start: (B + 1,) int64, band b's entries are
+        band_start[b] : band_start[b + 1], sorted by decreasing u_max.
+      entry_piece: (E,) int64, the piece of each entry; a piece is listed in
+        every band of its surface its box meets.
+      entry_box: (E, 4), the entry's piece's (u_min, u_max, min(v_a, v_b),
+        max(v_a, v_b)): its u-range and its half-open v-range, copied so a
+        band scan reads memory in order.
     """
 
     trimmed: np.ndarray
-    coef: np.ndarray
-    degree: np.ndarray
-    box: np.ndarray
-    ends: np.ndarray
     band_first: np.ndarray
     band_count: np.ndarray
     band_v0: np.ndarray
-    band_height: np.ndarray
+    band_scale: np.ndarray
+    magnitude: np.ndarray
+    degree: np.ndarray
+    coef: np.ndarray
+    ends: np.ndarray
+    box: np.ndarray
     band_start: np.ndarray
-    band_pieces: np.ndarray
+    entry_piece: np.ndarray
+    entry_box: np.ndarray
 
 
 def build_trim_table(surfaces) -> TrimTable:
-    """The TrimTable of a list of BSplineSurface (their ``trims``)."""
+    """The TrimTable of a list of BSplineSurface (their ``trims``); surface m of the table is surfaces[m]."""
     from .kernels.trim import bezier_spans, monotone_pieces
 
     m_count = len(surfaces)
-    trimmed = np.array([bool(s.trims) for s in surfaces], dtype=bool).reshape(m_count)
-    spans, span_owner = [], []
+    trimmed = np.zeros(m_count, dtype=bool)
+    nets, span_loop, span_surface = [], [], []
+    loop_no = 0
     for m, surf in enumerate(surfaces):
+        trimmed[m] = bool(surf.trims)
         for loop in surf.trims:
             for curve in loop.curves:
-                nets = bezier_spans(curve.knots, curve.homogeneous(), curve.degree)
-                spans.append(nets)
-                span_owner.append(np.full(nets.shape[0], m, dtype=np.int64))
-    dmax = max((x.shape[1] for x in spans), default=2)
-    padded = np.zeros((sum(x.shape[0] for x in spans), dmax, 3))
-    span_degree = np.concatenate([np.full(x.shape[0], x.shape[1] - 1) for x in spans]).astype(np.int64) if spans \
-        else np.zeros(0, np.int64)
+                x = bezier_spans(_writable(curve.knots), _writable(curve.homogeneous()), int(curve.degree))
+                nets.append(x)
+                span_loop.append(np.full(x.shape[0], loop_no, dtype=np.int64))
+                span_surface.append(np.full(x.shape[0], m, dtype=np.int64))
+            loop_no += 1
+    width = max((x.shape[1] for x in nets), default=2)
+    padded = np.zeros((sum(x.shape[0] for x in nets), width, 3))
+    span_degree = np.zeros(padded.shape[0], dtype=np.int64)
     at = 0
-    for x in spans:
-        padded[at : at + x.shape[0], : x.shape[1]] = x
+    for x in nets:
+        padded[at: at + x.shape[0], : x.shape[1]] = x
+        span_degree[at: at + x.shape[0]] = x.shape[1] - 1
         at += x.shape[0]
-    nets, degree, which = monotone_pieces(padded, span_degree, MAX_CUTS)
-    owner = np.concatenate(span_owner)[which] if spans else np.zeros(0, np.int64)
-    n = nets.shape[0]
-    coef = np.zeros((n, dmax, 3))
-    used = np.arange(dmax)[None, :] <= degree[:, None]
-    with np.errstate(all="ignore"):  # unused rows have w = 0
-        pts = np.where(used[..., None], nets[..., :2] / nets[..., 2:3], np.nan)
-    for d in np.unique(degree):  # power-basis coefficients, per degree
+    pieces, degree, src = monotone_pieces(padded, span_degree, MAX_DEPTH)
+    loop = np.concatenate(span_loop)[src] if nets else np.zeros(0, dtype=np.int64)
+    owner = np.concatenate(span_surface)[src] if nets else np.zeros(0, dtype=np.int64)
+    k_count = degree.size
+    idx = np.arange(k_count)
+
+    # ends, chained: each piece starts exactly where the one before it in its loop ends
+    last = pieces[idx, degree]
+    end = last[:, :2] / last[:, 2:3]
+    prev = idx - 1
+    if k_count:
+        first_of_loop = np.flatnonzero(np.r_[True, loop[1:] != loop[:-1]])
+        prev[first_of_loop] = np.r_[first_of_loop[1:], k_count] - 1
+    start = end[prev]
+    ends = np.concatenate([start, end], axis=1)
+
+    # control points relative to the start, then the power basis
+    local = pieces.copy()
+    local[..., 0] -= start[:, 0, None] * pieces[..., 2]
+    local[..., 1] -= start[:, 1, None] * pieces[..., 2]
+    coef = np.zeros_like(local)
+    for d in np.unique(degree):
         sel = degree == d
-        coef[sel, : d + 1] = np.einsum("kj,nkc->njc", _bernstein_to_power(d), nets[sel, : d + 1])
-    box = np.stack([np.nanmin(pts[..., 0], 1), np.nanmax(pts[..., 0], 1), np.nanmin(pts[..., 1], 1),
-                    np.nanmax(pts[..., 1], 1)], axis=1) if n else np.zeros((0, 4))
-    ends = np.stack([pts[:, 0, 1], pts[np.arange(n), degree, 1]], axis=1) if n else np.zeros((0, 2))
-    return TrimTable(trimmed, coef, degree, box, ends, *_bands(owner, box, m_count))
+        coef[sel, : d + 1] = np.einsum("kj,nkc->njc", _bernstein_to_power(int(d)), local[sel, : d + 1])
+
+    used = np.arange(width)[None, :] <= degree[:, None]
+    with np.errstate(all="ignore"):  # the padding rows have w = 0
+        pts = pieces[..., :2] / pieces[..., 2:3]
+    lo = np.minimum(np.where(used[..., None], pts, np.inf).min(axis=1), np.minimum(start, end))
+    hi = np.maximum(np.where(used[..., None], pts, -np.inf).max(axis=1), np.maximum(start, end))
+    box = np.stack([lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1]], axis=1).reshape(k_count, 4)
+
+    band_first, band_count, band_v0, band_scale, band_start, entry_piece = _bands(owner, box, m_count)
+    magnitude = np.zeros(m_count)
+    np.maximum.at(magnitude, owner, np.abs(box).max(axis=1, initial=0.0))
+    ev = ends[entry_piece][:, [1, 3]]
+    entry_box = np.stack([box[entry_piece, 0], box[entry_piece, 1], ev.min(axis=1, initial=np.inf),
+                          ev.max(axis=1, initial=-np.inf)], axis=1).reshape(-1, 4)
+    c = np.ascontiguousarray
+    return TrimTable(c(trimmed, dtype=np.bool_), c(band_first, dtype=np.int64), c(band_count, dtype=np.int64),
+                     c(band_v0, dtype=np.float64), c(band_scale, dtype=np.float64), c(magnitude, dtype=np.float64),
+                     c(degree, dtype=np.int64),
+                     c(coef, dtype=np.float64), c(ends, dtype=np.float64), c(box, dtype=np.float64),
+                     c(band_start, dtype=np.int64), c(entry_piece, dtype=np.int64), c(entry_box, dtype=np.float64))
 
 
 def _bernstein_to_power(d: int) -> np.ndarray:
@@ -264,36 +389,49 @@ def _bernstein_to_power(d: int) -> np.ndarray:
                      for k in range(d + 1)])
 
 
+def _band_index(v, v0, scale, count):
+    """The kernel's ``_band`` (bsrt/kernels/trim.py), elementwise and with the same float operations,
+    without the surface's band_first: the band of v, in [0, count - 1]."""
+    x = (v - v0) * scale
+    inner = np.where(x > 0.0, x, 0.0)
+    return np.where(x >= count, count - 1, np.where(x > 0.0, np.minimum(inner, count - 1).astype(np.int64), 0))
+
+
 def _bands(owner: np.ndarray, box: np.ndarray, m_count: int):
-    """Per surface, horizontal bands over the v-range of its pieces (about 2 sqrt(pieces) of them, at
-    most 512), each listing the pieces whose box meets it: the band fields of TrimTable."""
-    counts_per = np.bincount(owner, minlength=m_count)
-    band_count = np.where(counts_per > 0, np.clip((2 * np.sqrt(counts_per)).astype(np.int64), 1, 512), 1)
-    band_first = np.concatenate([[0], np.cumsum(band_count)[:-1]]).astype(np.int64)
-    v0 = np.zeros(m_count)
-    v1 = np.ones(m_count)
-    if owner.size:
-        np.minimum.at(v0 := np.full(m_count, np.inf), owner, box[:, 2])
-        np.maximum.at(v1 := np.full(m_count, -np.inf), owner, box[:, 3])
-        empty = counts_per == 0
-        v0[empty], v1[empty] = 0.0, 1.0
-    height = np.where(v1 > v0, (v1 - v0) / band_count, 1.0)
+    """Per surface, about BANDS_PER_PIECE bands per piece (at most MAX_BANDS) over the v-range of its
+    pieces, each listing the pieces whose box meets it, by decreasing u_max: the band fields of
+    TrimTable (band_first, band_count, band_v0, band_scale, band_start, entry_piece)."""
+    pieces_per = np.bincount(owner, minlength=m_count)
+    v0 = np.full(m_count, np.inf)
+    v1 = np.full(m_count, -np.inf)
+    np.minimum.at(v0, owner, box[:, 2])
+    np.maximum.at(v1, owner, box[:, 3])
+    count = np.clip(np.ceil(BANDS_PER_PIECE * pieces_per), 1, MAX_BANDS).astype(np.int64)
+    with np.errstate(all="ignore"):
+        scale = count / (v1 - v0)
+    flat = ~(np.isfinite(scale) & (v1 > v0))  # no pieces, or all at one v: one band
+    count[flat] = 1
+    scale[flat] = 0.0
+    v0[~np.isfinite(v0)] = 0.0
+    first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
     o = owner
-    first = np.clip(((box[:, 2] - v0[o]) / height[o]).astype(np.int64), 0, band_count[o] - 1) if o.size else o
-    last = np.clip(((box[:, 3] - v0[o]) / height[o]).astype(np.int64), 0, band_count[o] - 1) if o.size else o
-    span = last - first + 1
+    lo = _band_index(box[:, 2], v0[o], scale[o], count[o])
+    hi = _band_index(box[:, 3], v0[o], scale[o], count[o])
+    span = hi - lo + 1
     piece = np.repeat(np.arange(o.size), span)
-    band = band_first[np.repeat(o, span)] + np.repeat(first, span) + (np.arange(piece.size) - np.repeat(np.cumsum(span) - span, span))
-    order = np.argsort(band, kind="stable")
-    total = int(band_count.sum())
+    offset = np.arange(piece.size) - np.repeat(np.cumsum(span) - span, span)
+    band = first[o][piece] + lo[piece] + offset
+    order = np.lexsort((-box[piece, 1], band))
+    total = int(count.sum())
     band_start = np.concatenate([[0], np.cumsum(np.bincount(band, minlength=total))]).astype(np.int64)
-    return band_first, band_count.astype(np.int64), v0, height, band_start, piece[order].astype(np.int64)
+    return first, count, v0, scale, band_start, piece[order].astype(np.int64)
 
 
 def kept(surface, u, v) -> np.ndarray:
-    """(N,) bool: is each (u[i], v[i]) kept by the trims of one BSplineSurface?"""
+    """(N,) bool: is each (u[i], v[i]) kept by the trims of one BSplineSurface? (u, v: scalars or (N,).)"""
     from .kernels.trim import kept_many
 
-    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
-    v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+    u = np.atleast_1d(np.asarray(u, dtype=np.float64)).ravel()
+    v = np.atleast_1d(np.asarray(v, dtype=np.float64)).ravel()
+    u, v = np.broadcast_arrays(u, v)
     return kept_many(build_trim_table([surface]), np.zeros(u.size, dtype=np.int64), u, v)
