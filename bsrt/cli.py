@@ -101,38 +101,11 @@ def _camera_options(parser) -> None:
 
 
 def _load_input(args):
-    """A Scene from a scene file, or from a model file with an automatic camera.
+    """The Scene for ``args.scene`` (bsrt/loading.py), its import warnings on stderr once."""
+    from .loading import CameraOverrides, load_input
 
-    Import warnings and what a model holds but cannot be drawn go to stderr once.
-    """
-    from dataclasses import replace
-
-    import numpy as np
-
-    from .scene import load_scene, scene_for_model
-
-    if args.fov is not None and not 0.0 < args.fov < 180.0:
-        raise InputError(f"--fov: must be between 0 and 180 degrees, got {args.fov:g}")
-    path = Path(args.scene)
-    if path.suffix.lower() == ".toml":
-        scene = load_scene(path)
-        cam = scene.camera
-        eye = np.array(args.camera_eye) if args.camera_eye else cam.eye
-        look = np.array(args.camera_look_at) if args.camera_look_at else cam.look_at
-        up = np.array(args.camera_up) if args.camera_up else cam.up
-        camera = replace(cam, eye=eye, look_at=look, up=up, fov=args.fov if args.fov is not None else cam.fov)
-        view = camera.look_at - camera.eye
-        if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, camera.up)) < 1e-9 * np.linalg.norm(view):
-            raise InputError("--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up")
-        scene = replace(scene, camera=camera)
-    else:
-        from .io import load_model
-
-        if not path.is_file():
-            raise InputError(f"{path}: no such file")
-        model = load_model(path, args.format)
-        scene = scene_for_model(model, args.width or 512, args.height or 512, args.camera_eye, args.camera_look_at,
-                                args.fov, args.camera_up or (0.0, 0.0, 1.0))
+    scene = load_input(args.scene, args.format, width=args.width, height=args.height,
+                       camera=CameraOverrides.from_args(args))
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
     return scene
