@@ -1,9 +1,11 @@
 """Command line: ``bsrt render | map | info | doctor | bench``.
 
 Exit codes: 0 success, 2 bad usage or bad input (scene, model, options),
-1 a render failure (e.g. no OpenGL context). Errors are one line on stderr,
-never a traceback (set BSRT_DEBUG=1 to see one), and no output file is left
-behind on failure.
+1 a render failure (e.g. no OpenGL context) or an output that could not be
+written (``bsrt: error: PATH: <reason>``), 130 / 143 / 129 ended by SIGINT /
+SIGTERM / SIGHUP (bsrt/interrupts.py). Errors are one line on stderr, never a
+traceback (set BSRT_DEBUG=1 to see one). A render's outputs are written all
+or nothing (bsrt/outputs.py): a failure or a signal leaves none behind.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import time
 from pathlib import Path
 
 from . import __version__
-from .errors import InputError, RenderError
+from . import interrupts
+from .errors import InputError, OutputError, RenderError
 from .settings import MAP_MODES, METHODS
 
 
@@ -112,12 +115,44 @@ def _load_input(args):
 
 
 def _check_output(path: str, suffix: str) -> Path:
+    """An output path the run can write (checked before any work): the right
+    suffix, an existing folder, not a folder itself."""
     out = Path(path)
     if out.suffix.lower() != suffix:
         raise InputError(f"{path}: the output file name must end in {suffix}")
     if not out.parent.is_dir():
         raise InputError(f"{path}: the folder {str(out.parent)!r} does not exist")
+    if out.is_dir():
+        raise InputError(f"{path}: is a folder, not an output file")
     return out
+
+
+def _refuse_overwriting(outputs: list[Path], scene) -> None:
+    """No output may be one of the files the scene was read from (its imports
+    included), nor two outputs the same file."""
+    def same(a, b) -> bool:
+        return os.path.realpath(a) == os.path.realpath(b) or (
+            os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
+
+    for i, out in enumerate(outputs):
+        for source in scene.inputs:
+            if same(out, source):
+                raise InputError(f"{out}: is an input of this render ({source}); choose another output name")
+        for other in outputs[:i]:
+            if same(out, other):
+                raise InputError(f"{out}: given as two outputs ({other})")
+
+
+def _print_stdout(text: str) -> None:
+    """Print to stdout now; a failing stdout (full disk, closed pipe) is an OutputError."""
+    from .outputs import OutputError
+
+    try:
+        print(text, flush=True)
+    except OSError as exc:
+        # What is still buffered would fail again at exit with a second message: send it nowhere.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise OutputError(f"<stdout>: {exc.strerror or exc}") from None
 
 
 def _progress(args):
@@ -129,43 +164,40 @@ def _progress(args):
 
 
 def _cmd_render(args) -> int:
-    from .image import write_npz, write_png
+    """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
+    from .image import npz_writer, png_writer
+    from .outputs import Outputs
     from .pipeline import render
     from .settings import RenderOptions
 
     out = _check_output(args.output, ".png")
     aov = _check_output(args.aov, ".npz") if args.aov else None
     scene = _load_input(args)
+    _refuse_overwriting([out] + ([aov] if aov else []), scene)
     options = RenderOptions.resolve(scene, method=args.method, map=args.map_mode, width=args.width,
                                     height=args.height, spp=args.spp)
     _say_if_compiling()
     progress = _progress(args)
     try:
-        if progress:
-            progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
-        result = render(scene, options, progress=progress)
-        clock = time.perf_counter()
-        written = []
-        try:
-            write_png(out, result.pixels)
-            written.append(out)
+        with Outputs() as outputs:
+            if progress:
+                progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
+            result = render(scene, options, progress=progress)
+            clock = time.perf_counter()
+            outputs.write(out, png_writer(result.pixels))
             if aov:
-                write_npz(aov, result.aovs())
-                written.append(aov)
-        except BaseException:
-            for path in written:
-                path.unlink(missing_ok=True)
-            raise
+                outputs.write(aov, npz_writer(result.aovs()))
+            result.stats["seconds"]["write"] = time.perf_counter() - clock
+            if args.stats:
+                _print_stdout(json.dumps(result.stats, indent=2))
+            outputs.commit()
     except BaseException:
         if progress:
             progress.clear()  # the error message gets a clean line
         raise
-    result.stats["seconds"]["write"] = time.perf_counter() - clock
     if progress:
         progress.finish(f"rendered {out}{f' (AOVs: {aov})' if aov else ''} {options.width}x{options.height}, "
                         f"{options.spp} spp, {options.method}, {progress.elapsed():.1f} s")
-    if args.stats:
-        print(json.dumps(result.stats, indent=2))
     return 0
 
 
@@ -176,6 +208,7 @@ def _cmd_map(args) -> int:
 
     out = _check_output(args.output, ".png")
     scene = _load_input(args)
+    _refuse_overwriting([out], scene)
     width, height = args.width or scene.film.width, args.height or scene.film.height
     prelim = render_map(Geometry(scene).patches, scene.camera, width, height, args.map_mode or scene.render.map)
     write_png(out, prelim.picture)
@@ -303,14 +336,19 @@ def main(argv=None) -> int:
     except InputError as exc:
         print(f"bsrt: error: {exc}", file=sys.stderr)
         return 2
+    except OutputError as exc:
+        print(f"bsrt: error: {exc}", file=sys.stderr)
+        return 1
     except RenderError as exc:
         print(f"bsrt: render failed: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("bsrt: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        message, code = interrupts.describe(exc)
+        print(message, file=sys.stderr)
+        return code
     except MemoryError:
-        print("bsrt: render failed: out of memory (try a smaller --width/--height)", file=sys.stderr)
+        print("bsrt: render failed: out of memory (a smaller film, fewer samples per pixel or a simpler model "
+              "needs less)", file=sys.stderr)
         return 1
     except Exception as exc:  # a bug: still one line, the traceback on request
         if os.environ.get("BSRT_DEBUG"):
@@ -320,4 +358,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from .__main__ import main as program
+
+    sys.exit(program())

@@ -13,3 +13,7 @@ class InputError(Exception):
 
 class RenderError(Exception):
     """Valid input that could not be rendered (e.g. no OpenGL context)."""
+
+
+class OutputError(Exception):
+    """An output file could not be written; the message names the user's path and the OS's reason."""

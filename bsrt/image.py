@@ -1,17 +1,15 @@
 """Writing results: sRGB-encoded 8-bit PNG and AOV archives, atomically.
 
-Files are written to a temporary name in the target folder and renamed into
-place, so a failure never leaves a half-written output behind.
+Each file is written all or nothing (bsrt/outputs.py): a failure never
+leaves a half-written output behind.
 """
 
 from __future__ import annotations
 
-import os
-import secrets
-from pathlib import Path
-
 import numpy as np
 from PIL import Image
+
+from .outputs import write_file
 
 
 def srgb_encode(linear: np.ndarray) -> np.ndarray:
@@ -21,35 +19,26 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
     return np.rint(s * 255.0).astype(np.uint8)
 
 
-def _atomic_write(path: Path, write) -> None:
-    path = Path(path)
-    # Created with mode 0o666 less the umask, like any new file (mkstemp's 0o600 would stick).
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+def png_writer(pixels: np.ndarray):
+    """pixels: (H, W, 3) uint8 -> a function writing them as PNG to a binary file."""
+    return lambda f: Image.fromarray(pixels, "RGB").save(f, format="PNG")
+
+
+def npz_writer(arrays: dict):
+    """Named arrays -> a function writing a compressed .npz to a binary file."""
+    return lambda f: np.savez_compressed(f, **arrays)
 
 
 def write_png(path, pixels: np.ndarray) -> None:
-    """pixels: (H, W, 3) uint8 -> PNG at path."""
-    _atomic_write(path, lambda tmp: Image.fromarray(pixels, "RGB").save(tmp, format="PNG"))
+    """pixels: (H, W, 3) uint8 -> PNG at path, all or nothing."""
+    write_file(path, png_writer(pixels))
 
 
 def write_text(path, text: str) -> None:
-    """UTF-8 text (e.g. JSON results) at path."""
-    _atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    """UTF-8 text (e.g. JSON results) at path, all or nothing."""
+    write_file(path, lambda f: f.write(text.encode("utf-8")))
 
 
 def write_npz(path, arrays: dict) -> None:
-    """Arrays -> compressed .npz at path (the name is kept exactly)."""
-
-    def write(tmp):
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
-
-    _atomic_write(path, write)
+    """Arrays -> compressed .npz at path (the name is kept exactly), all or nothing."""
+    write_file(path, npz_writer(arrays))

@@ -9,11 +9,11 @@ framed by ``scene_for_model`` with the automatic camera and lights.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
+from .files import check_input_file
 
 
 @dataclass(frozen=True)
@@ -47,13 +47,11 @@ def load_input(path, format: str = "auto", *, width: int | None = None, height: 
 
     if camera.fov is not None and not 0.0 < camera.fov < 180.0:
         raise InputError(f"--fov: must be between 0 and 180 degrees, got {camera.fov:g}")
-    path = Path(path)
+    path = check_input_file(path, "scene or model file")
     if path.suffix.lower() == ".toml":
         return _override_camera(load_scene(path), camera)
     from .io import load_model
 
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
     model = load_model(path, format)
     return scene_for_model(model, width or 512, height or 512, camera.eye, camera.look_at, camera.fov,
                            camera.up or (0.0, 0.0, 1.0))

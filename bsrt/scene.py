@@ -18,6 +18,7 @@ import numpy as np
 from .bspline import BSplineSurface, make_surface
 from .camera import Camera
 from .errors import InputError
+from .files import check_input_file
 from .settings import MAP_MODES, METHODS
 from .trim import TrimLoop, make_trim_curve
 
@@ -81,6 +82,7 @@ class Scene:
     surfaces: tuple[SceneSurface, ...]
     path: str = "<scene>"
     notes: tuple[str, ...] = field(default=())  # warnings from imports
+    inputs: tuple[str, ...] = field(default=())  # the files read: the scene file, then its imports
 
 
 DEFAULT_MATERIAL = Material("default")
@@ -170,7 +172,7 @@ def _show(value) -> str:
 
 def load_scene(path: str | Path) -> Scene:
     """Read and validate a scene file (see the README for the format)."""
-    path = Path(path)
+    path = check_input_file(path, "scene file")
     where = path.name
     try:
         text = path.read_bytes().decode("utf-8")
@@ -187,7 +189,8 @@ def load_scene(path: str | Path) -> Scene:
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{where}: invalid TOML: {exc}") from None
     order = re.findall(r"(?m)^[ \t]*\[\[[ \t]*(surface|import)[ \t]*\]\]", text)
-    return parse_scene(data, where, path.parent, order)
+    scene = parse_scene(data, where, path.parent, order)
+    return replace(scene, inputs=(str(path),) + scene.inputs)
 
 
 def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, order=None) -> Scene:
@@ -270,11 +273,12 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         t.finish()
         lights.append(light)
 
-    surfaces, notes = [], []
+    surfaces, notes, inputs = [], [], []
     for kind, i, raw in _surface_entries(data, order):
         if kind == "import":
             t = _Table(where, raw, f"import[{i}]")
             model = _load_import(t, folder)
+            inputs.append(str(model.path))
             material = _material_for(t, materials, by_name)
             colored = None if t.has("material") or t.has("color") else _colour_materials(
                 model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
@@ -306,7 +310,8 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
-    return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes))
+    return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes),
+                 tuple(inputs))
 
 
 def _trimmed(t: _Table, geometry):
@@ -344,8 +349,12 @@ def _load_import(t: _Table, folder: Path | None):
     file = t.string("file", required=True)
     fmt = t.string("format", "auto", choices=("auto", "occt") + tuple(sorted(set(FORMATS.values()))))
     path = Path(file) if folder is None or Path(file).is_absolute() else folder / file
-    if not path.is_file():
+    if not path.exists():
         t.fail("file", f"no such file: {path}")
+    try:
+        check_input_file(path, "model file")
+    except InputError as exc:
+        t.fail("file", str(exc))
     return load_model(path, fmt)
 
 
@@ -521,4 +530,5 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
         surfaces,
         str(model.path),
         notes,
+        (str(model.path),),
     )

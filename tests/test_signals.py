@@ -1,0 +1,72 @@
+"""Signals at random moments of a render with an image and AOVs: one line,
+exit 128 + signal, and the outputs all or nothing (SIGKILL: at most the
+documented temporary name ``.bsrt-<pid>-<hex>.tmp``)."""
+
+from __future__ import annotations
+
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+COMMAND = [sys.executable, "-m", "bsrt", "render", str(ROOT / "scenes" / "column.toml"), "-o", "out.png",
+           "--aov", "out.npz", "--width", "160", "--height", "160"]
+TEMPORARY = re.compile(r"\.bsrt-\d+-[0-9a-f]{8}\.tmp")
+RENDERS = 20
+
+
+@pytest.fixture(scope="module")
+def whole_run_seconds(tmp_path_factory):
+    """How long one uninterrupted run takes here (kernels already compiled by then)."""
+    folder = tmp_path_factory.mktemp("whole")
+    subprocess.run(COMMAND, cwd=folder, check=True, capture_output=True, timeout=600)  # warm the caches
+    clock = time.perf_counter()
+    subprocess.run(COMMAND, cwd=folder, check=True, capture_output=True, timeout=600)
+    return time.perf_counter() - clock
+
+
+def _run_and_signal(folder: Path, signum: int, delay: float):
+    proc = subprocess.Popen(COMMAND, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(delay)
+    proc.send_signal(signum)
+    out, err = proc.communicate(timeout=600)
+    return proc.returncode, err, sorted(os.listdir(folder))
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
+def test_a_signal_at_any_moment_leaves_all_outputs_or_none(tmp_path, whole_run_seconds, signum):
+    rng = random.Random(signum)
+    interrupted = 0
+    for i in range(RENDERS if signum == signal.SIGTERM else RENDERS // 4):
+        folder = tmp_path / str(i)
+        folder.mkdir()
+        delay = rng.uniform(0.05, whole_run_seconds * 1.05)
+        code, err, left = _run_and_signal(folder, signum, delay)
+        where = f"signal {signum.name} after {delay:.3f} s"
+        if code == 0:  # the render was over before the signal came
+            assert left == ["out.npz", "out.png"], where
+            continue
+        interrupted += 1
+        assert code == 128 + signum, f"{where}: exit {code}, {err!r}"
+        assert err.splitlines() == [f"bsrt: interrupted ({signum.name})"], where
+        assert left in ([], ["out.npz", "out.png"]), f"{where}: left {left}"
+    assert interrupted >= (RENDERS if signum == signal.SIGTERM else RENDERS // 4) // 2
+
+
+def test_sigkill_at_any_moment_leaves_no_lone_output(tmp_path, whole_run_seconds):
+    rng = random.Random(9)
+    for i in range(RENDERS):
+        folder = tmp_path / str(i)
+        folder.mkdir()
+        delay = rng.uniform(0.05, whole_run_seconds * 1.05)
+        code, err, left = _run_and_signal(folder, signal.SIGKILL, delay)
+        outputs = [name for name in left if not TEMPORARY.fullmatch(name)]
+        assert outputs in ([], ["out.npz", "out.png"]), f"SIGKILL after {delay:.3f} s: left {left}"
+        assert len(left) - len(outputs) <= 2
