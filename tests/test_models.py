@@ -8,6 +8,7 @@ from PIL import Image
 
 from bsrt.bspline import make_surface
 from bsrt.cli import main
+from bsrt.errors import InputError
 from bsrt.io import Model, load_model
 from bsrt.io.bez import newell_from_qt3d
 from bsrt.pipeline import render
@@ -200,9 +201,8 @@ def test_import_errors_name_the_table(tmp_path):
     assert main(["render", str(path), "-o", str(tmp_path / "x.png")]) == 2
     path.write_text('[camera]\neye = [0, -5, 0]\nlook_at = [0, 0, 0]\n[[import]]\nfile = "a.g2"\nscale = 2\n')
     (tmp_path / "a.g2").write_text((DATA / "nurbs/splipy/sphere.g2").read_text())
-    with pytest.raises(Exception) as err:
+    with pytest.raises(InputError, match=r"^bad\.toml: import\[0\]\.scale: unknown key"):
         load_scene(path)
-    assert "bad.toml: import[0].scale: unknown key" in str(err.value)
 
 
 def test_info_command(capsys):

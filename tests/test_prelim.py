@@ -75,7 +75,10 @@ def test_depth_test_keeps_the_nearer_surface(ctx):
     cam = Camera(np.array([0.0, -4.0, 0.0]), np.zeros(3), np.array([0.0, 0.0, 1.0]), 40.0)
     prelim = render_map(ps, cam, 64, 64, "float", ctx=ctx)
     assert prelim.surface[32, 32] == 1
-    assert prelim.surface[32, 5] in (0, -1)
+    # row 32 looks along z = 0; column 5 at x = -1.51 on the far plane (outside both squares),
+    # column 15 at x = -0.94 on the far plane and -0.56 on the near one (outside it)
+    assert prelim.surface[32, 5] == -1
+    assert prelim.surface[32, 15] == 0
     ids = set(np.unique(prelim.surface).tolist())
     assert ids == {-1, 0, 1}
 

@@ -121,7 +121,8 @@ def test_methods_agree_on_every_pixel(ctx, name):
         np.testing.assert_array_equal(hits.hit, ref.hit, err_msg=method)
         np.testing.assert_array_equal(hits.surface, ref.surface, err_msg=method)
         np.testing.assert_allclose(hits.t[ref.hit], ref.t[ref.hit], atol=tol, err_msg=method)
-        assert "non_converged" in res.stats
+        # a seed the root finder could not follow to a root is re-solved as a hard pixel
+        assert res.stats["non_converged"] <= res.stats["suspect"], method
 
 
 def test_aovs_follow_the_scene_format(ctx):
@@ -136,7 +137,7 @@ def test_aovs_follow_the_scene_format(ctx):
         assert aov[key].dtype == dtype, key
         assert aov[key].shape == shape, key
     hit = aov["hit"]
-    assert hit.any() and (~hit).any()
+    assert hit.sum() == 44 * 44  # pixel centres 10..53 of 64 see |x|, |z| <= 1 (0.25 / tan 20 deg of the half-film)
     assert np.all(aov["surface"][~hit] == -1) and np.all(aov["surface"][hit] == 0)
     for key in ("t", "u", "v", "residual"):
         assert np.all(np.isnan(aov[key][~hit])) and np.all(np.isfinite(aov[key][hit])), key
