@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import validate
 from .bspline import BSplineSurface, make_surface
 from .camera import Camera
 from .errors import InputError
@@ -114,21 +115,23 @@ class _Table:
             return None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(key, f"expected a number, got {_show(value)}")
-        value = float(value)
+        value = float(value) if isinstance(value, float) or abs(value) < 1e300 else math.inf
         if not math.isfinite(value):
-            self.fail(key, f"expected a finite number, got {value}")
+            self.fail(key, f"expected a finite number, got {_show(value)}")
         if lo is not None and (value < lo or (lo_open and value == lo)):
             self.fail(key, f"must be {'>' if lo_open else '>='} {lo:g}, got {value:g}")
         if hi is not None and (value > hi or (hi_open and value == hi)):
             self.fail(key, f"must be {'<' if hi_open else '<='} {hi:g}, got {value:g}")
         return value
 
-    def integer(self, key: str, default=None, lo=None, required=False):
+    def integer(self, key: str, default=None, lo=None, required=False, hi=None):
         value = self.raw(key, default, required)
         if isinstance(value, bool) or not isinstance(value, int):
             self.fail(key, f"expected a whole number, got {_show(value)}")
         if lo is not None and value < lo:
             self.fail(key, f"must be >= {lo}, got {value}")
+        if hi is not None and value > hi:
+            self.fail(key, f"must be at most {hi} (see the README's Limits), got {_show(value)}")
         return value
 
     def string(self, key: str, default=None, choices=None, required=False):
@@ -141,7 +144,7 @@ class _Table:
             self.fail(key, f"expected one of {', '.join(repr(c) for c in choices)}, got {value!r}")
         return value
 
-    def vector(self, key: str, default=None, length=3, required=False, lo=None):
+    def vector(self, key: str, default=None, length=3, required=False, lo=None, limit=validate.MAX_COORDINATE):
         value = self.raw(key, default, required)
         if value is None:
             return None
@@ -155,6 +158,8 @@ class _Table:
             self.fail(key, "values must be finite numbers")
         if lo is not None and any(x < lo for x in value):
             self.fail(key, f"values must be >= {lo:g}")
+        if limit is not None and any(abs(x) > limit for x in value):
+            self.fail(key, f"values must lie within +-{limit:g} (see the README's Limits)")
         return tuple(float(x) for x in value)
 
     def finish(self):
@@ -173,7 +178,7 @@ def load_scene(path: str | Path) -> Scene:
     path = Path(path)
     where = path.name
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = path.read_bytes().decode("utf-8-sig")  # a byte-order mark is accepted, as in model files
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
     except IsADirectoryError:
@@ -186,6 +191,8 @@ def load_scene(path: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{where}: invalid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{where}: invalid TOML: arrays or tables nested too deeply") from None
     order = re.findall(r"(?m)^[ \t]*\[\[[ \t]*(surface|import)[ \t]*\]\]", text)
     return parse_scene(data, where, path.parent, order)
 
@@ -204,8 +211,8 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
 
     film_t = _Table(where, data.get("film", {}), "film")
     film = Film(
-        width=film_t.integer("width", 512, lo=1),
-        height=film_t.integer("height", 512, lo=1),
+        width=film_t.integer("width", 512, lo=1, hi=validate.MAX_FILM_SIDE),
+        height=film_t.integer("height", 512, lo=1, hi=validate.MAX_FILM_SIDE),
         background=film_t.vector("background", (0.0, 0.0, 0.0), lo=0.0),
     )
     film_t.finish()
@@ -216,24 +223,23 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     eye = np.array(cam_t.vector("eye", required=True))
     look_at = np.array(cam_t.vector("look_at", required=True))
     up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
-    fov = cam_t.number("fov", 40.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    fov = cam_t.number("fov", 40.0, lo=validate.MIN_FOV, hi=validate.MAX_FOV)
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
     cam_t.finish()
-    view = look_at - eye
-    if np.linalg.norm(view) == 0:
-        cam_t.fail("look_at", "must differ from eye")
-    if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / np.linalg.norm(view), up / np.linalg.norm(up))) < 1e-9:
-        cam_t.fail("up", "must not be parallel to the view direction (look_at - eye)")
     camera = Camera(eye, look_at, up, fov, fov_axis)
+    try:
+        validate.camera(camera)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
     ren_t = _Table(where, data.get("render", {}), "render")
     render = RenderSettings(
         method=ren_t.string("method", "newton", choices=METHODS),
         map=ren_t.string("map", "float", choices=MAP_MODES),
         tolerance=ren_t.number("tolerance", 1e-9, lo=0.0, lo_open=True, hi=1.0),
-        max_iterations=ren_t.integer("max_iterations", 64, lo=1),
-        spp=ren_t.integer("spp", 1, lo=1),
-        max_depth=ren_t.integer("max_depth", 3, lo=0),
+        max_iterations=ren_t.integer("max_iterations", 64, lo=1, hi=validate.MAX_ITERATIONS),
+        spp=ren_t.integer("spp", 1, lo=1, hi=validate.MAX_SPP),
+        max_depth=ren_t.integer("max_depth", 3, lo=0, hi=validate.MAX_DEPTH),
     )
     ren_t.finish()
 
@@ -271,7 +277,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         lights.append(light)
 
     surfaces, notes = [], []
-    for kind, i, raw in _surface_entries(data, order):
+    for kind, i, raw in _surface_entries(where, data, order):
         if kind == "import":
             t = _Table(where, raw, f"import[{i}]")
             model = _load_import(t, folder)
@@ -283,30 +289,49 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             notes += [f"{model.path}: {w}" for w in model.warnings] + _skipped_notes(model)
             for k, (geometry, name) in enumerate(zip(model.surfaces, model.names)):
                 mat = material if colored is None or colored[k] is None else colored[k]
-                surfaces.append(SceneSurface(geometry if matrix is None else geometry.transformed(matrix), mat, name))
+                if matrix is not None:
+                    geometry = _within_limits(t, "transform", geometry.transformed(matrix), name)
+                surfaces.append(SceneSurface(geometry, mat, name))
             continue
         t = _Table(where, raw, f"surface[{i}]")
         name = t.string("name", f"surface-{i}")
         material = _material_for(t, materials, by_name)
         try:
-            geometry = make_surface(
-                t.raw("degree", required=True),
-                t.raw("knots_u", required=True),
-                t.raw("knots_v", required=True),
-                t.raw("points", required=True),
-                t.raw("weights"),
-            )
+            geometry = make_surface(*_surface_arrays(t))
+            validate.surface(geometry)
         except InputError as exc:
             raise InputError(f"{where}: surface[{i}].{exc}") from None
         if t.has("trim"):
             geometry = _trimmed(t, geometry)
         if t.has("transform"):
-            geometry = geometry.transformed(_transform(t, "transform"))
+            geometry = _within_limits(t, "transform", geometry.transformed(_transform(t, "transform")), name)
         t.finish()
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
     return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes))
+
+
+def _surface_arrays(t: _Table) -> tuple:
+    """(degree, knots_u, knots_v, points, weights) of a [[surface]], each checked for type
+    (whole numbers for the degrees, numbers elsewhere: no booleans, no strings) and finiteness."""
+    degree = t.raw("degree", required=True)
+    if not isinstance(degree, list) or len(degree) != 2:
+        raise InputError(f"degree: expected two whole numbers [p, q], got {_show(degree)}")
+    degree = [validate.whole("degree", d, 1, validate.MAX_DEGREE) for d in degree]
+    arrays = [validate.numbers(key, t.raw(key, required=True), validate.MAX_COORDINATE)
+              for key in ("knots_u", "knots_v", "points")]
+    weights = t.raw("weights")
+    return (degree, *arrays, None if weights is None else validate.numbers("weights", weights))
+
+
+def _within_limits(t: _Table, key: str, geometry, name: str):
+    """A transformed surface whose coordinates stay within the limits."""
+    try:
+        validate.surface(geometry)
+    except InputError as exc:
+        t.fail(key, f"moves surface {name!r} out of range: {exc}")
+    return geometry
 
 
 def _trimmed(t: _Table, geometry):
@@ -344,7 +369,11 @@ def _load_import(t: _Table, folder: Path | None):
     file = t.string("file", required=True)
     fmt = t.string("format", "auto", choices=("auto", "occt") + tuple(sorted(set(FORMATS.values()))))
     path = Path(file) if folder is None or Path(file).is_absolute() else folder / file
-    if not path.is_file():
+    try:
+        found = path.is_file()
+    except (OSError, ValueError) as exc:  # a name over 255 bytes, a NUL character
+        t.fail("file", f"cannot open {_show(str(path))}: {getattr(exc, 'strerror', None) or exc}")
+    if not found:
         t.fail("file", f"no such file: {path}")
     return load_model(path, fmt)
 
@@ -383,9 +412,9 @@ def _array_of_tables(where: str, data: dict, key: str) -> list:
     return value
 
 
-def _surface_entries(data: dict, order):
+def _surface_entries(where: str, data: dict, order):
     """(kind, index within its kind, table) for [[surface]] and [[import]] in file order."""
-    tables = {key: _array_of_tables("", data, key) for key in ("surface", "import")}
+    tables = {key: _array_of_tables(where, data, key) for key in ("surface", "import")}
     if order is None or [order.count(k) for k in tables] != [len(v) for v in tables.values()]:
         order = ["surface"] * len(tables["surface"]) + ["import"] * len(tables["import"])
     seen = {"surface": 0, "import": 0}
@@ -423,6 +452,8 @@ def _transform(parent: _Table, key: str) -> np.ndarray:
         scale = np.full(3, t.number("scale", 1.0))
     if np.any(scale == 0):
         t.fail("scale", "must not be zero")
+    if np.any(np.abs(scale) > validate.MAX_COORDINATE) or np.any(np.abs(scale) < 1.0 / validate.MAX_COORDINATE):
+        t.fail("scale", f"each factor's size must lie within 1e-15 .. 1e15 (see the README's Limits), got {scale_raw}")
     rot = t.vector("rotate", (0.0, 0.0, 1.0, 0.0), length=4)
     translate = np.array(t.vector("translate", (0.0, 0.0, 0.0)))
     t.finish()
@@ -482,6 +513,8 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     directional fill and a little ambient light; one neutral material.
     eye / look_at / fov override the automatic choice.
     """
+    if fov is not None:
+        validate.real("fov", fov, validate.MIN_FOV, validate.MAX_FOV)
     lo, hi = model_box(model.surfaces)
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)
