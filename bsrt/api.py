@@ -303,7 +303,7 @@ def load(
     vectors = {k: _override_vector(k, v) for k, v in
                (("camera_eye", camera_eye), ("camera_look_at", camera_look_at), ("camera_up", camera_up))}
     if fov is not None:
-        fov = validate.real("fov", fov, validate.MIN_FOV, validate.MAX_FOV)
+        fov = validate.fov(fov)
     settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
                                  max_iterations=max_iterations, max_depth=max_depth)
     if not isinstance(format, str):
@@ -364,7 +364,7 @@ def _render_overrides(**values) -> dict:
         if key in _WHOLE_LIMITS:
             out[key] = validate.whole(key, value, 0 if key == "max_depth" else 1, _WHOLE_LIMITS[key])
         elif key == "tolerance":
-            out[key] = validate.real("tolerance", value, 0.0, 1.0, lo_open=True)
+            out[key] = validate.real("tolerance", value, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
         else:
             choices = METHODS if key == "method" else MAP_MODES
             if value not in choices:

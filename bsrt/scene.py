@@ -109,7 +109,8 @@ class _Table:
             return default
         return self.data[key]
 
-    def number(self, key: str, default=None, lo=None, hi=None, lo_open=False, hi_open=False, required=False):
+    def number(self, key: str, default=None, lo=None, hi=None, lo_open=False, hi_open=False, required=False,
+               limit=validate.MAX_COORDINATE):
         value = self.raw(key, default, required)
         if value is None:
             return None
@@ -122,6 +123,8 @@ class _Table:
             self.fail(key, f"must be {'>' if lo_open else '>='} {lo:g}, got {value:g}")
         if hi is not None and (value > hi or (hi_open and value == hi)):
             self.fail(key, f"must be {'<' if hi_open else '<='} {hi:g}, got {value:g}")
+        if limit is not None and abs(value) > limit:
+            self.fail(key, f"must lie within +-{limit:g} (see the README's Limits), got {value:g}")
         return value
 
     def integer(self, key: str, default=None, lo=None, required=False, hi=None):
@@ -223,7 +226,9 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     eye = np.array(cam_t.vector("eye", required=True))
     look_at = np.array(cam_t.vector("look_at", required=True))
     up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
-    fov = cam_t.number("fov", 40.0, lo=validate.MIN_FOV, hi=validate.MAX_FOV)
+    fov = cam_t.number("fov", 40.0, lo=0.0, hi=validate.MAX_FOV, lo_open=True, hi_open=True)
+    if fov < validate.MIN_FOV:
+        cam_t.fail("fov", f"must be at least {validate.MIN_FOV:g} degrees (see the README's Limits), got {fov:g}")
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
     cam_t.finish()
     camera = Camera(eye, look_at, up, fov, fov_axis)
@@ -316,13 +321,14 @@ def _surface_arrays(t: _Table) -> tuple:
     """(degree, knots_u, knots_v, points, weights) of a [[surface]], each checked for type
     (whole numbers for the degrees, numbers elsewhere: no booleans, no strings) and finiteness."""
     degree = t.raw("degree", required=True)
-    if not isinstance(degree, list) or len(degree) != 2:
+    if not isinstance(degree, list) or len(degree) != 2 or any(isinstance(d, bool) or not isinstance(d, int)
+                                                               for d in degree):
         raise InputError(f"degree: expected two whole numbers [p, q], got {_show(degree)}")
-    degree = [validate.whole("degree", d, 1, validate.MAX_DEGREE) for d in degree]
-    arrays = [validate.numbers(key, t.raw(key, required=True), validate.MAX_COORDINATE)
-              for key in ("knots_u", "knots_v", "points")]
+    if max(degree) > validate.MAX_DEGREE:
+        raise InputError(f"degree: at most {validate.MAX_DEGREE} (see the README's Limits), got {_show(degree)}")
+    arrays = [validate.numbers(key, t.raw(key, required=True), check=False) for key in ("knots_u", "knots_v", "points")]
     weights = t.raw("weights")
-    return (degree, *arrays, None if weights is None else validate.numbers("weights", weights))
+    return (degree, *arrays, None if weights is None else validate.numbers("weights", weights, check=False))
 
 
 def _within_limits(t: _Table, key: str, geometry, name: str):
@@ -514,7 +520,7 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     eye / look_at / fov override the automatic choice.
     """
     if fov is not None:
-        validate.real("fov", fov, validate.MIN_FOV, validate.MAX_FOV)
+        validate.fov(fov)
     lo, hi = model_box(model.surfaces)
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)

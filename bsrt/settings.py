@@ -73,7 +73,7 @@ class RenderOptions:
         validate.whole("spp", self.spp, 1, validate.MAX_SPP)
         validate.whole("max_iterations", self.max_iterations, 1, validate.MAX_ITERATIONS)
         validate.whole("max_depth", self.max_depth, 0, validate.MAX_DEPTH)
-        validate.real("tolerance", self.tolerance, 0.0, 1.0, lo_open=True)
+        validate.real("tolerance", self.tolerance, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
         validate.camera(self.camera)
         validate.film(self.width, self.height, self.spp)
         validate.environment()
@@ -83,6 +83,10 @@ class RenderOptions:
         """A tolerance float64 can resolve at the scene's size, seen from the camera (never silently
         degraded): else an InputError naming the key and the smallest usable value."""
         smallest = validate.smallest_tolerance([s.geometry for s in scene.surfaces], self.camera.eye)
+        if smallest > 1.0:
+            raise InputError(f"{scene.path}: camera.eye: float64 cannot resolve this scene from so far away (or so far "
+                             f"from the origin): even tolerance = 1 is below what it resolves; bring the eye and "
+                             f"the scene nearer each other and the origin")
         if self.tolerance < smallest:
             raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves "
                              f"at this scene's size and distance; the smallest usable value is {smallest:.2g}")

@@ -25,42 +25,40 @@ MAX_ITERATIONS = 10_000  # root finders converge in tens of steps
 MAX_DEPTH = 16  # mirror bounces
 MAX_FILM_SIDE = 65_536  # pixels along a side
 BYTES_PER_PIXEL = 120  # peak memory of a render per film pixel (4096 x 4096 peaks at 1.98 GB)
-MIN_FOV, MAX_FOV = 1e-3, 179.0  # degrees
+MIN_FOV, MAX_FOV = 1e-3, 180.0  # degrees, the upper end open
 FLOAT_STEPS = 64  # a tolerance must span this many float64 steps (eps) of the scene's coordinates
 
 
 def whole(key: str, value, lo: int, hi: int) -> int:
     """``value`` as an int in [lo, hi]; booleans, floats and strings refused."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{key}: expected a whole number, got {show(value)}")
-    value = int(value)
-    if value < lo:
-        raise InputError(f"{key}: must be >= {lo}, got {value}")
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise InputError(f"{key}: expected a whole number >= {lo}, got {show(value)}")
     if value > hi:
         raise InputError(f"{key}: must be at most {hi} (see the README's Limits), got {show(value)}")
-    return value
+    return int(value)
 
 
-def real(key: str, value, lo: float | None = None, hi: float | None = None, lo_open=False) -> float:
-    """``value`` as a finite float in [lo, hi] ((lo, hi] with lo_open)."""
+def real(key: str, value, lo: float | None = None, hi: float | None = None, lo_open=False, hi_open=False,
+         expected: str | None = None) -> float:
+    """``value`` as a finite float in [lo, hi] (open ends with lo_open / hi_open); ``expected``
+    replaces the message's own description of the range ("a number in (0, 1]")."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise InputError(f"{key}: expected a number, got {show(value)}")
-    try:
-        number = float(value)
-    except OverflowError:
-        number = math.inf
+        raise InputError(f"{key}: expected {expected or 'a number'}, got {show(value)}")
+    number = float(value) if abs(value) < 1e300 or isinstance(value, (float, np.floating)) else math.inf
     if not math.isfinite(number):
-        raise InputError(f"{key}: expected a finite number, got {show(value)}")
+        raise InputError(f"{key}: expected {expected or 'a finite number'}, got {show(value)}")
     if lo is not None and (number < lo or (lo_open and number == lo)):
-        raise InputError(f"{key}: must be {'>' if lo_open else '>='} {lo:g}, got {number:g}")
-    if hi is not None and number > hi:
-        raise InputError(f"{key}: must be <= {hi:g}, got {number:g}")
+        raise InputError(f"{key}: expected {expected}, got {show(value)}" if expected else
+                         f"{key}: must be {'>' if lo_open else '>='} {lo:g}, got {number:g}")
+    if hi is not None and (number > hi or (hi_open and number == hi)):
+        raise InputError(f"{key}: expected {expected}, got {show(value)}" if expected else
+                         f"{key}: must be {'<' if hi_open else '<='} {hi:g}, got {number:g}")
     return number
 
 
-def numbers(key: str, values, limit: float | None = None) -> np.ndarray:
+def numbers(key: str, values, limit: float | None = None, check=True) -> np.ndarray:
     """float64 array of nested lists of numbers: booleans, strings and other
-    objects refused, every value finite and (with ``limit``) |value| <= limit."""
+    objects refused; with ``check``, every value finite and (with ``limit``) |value| <= limit."""
     if isinstance(values, np.ndarray):
         if values.dtype == bool or not (np.issubdtype(values.dtype, np.number)):
             raise InputError(f"{key}: expected numbers, got an array of {values.dtype}")
@@ -71,7 +69,8 @@ def numbers(key: str, values, limit: float | None = None) -> np.ndarray:
             array = np.array(values, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
         raise InputError(f"{key}: expected a regular grid of numbers (every row the same length)") from None
-    finite(key, array, limit)
+    if check:
+        finite(key, array, limit)
     return array
 
 
@@ -126,14 +125,27 @@ def camera(cam) -> None:
     within the coordinate limit, fov in [MIN_FOV, MAX_FOV], up not along the view."""
     for key in ("eye", "look_at", "up"):
         finite(f"camera.{key}", np.asarray(getattr(cam, key), dtype=np.float64), MAX_COORDINATE)
-    real("camera.fov", cam.fov, MIN_FOV, MAX_FOV)
+    fov(cam.fov, "camera.fov")
     view = np.asarray(cam.look_at, float) - np.asarray(cam.eye, float)
     size = np.linalg.norm(view)
     if size == 0 or size < 1e-12 * max(np.abs(cam.eye).max(), np.abs(cam.look_at).max()):
         raise InputError("camera.look_at: must differ from eye (by more than float64 resolves)")
     up = np.asarray(cam.up, float)
-    if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / size, up / np.linalg.norm(up))) < 1e-9:
-        raise InputError("camera.up: must not be zero or parallel to the view direction (look_at - eye)")
+    if np.linalg.norm(up) == 0:
+        raise InputError("camera.up: must not be the zero vector")
+    if np.linalg.norm(np.cross(view / size, up / np.linalg.norm(up))) < 1e-9:
+        raise InputError("camera.up: must not be parallel to the view direction (look_at - eye)")
+
+
+def fov(value, key: str = "fov") -> float:
+    """A field of view in degrees: a number in [MIN_FOV, 180)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not 0.0 < float(value) < MAX_FOV:
+        raise InputError(f"{key}: must be between 0 and 180 degrees, got {show(value)}")
+    value = float(value)
+    if value < MIN_FOV:
+        raise InputError(f"{key}: must be at least {MIN_FOV:g} degrees (see the README's Limits), got {value:g}")
+    return value
 
 
 def film(width: int, height: int, spp: int) -> None:
@@ -155,14 +167,15 @@ def physical_memory() -> int:
 
 def smallest_tolerance(surfaces, eye) -> float:
     """The smallest [render].tolerance float64 resolves for these surfaces seen from eye:
-    FLOAT_STEPS steps (eps) of the largest coordinate, as a fraction of the scene's diagonal."""
+    FLOAT_STEPS steps (eps) of the largest coordinate, as a fraction of the scene's diagonal
+    (above 1: no tolerance is usable)."""
     lo = np.min([s.points.reshape(-1, 3).min(axis=0) for s in surfaces], axis=0)
     hi = np.max([s.points.reshape(-1, 3).max(axis=0) for s in surfaces], axis=0)
     diagonal = float(np.linalg.norm(hi - lo))
     reach = max(float(np.abs(lo).max()), float(np.abs(hi).max()), float(np.abs(np.asarray(eye)).max()))
     if diagonal == 0:
         return 1.0
-    return min(1.0, FLOAT_STEPS * np.finfo(np.float64).eps * reach / diagonal)
+    return FLOAT_STEPS * np.finfo(np.float64).eps * reach / diagonal
 
 
 def environment() -> None:
