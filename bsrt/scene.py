@@ -520,7 +520,7 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     eye / look_at / fov override the automatic choice.
     """
     if fov is not None:
-        validate.fov(fov)
+        validate.fov(fov, "--fov")
     lo, hi = model_box(model.surfaces)
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)
