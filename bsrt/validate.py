@@ -141,7 +141,8 @@ def fov(value, key: str = "fov") -> float:
     """A field of view in degrees: a number in [MIN_FOV, 180)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not 0.0 < float(value) < MAX_FOV:
-        raise InputError(f"{key}: must be between 0 and 180 degrees, got {show(value)}")
+        shown = show(value) if isinstance(value, bool) or not isinstance(value, (int, float)) else f"{value:g}"
+        raise InputError(f"{key}: must be between 0 and 180 degrees, got {shown}")
     value = float(value)
     if value < MIN_FOV:
         raise InputError(f"{key}: must be at least {MIN_FOV:g} degrees (see the README's Limits), got {value:g}")

@@ -329,3 +329,12 @@ def test_api_tolerance_below_float64_is_refused_at_render():
     quad = bsrt.load(ROOT / "scenes" / "quad.toml")
     with pytest.raises(InputError, match=r"^quad.toml: render.tolerance: 1e-17 is below .* is 2e-14$"):
         bsrt.render(quad, width=8, height=8, tolerance=1e-17)
+
+
+def test_map_command_checks_camera_overrides_too(tmp_path):
+    """`bsrt map` does not go through the render options: the overrides are checked when loading."""
+    for option, value, words in (("--fov", "1e-300", "--fov: must be at least 0.001 degrees"),
+                                 ("--camera-eye", "0,-1e300,0", "--camera-eye: value 1 (-1e+300) is beyond +-1e+15")):
+        run = bsrt_cli("map", ROOT / "scenes" / "quad.toml", "-o", tmp_path / "map.png", option, value)
+        assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and words in run.stderr, run.stderr
+        assert not (tmp_path / "map.png").exists()
