@@ -529,6 +529,7 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     up = np.asarray(up, dtype=np.float64)
     if np.linalg.norm(up) == 0:
         raise InputError("--camera-up: must not be the zero vector")
+    automatic = eye is None
     if eye is None:  # three-quarter view from above, relative to "up"
         half = np.radians(fov) / 2.0 * min(1.0, width / height)
         zup = up / np.linalg.norm(up)
@@ -541,6 +542,10 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     view = look - eye
     if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
         raise InputError("--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up")
+    try:
+        validate.camera(Camera(eye, look, up, fov, "y"))
+    except InputError as exc:  # the automatic eye of a model near the coordinate limit
+        raise InputError(f"{model.path}: {'the automatic ' if automatic else ''}{exc}") from None
     key_pos = centre + (eye - look) / np.linalg.norm(eye - look) * 2.5 * radius + up / np.linalg.norm(up) * 2.0 * radius
     lights = (
         Light("ambient", intensity=0.12),
