@@ -338,3 +338,11 @@ def test_map_command_checks_camera_overrides_too(tmp_path):
         run = bsrt_cli("map", ROOT / "scenes" / "quad.toml", "-o", tmp_path / "map.png", option, value)
         assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and words in run.stderr, run.stderr
         assert not (tmp_path / "map.png").exists()
+
+
+def test_automatic_camera_beyond_the_limit_names_the_model(tmp_path):
+    """A model at the coordinate limit whose automatic eye would sit past it (found by the CLI fuzz):
+    framing the square from x = -1e15 to 1 puts the eye at x = -1.78e15, beyond +-1e15."""
+    path = tmp_path / "edge.bpt"
+    path.write_text("1\n1 1\n-1e15 0 0\n-1e15 1 0\n1 0 0\n1 1 0\n")
+    refused(path, "the automatic camera.eye", "beyond +-1e+15")
