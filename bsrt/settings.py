@@ -75,7 +75,7 @@ class RenderOptions:
         validate.whole("max_depth", self.max_depth, 0, validate.MAX_DEPTH)
         validate.real("tolerance", self.tolerance, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
         validate.camera(self.camera)
-        validate.film(self.width, self.height, self.spp)
+        validate.film(self.width, self.height)
         validate.environment()
         return self
 

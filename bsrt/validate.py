@@ -149,7 +149,7 @@ def fov(value, key: str = "fov") -> float:
     return value
 
 
-def film(width: int, height: int, spp: int) -> None:
+def film(width: int, height: int) -> None:
     """The film's memory: at most the machine's physical memory."""
     need = BYTES_PER_PIXEL * width * height
     have = physical_memory()
@@ -174,8 +174,8 @@ def smallest_tolerance(surfaces, eye) -> float:
     hi = np.max([s.points.reshape(-1, 3).max(axis=0) for s in surfaces], axis=0)
     diagonal = float(np.linalg.norm(hi - lo))
     reach = max(float(np.abs(lo).max()), float(np.abs(hi).max()), float(np.abs(np.asarray(eye)).max()))
-    if diagonal == 0:
-        return 1.0
+    if diagonal == 0:  # a scene that is one point: no size to resolve against, nothing to refuse
+        return 0.0
     return FLOAT_STEPS * np.finfo(np.float64).eps * reach / diagonal
 
 

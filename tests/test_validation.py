@@ -142,7 +142,7 @@ def test_film_that_needs_more_memory_than_the_machine_is_refused():
     with pytest.raises(InputError, match=r"^film: 65536 x 65536 pixels would need about 515 GB"):
         if validate.physical_memory() >= 515e9:
             raise AssertionError("this machine has over 515 GB: the case does not apply")
-        validate.film(65536, 65536, 1)
+        validate.film(65536, 65536)
 
 
 def test_toml_nested_50000_deep_is_refused(tmp_path):
