@@ -17,7 +17,6 @@ file that :func:`load` reads back to the same scene, bit for bit.
 from __future__ import annotations
 
 import math
-import operator
 import os
 import re
 import sys
@@ -30,6 +29,7 @@ import numpy as np
 
 from . import __version__
 from . import scene as _scene
+from . import validate
 from .bspline import BSplineSurface
 from .camera import Camera as _Camera
 from .errors import InputError
@@ -302,9 +302,8 @@ def load(
     """
     vectors = {k: _override_vector(k, v) for k, v in
                (("camera_eye", camera_eye), ("camera_look_at", camera_look_at), ("camera_up", camera_up))}
-    if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float, np.number))
-                            or not 0.0 < float(fov) < 180.0):
-        raise InputError(f"fov: must be between 0 and 180 degrees, got {fov!r}")
+    if fov is not None:
+        fov = validate.fov(fov)
     settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
                                  max_iterations=max_iterations, max_depth=max_depth)
     if not isinstance(format, str):
@@ -352,25 +351,20 @@ def _with_settings(scene: _scene.Scene, settings: dict) -> _scene.Scene:
     return replace(scene, film=film, render=render)
 
 
+_WHOLE_LIMITS = {"width": validate.MAX_FILM_SIDE, "height": validate.MAX_FILM_SIDE, "spp": validate.MAX_SPP,
+                 "max_iterations": validate.MAX_ITERATIONS, "max_depth": validate.MAX_DEPTH}
+
+
 def _render_overrides(**values) -> dict:
     """The given (not None) overrides, checked, with the messages of RenderOptions."""
     out = {}
     for key, value in values.items():
         if value is None:
             continue
-        if key in ("width", "height", "spp", "max_iterations", "max_depth"):
-            lo = 0 if key == "max_depth" else 1
-            try:
-                number = operator.index(value) if not isinstance(value, bool) else None
-            except TypeError:
-                number = None
-            if number is None or number < lo:
-                raise InputError(f"{key}: expected a whole number >= {lo}, got {value!r}")
-            out[key] = int(number)
+        if key in _WHOLE_LIMITS:
+            out[key] = validate.whole(key, value, 0 if key == "max_depth" else 1, _WHOLE_LIMITS[key])
         elif key == "tolerance":
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not 0.0 < value <= 1.0:
-                raise InputError(f"tolerance: expected a number in (0, 1], got {value!r}")
-            out[key] = float(value)
+            out[key] = validate.real("tolerance", value, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
         else:
             choices = METHODS if key == "method" else MAP_MODES
             if value not in choices:
@@ -388,6 +382,7 @@ def _override_vector(key: str, value) -> np.ndarray | None:
         v = None
     if v is None or v.shape != (3,) or isinstance(value, str) or not np.all(np.isfinite(v)):
         raise InputError(f"{key}: expected three finite numbers like (1, 2, 3), got {value!r}")
+    validate.numbers(key, value, validate.MAX_COORDINATE)
     return v
 
 

@@ -220,6 +220,9 @@ def _cmd_info(args) -> int:
     if path.suffix.lower() == ".toml":
         from .scene import load_scene
 
+        if args.format != "auto":
+            raise InputError(f"{path}: --format: only for model files; a .toml file is a scene")
+
         scene = load_scene(path)
         degrees = sorted({s.geometry.degree for s in scene.surfaces})
         rational = sum(s.geometry.is_rational for s in scene.surfaces)
@@ -281,9 +284,12 @@ def _say_if_compiling() -> None:
 def _cmd_bench(args) -> int:
     from . import bench
 
-    unknown = [m for m in args.methods.split(",") if m.strip() and m.strip() not in METHODS]
+    named = [m.strip() for m in args.methods.split(",") if m.strip()]
+    unknown = [m for m in named if m not in METHODS]
     if unknown:
         raise InputError(f"--methods: unknown method {unknown[0]!r} (expected {', '.join(METHODS)})")
+    if not named:
+        raise InputError(f"--methods: names no method (expected a comma-separated list of {', '.join(METHODS)})")
     if args.json:
         _check_output(args.json, ".json")
     return bench.main(args)
@@ -351,7 +357,7 @@ def main(argv=None) -> int:
               "needs less)", file=sys.stderr)
         return 1
     except Exception as exc:  # a bug: still one line, the traceback on request
-        if os.environ.get("BSRT_DEBUG"):
+        if os.environ.get("BSRT_DEBUG", "").strip().lower() in ("1", "true", "yes"):
             raise
         print(f"bsrt: internal error: {type(exc).__name__}: {exc} (set BSRT_DEBUG=1 for a traceback)", file=sys.stderr)
         return 1

@@ -45,8 +45,13 @@ def load_input(path, format: str = "auto", *, width: int | None = None, height: 
     """
     from .scene import load_scene, scene_for_model
 
-    if camera.fov is not None and not 0.0 < camera.fov < 180.0:
-        raise InputError(f"--fov: must be between 0 and 180 degrees, got {camera.fov:g}")
+    from . import validate
+
+    if camera.fov is not None:
+        validate.fov(camera.fov, "--fov")
+    for key, value in (("--camera-eye", camera.eye), ("--camera-look-at", camera.look_at), ("--camera-up", camera.up)):
+        if value is not None:
+            validate.numbers(key, value, validate.MAX_COORDINATE)
     path = check_input_file(path, "scene or model file")
     if path.suffix.lower() == ".toml":
         return _override_camera(load_scene(path), camera)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import validate
 from .bspline import BSplineSurface, make_surface
 from .camera import Camera
 from .errors import InputError
@@ -110,27 +111,32 @@ class _Table:
             return default
         return self.data[key]
 
-    def number(self, key: str, default=None, lo=None, hi=None, lo_open=False, hi_open=False, required=False):
+    def number(self, key: str, default=None, lo=None, hi=None, lo_open=False, hi_open=False, required=False,
+               limit=validate.MAX_COORDINATE):
         value = self.raw(key, default, required)
         if value is None:
             return None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             self.fail(key, f"expected a number, got {_show(value)}")
-        value = float(value)
+        value = float(value) if isinstance(value, float) or abs(value) < 1e300 else math.inf
         if not math.isfinite(value):
-            self.fail(key, f"expected a finite number, got {value}")
+            self.fail(key, f"expected a finite number, got {_show(value)}")
         if lo is not None and (value < lo or (lo_open and value == lo)):
             self.fail(key, f"must be {'>' if lo_open else '>='} {lo:g}, got {value:g}")
         if hi is not None and (value > hi or (hi_open and value == hi)):
             self.fail(key, f"must be {'<' if hi_open else '<='} {hi:g}, got {value:g}")
+        if limit is not None and abs(value) > limit:
+            self.fail(key, f"must lie within +-{limit:g} (see the README's Limits), got {value:g}")
         return value
 
-    def integer(self, key: str, default=None, lo=None, required=False):
+    def integer(self, key: str, default=None, lo=None, required=False, hi=None):
         value = self.raw(key, default, required)
         if isinstance(value, bool) or not isinstance(value, int):
             self.fail(key, f"expected a whole number, got {_show(value)}")
         if lo is not None and value < lo:
             self.fail(key, f"must be >= {lo}, got {value}")
+        if hi is not None and value > hi:
+            self.fail(key, f"must be at most {hi} (see the README's Limits), got {_show(value)}")
         return value
 
     def string(self, key: str, default=None, choices=None, required=False):
@@ -143,7 +149,7 @@ class _Table:
             self.fail(key, f"expected one of {', '.join(repr(c) for c in choices)}, got {value!r}")
         return value
 
-    def vector(self, key: str, default=None, length=3, required=False, lo=None):
+    def vector(self, key: str, default=None, length=3, required=False, lo=None, limit=validate.MAX_COORDINATE):
         value = self.raw(key, default, required)
         if value is None:
             return None
@@ -157,6 +163,8 @@ class _Table:
             self.fail(key, "values must be finite numbers")
         if lo is not None and any(x < lo for x in value):
             self.fail(key, f"values must be >= {lo:g}")
+        if limit is not None and any(abs(x) > limit for x in value):
+            self.fail(key, f"values must lie within +-{limit:g} (see the README's Limits)")
         return tuple(float(x) for x in value)
 
     def finish(self):
@@ -175,7 +183,7 @@ def load_scene(path: str | Path) -> Scene:
     path = check_input_file(path, "scene file")
     where = path.name
     try:
-        text = path.read_bytes().decode("utf-8")
+        text = path.read_bytes().decode("utf-8-sig")  # a byte-order mark is accepted, as in model files
     except FileNotFoundError:
         raise InputError(f"{path}: no such file") from None
     except IsADirectoryError:
@@ -188,6 +196,8 @@ def load_scene(path: str | Path) -> Scene:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{where}: invalid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{where}: invalid TOML: arrays or tables nested too deeply") from None
     order = re.findall(r"(?m)^[ \t]*\[\[[ \t]*(surface|import)[ \t]*\]\]", text)
     scene = parse_scene(data, where, path.parent, order)
     return replace(scene, inputs=(str(path),) + scene.inputs)
@@ -207,8 +217,8 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
 
     film_t = _Table(where, data.get("film", {}), "film")
     film = Film(
-        width=film_t.integer("width", 512, lo=1),
-        height=film_t.integer("height", 512, lo=1),
+        width=film_t.integer("width", 512, lo=1, hi=validate.MAX_FILM_SIDE),
+        height=film_t.integer("height", 512, lo=1, hi=validate.MAX_FILM_SIDE),
         background=film_t.vector("background", (0.0, 0.0, 0.0), lo=0.0),
     )
     film_t.finish()
@@ -219,24 +229,25 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     eye = np.array(cam_t.vector("eye", required=True))
     look_at = np.array(cam_t.vector("look_at", required=True))
     up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
-    fov = cam_t.number("fov", 40.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
+    fov = cam_t.number("fov", 40.0, lo=0.0, hi=validate.MAX_FOV, lo_open=True, hi_open=True)
+    if fov < validate.MIN_FOV:
+        cam_t.fail("fov", f"must be at least {validate.MIN_FOV:g} degrees (see the README's Limits), got {fov:g}")
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
     cam_t.finish()
-    view = look_at - eye
-    if np.linalg.norm(view) == 0:
-        cam_t.fail("look_at", "must differ from eye")
-    if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / np.linalg.norm(view), up / np.linalg.norm(up))) < 1e-9:
-        cam_t.fail("up", "must not be parallel to the view direction (look_at - eye)")
     camera = Camera(eye, look_at, up, fov, fov_axis)
+    try:
+        validate.camera(camera)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
     ren_t = _Table(where, data.get("render", {}), "render")
     render = RenderSettings(
         method=ren_t.string("method", "newton", choices=METHODS),
         map=ren_t.string("map", "float", choices=MAP_MODES),
         tolerance=ren_t.number("tolerance", 1e-9, lo=0.0, lo_open=True, hi=1.0),
-        max_iterations=ren_t.integer("max_iterations", 64, lo=1),
-        spp=ren_t.integer("spp", 1, lo=1),
-        max_depth=ren_t.integer("max_depth", 3, lo=0),
+        max_iterations=ren_t.integer("max_iterations", 64, lo=1, hi=validate.MAX_ITERATIONS),
+        spp=ren_t.integer("spp", 1, lo=1, hi=validate.MAX_SPP),
+        max_depth=ren_t.integer("max_depth", 3, lo=0, hi=validate.MAX_DEPTH),
     )
     ren_t.finish()
 
@@ -274,7 +285,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         lights.append(light)
 
     surfaces, notes, inputs = [], [], []
-    for kind, i, raw in _surface_entries(data, order):
+    for kind, i, raw in _surface_entries(where, data, order):
         if kind == "import":
             t = _Table(where, raw, f"import[{i}]")
             model = _load_import(t, folder)
@@ -287,31 +298,51 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             notes += [f"{model.path}: {w}" for w in model.warnings] + _skipped_notes(model)
             for k, (geometry, name) in enumerate(zip(model.surfaces, model.names)):
                 mat = material if colored is None or colored[k] is None else colored[k]
-                surfaces.append(SceneSurface(geometry if matrix is None else geometry.transformed(matrix), mat, name))
+                if matrix is not None:
+                    geometry = _within_limits(t, "transform", geometry.transformed(matrix), name)
+                surfaces.append(SceneSurface(geometry, mat, name))
             continue
         t = _Table(where, raw, f"surface[{i}]")
         name = t.string("name", f"surface-{i}")
         material = _material_for(t, materials, by_name)
         try:
-            geometry = make_surface(
-                t.raw("degree", required=True),
-                t.raw("knots_u", required=True),
-                t.raw("knots_v", required=True),
-                t.raw("points", required=True),
-                t.raw("weights"),
-            )
+            geometry = make_surface(*_surface_arrays(t))
+            validate.surface(geometry)
         except InputError as exc:
             raise InputError(f"{where}: surface[{i}].{exc}") from None
         if t.has("trim"):
             geometry = _trimmed(t, geometry)
         if t.has("transform"):
-            geometry = geometry.transformed(_transform(t, "transform"))
+            geometry = _within_limits(t, "transform", geometry.transformed(_transform(t, "transform")), name)
         t.finish()
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
     return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes),
                  tuple(inputs))
+
+
+def _surface_arrays(t: _Table) -> tuple:
+    """(degree, knots_u, knots_v, points, weights) of a [[surface]], each checked for type
+    (whole numbers for the degrees, numbers elsewhere: no booleans, no strings) and finiteness."""
+    degree = t.raw("degree", required=True)
+    if not isinstance(degree, list) or len(degree) != 2 or any(isinstance(d, bool) or not isinstance(d, int)
+                                                               for d in degree):
+        raise InputError(f"degree: expected two whole numbers [p, q], got {_show(degree)}")
+    if max(degree) > validate.MAX_DEGREE:
+        raise InputError(f"degree: at most {validate.MAX_DEGREE} (see the README's Limits), got {_show(degree)}")
+    arrays = [validate.numbers(key, t.raw(key, required=True), check=False) for key in ("knots_u", "knots_v", "points")]
+    weights = t.raw("weights")
+    return (degree, *arrays, None if weights is None else validate.numbers("weights", weights, check=False))
+
+
+def _within_limits(t: _Table, key: str, geometry, name: str):
+    """A transformed surface whose coordinates stay within the limits."""
+    try:
+        validate.surface(geometry)
+    except InputError as exc:
+        t.fail(key, f"moves surface {name!r} out of range: {exc}")
+    return geometry
 
 
 def _trimmed(t: _Table, geometry):
@@ -349,7 +380,11 @@ def _load_import(t: _Table, folder: Path | None):
     file = t.string("file", required=True)
     fmt = t.string("format", "auto", choices=("auto", "occt") + tuple(sorted(set(FORMATS.values()))))
     path = Path(file) if folder is None or Path(file).is_absolute() else folder / file
-    if not path.exists():
+    try:
+        found = path.exists()
+    except (OSError, ValueError) as exc:  # a name over 255 bytes, a NUL character
+        t.fail("file", f"cannot open {_show(str(path))}: {getattr(exc, 'strerror', None) or exc}")
+    if not found:
         t.fail("file", f"no such file: {path}")
     try:
         check_input_file(path, "model file")
@@ -392,9 +427,9 @@ def _array_of_tables(where: str, data: dict, key: str) -> list:
     return value
 
 
-def _surface_entries(data: dict, order):
+def _surface_entries(where: str, data: dict, order):
     """(kind, index within its kind, table) for [[surface]] and [[import]] in file order."""
-    tables = {key: _array_of_tables("", data, key) for key in ("surface", "import")}
+    tables = {key: _array_of_tables(where, data, key) for key in ("surface", "import")}
     if order is None or [order.count(k) for k in tables] != [len(v) for v in tables.values()]:
         order = ["surface"] * len(tables["surface"]) + ["import"] * len(tables["import"])
     seen = {"surface": 0, "import": 0}
@@ -432,6 +467,8 @@ def _transform(parent: _Table, key: str) -> np.ndarray:
         scale = np.full(3, t.number("scale", 1.0))
     if np.any(scale == 0):
         t.fail("scale", "must not be zero")
+    if np.any(np.abs(scale) > validate.MAX_COORDINATE) or np.any(np.abs(scale) < 1.0 / validate.MAX_COORDINATE):
+        t.fail("scale", f"each factor's size must lie within 1e-15 .. 1e15 (see the README's Limits), got {scale_raw}")
     rot = t.vector("rotate", (0.0, 0.0, 1.0, 0.0), length=4)
     translate = np.array(t.vector("translate", (0.0, 0.0, 0.0)))
     t.finish()
@@ -491,6 +528,8 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     directional fill and a little ambient light; one neutral material.
     eye / look_at / fov override the automatic choice.
     """
+    if fov is not None:
+        validate.fov(fov, "--fov")
     lo, hi = model_box(model.surfaces)
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-9)
@@ -499,6 +538,7 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     up = np.asarray(up, dtype=np.float64)
     if np.linalg.norm(up) == 0:
         raise InputError("--camera-up: must not be the zero vector")
+    automatic = eye is None
     if eye is None:  # three-quarter view from above, relative to "up"
         half = np.radians(fov) / 2.0 * min(1.0, width / height)
         zup = up / np.linalg.norm(up)
@@ -511,6 +551,10 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     view = look - eye
     if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
         raise InputError("--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up")
+    try:
+        validate.camera(Camera(eye, look, up, fov, "y"))
+    except InputError as exc:  # the automatic eye of a model near the coordinate limit
+        raise InputError(f"{model.path}: {'the automatic ' if automatic else ''}{exc}") from None
     key_pos = centre + (eye - look) / np.linalg.norm(eye - look) * 2.5 * radius + up / np.linalg.norm(up) * 2.0 * radius
     lights = (
         Light("ambient", intensity=0.12),

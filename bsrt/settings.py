@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from . import validate
 from .camera import Camera
 from .errors import InputError
 
@@ -58,19 +59,35 @@ class RenderOptions:
         unknown = set(overrides) - set(cls.__dataclass_fields__)
         if unknown:
             raise TypeError(f"unknown render option {sorted(unknown)[0]!r}")
-        return replace(base, **{k: v for k, v in overrides.items() if v is not None}).checked()
+        options = replace(base, **{k: v for k, v in overrides.items() if v is not None}).checked()
+        return options.check_tolerance(scene)
 
     def checked(self) -> "RenderOptions":
+        """Every value's type and range (the README's Limits), the camera's frame and the film's memory."""
         if self.method not in METHODS:
             raise InputError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
         if self.map not in MAP_MODES:
             raise InputError(f"map: expected one of {', '.join(MAP_MODES)}, got {self.map!r}")
-        for key in ("width", "height", "spp", "max_iterations"):
-            value = getattr(self, key)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise InputError(f"{key}: expected a whole number >= 1, got {value!r}")
-        if isinstance(self.max_depth, bool) or not isinstance(self.max_depth, int) or self.max_depth < 0:
-            raise InputError(f"max_depth: expected a whole number >= 0, got {self.max_depth!r}")
-        if not 0.0 < self.tolerance <= 1.0:
-            raise InputError(f"tolerance: expected a number in (0, 1], got {self.tolerance!r}")
+        validate.whole("width", self.width, 1, validate.MAX_FILM_SIDE)
+        validate.whole("height", self.height, 1, validate.MAX_FILM_SIDE)
+        validate.whole("spp", self.spp, 1, validate.MAX_SPP)
+        validate.whole("max_iterations", self.max_iterations, 1, validate.MAX_ITERATIONS)
+        validate.whole("max_depth", self.max_depth, 0, validate.MAX_DEPTH)
+        validate.real("tolerance", self.tolerance, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
+        validate.camera(self.camera)
+        validate.film(self.width, self.height)
+        validate.environment()
+        return self
+
+    def check_tolerance(self, scene) -> "RenderOptions":
+        """A tolerance float64 can resolve at the scene's size, seen from the camera (never silently
+        degraded): else an InputError naming the key and the smallest usable value."""
+        smallest = validate.smallest_tolerance([s.geometry for s in scene.surfaces], self.camera.eye)
+        if smallest > 1.0:
+            raise InputError(f"{scene.path}: camera.eye: float64 cannot resolve this scene from so far away (or so far "
+                             f"from the origin): even tolerance = 1 is below what it resolves; bring the eye and "
+                             f"the scene nearer each other and the origin")
+        if self.tolerance < smallest:
+            raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves "
+                             f"at this scene's size and distance; the smallest usable value is {smallest:.2g}")
         return self

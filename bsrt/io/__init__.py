@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..bspline import BSplineSurface, insert_knot, make_surface
+from .. import validate
 from ..errors import InputError
 
 __all__ = ["Model", "FORMATS", "load_model"]
@@ -98,11 +99,22 @@ def load_model(path, format: str = "auto") -> Model:
 
         if not occt.available():
             raise InputError(occt.needs_message(path, occt.kind_of(path, format)))
-        return occt.read(path, format)
+        return checked(occt.read(path, format))
     if format not in names:
         raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
     reader = importlib.import_module(f".{format}", __name__)
-    return reader.read(path)
+    return checked(reader.read(path))
+
+
+def checked(model: Model) -> Model:
+    """The model, each surface within the limits (degree, coordinates, weights), else an InputError
+    naming the file and the surface."""
+    for surface, name in zip(model.surfaces, model.names):
+        try:
+            validate.surface(surface)
+        except InputError as e:
+            raise fail(model.path, None, f"surface {name}: {e}") from None
+    return model
 
 
 # ---------------------------------------------------------------------------
@@ -139,8 +151,8 @@ def split_lines(text: str) -> list[str]:
     return lines[:-1] if lines and lines[-1] == "" else lines
 
 
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
-_INTEGER = re.compile(r"[+-]?\d+")
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
 
 
 def parse_float(path: str, line: int, token: str, what: str) -> float:
@@ -148,8 +160,8 @@ def parse_float(path: str, line: int, token: str, what: str) -> float:
     if _NUMBER.fullmatch(token) is None:
         raise fail(path, line, f"expected {what} (a number), got {token!r}")
     value = float(token)
-    if not np.isfinite(value):
-        raise fail(path, line, f"{what} {token} is too large")
+    if not abs(value) <= validate.MAX_COORDINATE:
+        raise fail(path, line, f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see the README's Limits)")
     return value
 
 
@@ -236,7 +248,12 @@ def cut(path: str, line: int, which: str, surface: BSplineSurface, ranges, label
                 path, line,
                 f"{which}: the range {label} = [{a:g}, {b:g}] is not inside the knot domain [{lo:g}, {hi:g}]",
             )
-        clean.append((lo if a - lo <= tol else a, hi if hi - b <= tol else b))
+        a, b = min(max(a, lo), hi), max(min(b, hi), lo)  # ends within tol past the domain: on its ends
+        a, b = (lo if a - lo <= tol else a, hi if hi - b <= tol else b)
+        if not a < b:
+            raise fail(path, line, f"{which}: the range {label} covers no part of the knot domain [{lo:g}, {hi:g}] "
+                       f"(it lies within {tol:g} of its end)")
+        clean.append((a, b))
     try:
         return restrict(surface, *clean)
     except InputError as e:

@@ -78,7 +78,7 @@ def _is_header_line(t: Tokens) -> bool:
     if t.pos > 0 and t.items[t.pos - 1][1] == line:
         return False
     head = [tok for tok, ln in t.items[t.pos : t.pos + 4] if ln == line]
-    return len(head) == 4 and head[0].isdigit() and int(head[0]) in _CLASS_NAMES and head[1:3] == ["1", "0"]
+    return len(head) == 4 and (head[0].isascii() and head[0].isdigit()) and int(head[0]) in _CLASS_NAMES and head[1:3] == ["1", "0"]
 
 
 def read(path: str) -> Model:

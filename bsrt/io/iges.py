@@ -55,6 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import validate
 from . import Model, fail, read_text, split_lines
 
 ENTITY_NAMES = {
@@ -73,8 +74,8 @@ ENTITY_NAMES = {
     410: "view", 502: "vertex list", 504: "edge list", 508: "loop", 510: "face", 514: "shell",
 }
 _SECTIONS = "SGDPT"
-_HOLLERITH = re.compile(r"\s*(\d+)H")
-_REAL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[EeDd][+-]?\d+)?")
+_HOLLERITH = re.compile(r"\s*([0-9]+)H")
+_REAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?")
 
 
 @dataclass
@@ -116,8 +117,8 @@ class _Params:
         if _REAL.fullmatch(token) is None:
             raise self.fail(f"expected {what} (a number), got {token!r}")
         value = float(token.replace("D", "E").replace("d", "e"))
-        if not np.isfinite(value):
-            raise self.fail(f"{what} {token} is too large")
+        if not abs(value) <= validate.MAX_COORDINATE:
+            raise self.fail(f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see the README's Limits)")
         return value
 
     def reals(self, count: int, what: str) -> np.ndarray:
@@ -125,7 +126,7 @@ class _Params:
         chunk = self.tokens[self.pos : self.pos + count]
         if len(chunk) == count and all(t and _REAL.fullmatch(t) for t, _ in chunk):
             values = np.array([t.replace("D", "E").replace("d", "e") for t, _ in chunk], dtype=np.float64)
-            if np.all(np.isfinite(values)):
+            if np.all(np.abs(values) <= validate.MAX_COORDINATE):
                 self.pos += count
                 return values
         return np.array([self.real(what) for _ in range(count)], dtype=np.float64)
@@ -134,7 +135,7 @@ class _Params:
         token, line = self._next(what)
         if token == "":
             value = 0
-        elif re.fullmatch(r"[+-]?\d+", token):
+        elif re.fullmatch(r"[+-]?[0-9]+", token):
             value = int(token)
         else:
             raise self.fail(f"expected {what} (a whole number), got {token!r}")
@@ -186,7 +187,7 @@ def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
         current = k
         seq = rec[73:80].strip()
         expected = len(sections[letter]) + 1
-        if not seq.isdigit() or int(seq) != expected:
+        if not (seq.isascii() and seq.isdigit()) or int(seq) != expected:
             raise fail(path, number, f"expected sequence number {letter}{expected} in columns 74-80, got {seq!r}")
         sections[letter].append((number, rec))
     if not sections["T"]:
@@ -195,7 +196,7 @@ def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
     for k, letter in enumerate("SGDP"):
         field = trec[8 * k : 8 * k + 8]
         count = field[1:].strip()
-        if field[0] != letter or not count.isdigit():
+        if field[0] != letter or not (count.isascii() and count.isdigit()):
             raise fail(
                 path, tline,
                 f"the Terminate record should give the {letter} line "
@@ -263,7 +264,7 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
             s = rec[8 * i : 8 * i + 8].strip()
             if not s:
                 return 0
-            if not re.fullmatch(r"[+-]?\d+", s):
+            if not re.fullmatch(r"[+-]?[0-9]+", s):
                 raise fail(
                     path, at,
                     f"directory entry {k + 1}: {what} (columns {8 * i + 1}-{8 * i + 8}) is {s!r}, not a whole number",
@@ -299,7 +300,7 @@ def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims
     chars, lines = [], []
     for line, rec in precs[entity.pstart - 1 : entity.pstart - 1 + entity.pcount]:
         back = rec[64:72].strip()
-        if not back.isdigit() or int(back) != entity.de:
+        if not (back.isascii() and back.isdigit()) or int(back) != entity.de:
             raise fail(
                 path, line,
                 f"this P line points back to DE {back!r}, but DE {entity.de} says its parameters are here",
@@ -402,25 +403,42 @@ class IgesFile:
         return self._matrix(entity.xform, (entity.de,))
 
     def _matrix(self, de: int, chain: tuple) -> np.ndarray:
-        if de in self._matrices:
-            return self._matrices[de]
+        """The composed matrix of the 124 chain starting at ``de`` (iterative: a legal chain
+        of any length resolves without recursion). chain: the DEs that led here."""
+        walk: list[_Entity] = []  # the 124s not yet composed, outermost last
+        seen = set(chain)
         first = self.entities[chain[-1]]
-        entity = self.entities.get(de)
-        if entity is None or entity.type != 124:
-            what = "nothing" if entity is None else f"entity {entity.type}"
-            raise fail(self.path, first.line, f"entity {first.type} (DE {first.de}): its "
-                       f"transformation matrix pointer {de} points to {what}, not to an entity 124")
-        if de in chain:
-            des = ", ".join(map(str, chain[1:]))
-            raise fail(self.path, entity.line, f"the transformation matrices at DE {des} refer to each other in a loop")
-        params = self.params(entity)
-        m = np.eye(4)
-        m[:3, :] = params.reals(12, "a matrix entry").reshape(3, 4)
-        if entity.xform:
-            m = self._matrix(entity.xform, chain + (de,)) @ m
-        self.used.add(de)
-        self._matrices[de] = m
-        return m
+        while de not in self._matrices:
+            entity = self.entities.get(de)
+            if entity is None or entity.type != 124:
+                what = "nothing" if entity is None else f"entity {entity.type}"
+                raise fail(self.path, first.line, f"entity {first.type} (DE {first.de}): its "
+                           f"transformation matrix pointer {de} points to {what}, not to an entity 124")
+            if de in seen:
+                des = ", ".join(map(str, list(chain[1:]) + [e.de for e in walk]))
+                raise fail(self.path, entity.line,
+                           f"the transformation matrices at DE {des} refer to each other in a loop")
+            seen.add(de)
+            walk.append(entity)
+            if not entity.xform:
+                break
+            first, de = entity, entity.xform
+        outer = self._matrices.get(de) if walk and walk[-1].de != de else None
+        if not walk:
+            return self._matrices[de]
+        for entity in reversed(walk):
+            m = np.eye(4)
+            m[:3, :] = self.params(entity).reals(12, "a matrix entry").reshape(3, 4)
+            if outer is not None:
+                with np.errstate(all="ignore"):
+                    m = outer @ m
+                if not np.all(np.isfinite(m)):
+                    raise fail(self.path, entity.line, f"entity 124 (DE {entity.de}): the composed transformation "
+                               "matrix overflows (entries beyond 1e308)")
+            self.used.add(entity.de)
+            self._matrices[entity.de] = m
+            outer = m
+        return outer
 
     def name(self, entity: _Entity) -> str:
         return f"{self.base}#D{entity.de}" + (f" {entity.label}" if entity.label else "")
