@@ -35,8 +35,16 @@ def _positive_int(text: str) -> int:
     return value
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with bsrt's one-line errors: ``bsrt render: error: argument --width: ...``
+    (no usage block; ``--help`` shows it). Subcommand parsers are of this class too."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="bsrt", description="Ray-trace B-spline surfaces directly.")
+    parser = _Parser(prog="bsrt", description="Ray-trace B-spline surfaces directly.")
     parser.add_argument("--version", action="version", version=f"bsrt {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
