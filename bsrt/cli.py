@@ -37,10 +37,10 @@ def _positive_int(text: str) -> int:
 
 class _Parser(argparse.ArgumentParser):
     """argparse with bsrt's one-line errors: ``bsrt render: error: argument --width: ...``
-    (no usage block; ``--help`` shows it). Subcommand parsers are of this class too."""
+    (no usage block before it; ``--help`` shows that). Subcommand parsers are of this class too."""
 
     def error(self, message):
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def _parser() -> argparse.ArgumentParser:

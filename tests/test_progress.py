@@ -7,7 +7,9 @@ import io
 import os
 import pty
 import re
+import resource
 import select
+import signal
 import subprocess
 import sys
 import time
@@ -161,11 +163,12 @@ def _env():
     return env
 
 
-def run_on_a_terminal(args, timeout=300.0):
+def run_on_a_terminal(args, timeout=300.0, preexec_fn=None):
     """Run `bsrt ARGS` with stderr on a pseudo-terminal; (exit code, what the terminal got)."""
     master, slave = pty.openpty()
     try:
-        proc = subprocess.Popen(CLI + args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, env=_env())
+        proc = subprocess.Popen(CLI + args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, env=_env(),
+                                preexec_fn=preexec_fn)
     finally:
         os.close(slave)
     received = b""
@@ -214,12 +217,16 @@ def test_no_progress_on_a_terminal(tmp_path):
 
 def test_a_failure_after_the_bar_started_gets_a_clean_line(tmp_path):
     out = tmp_path / "out.png"
-    out.mkdir()  # the PNG cannot replace a folder: the render succeeds, writing fails
-    code, text = run_on_a_terminal(["render", str(SCENES / "quad.toml"), "-o", str(out)])
+
+    def full_disk():  # a file-size limit: the render succeeds, writing the PNG fails (EFBIG)
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (100, 100))
+
+    code, text = run_on_a_terminal(["render", str(SCENES / "quad.toml"), "-o", str(out)], preexec_fn=full_disk)
     assert code == 1 and "%" in text
     last = text.rstrip("\n").split("\n")[-1]
     before, error = last.rsplit("\r", 1)
-    assert error.startswith("bsrt: ") and "directory" in error and "rendered" not in text
+    assert error == f"bsrt: error: {out}: File too large" and "rendered" not in text
     assert before.split("\r")[-1].strip() == ""  # the bar's line was blanked before the message
 
 

@@ -168,3 +168,21 @@ def test_bands_and_a_given_map_give_the_same_hits(ctx, monkeypatch):
         np.testing.assert_array_equal(res.hits.surface, one.hits.surface)
         np.testing.assert_allclose(res.hits.t[one.hits.hit], one.hits.t[one.hits.hit], atol=1e-8)
         np.testing.assert_allclose(res.linear, one.linear, atol=1e-9)
+
+
+@pytest.mark.parametrize("degree", [1, 9, 16])
+@pytest.mark.parametrize("method", ["newton", "martin"])
+def test_a_plane_of_the_highest_allowed_degree_is_exact(ctx, degree, method):
+    """The square of quad.toml degree-elevated to ``degree`` (its control points a uniform grid,
+    which is the same plane): every pixel centre 10..53 of 64 on each axis hits, at t = 4 / cos."""
+    grid = np.linspace(-1.0, 1.0, degree + 1)
+    knots = [0.0] * (degree + 1) + [1.0] * (degree + 1)
+    table = {"degree": [degree, degree], "knots_u": knots, "knots_v": knots,
+             "points": [[[x, 0.0, z] for z in grid] for x in grid]}
+    scene = parse_scene(scene_dict([table], width=64, height=64, eye=(0.0, -4.0, 0.0), look_at=(0.0, 0.0, 0.0),
+                                   fov=40.0))
+    res = render(scene, RenderOptions.resolve(scene, method=method), ctx=ctx)
+    hit = res.hits.hit.reshape(64, 64)
+    assert hit.sum() == 44 * 44 and hit[10:54, 10:54].all()
+    d = pixel_rays(scene.camera, 64, 64).reshape(64, 64, 3)
+    np.testing.assert_allclose(res.hits.t.reshape(64, 64)[hit], (4.0 / d[..., 1])[hit], rtol=1e-9)
