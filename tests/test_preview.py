@@ -204,8 +204,12 @@ def test_frame_log_records_refinement(session):
     assert {"moving", "refining", "exact"} <= set(states)
     summary = log["summary"]
     assert summary["refining_frames"] >= 3  # the window kept drawing while the solver worked
-    # generous (a loaded CI machine): the 100 ms target is measured at 800x600, see the issue notes
-    assert summary["max_gap_refining_ms"] < 1000
+    # measured on a shared 2-core machine (load 5-9): median 16.7 ms (the 60 fps cap), max 33-41 ms
+    # over 6 runs of this session; the bounds leave a margin of 3x and 5x
+    frames = log["frames"]
+    gaps = [(b["t"] - a["t"]) * 1e3 for a, b in zip(frames, frames[1:]) if a["state"] == "refining"]
+    assert float(np.median(gaps)) < 50.0
+    assert summary["max_gap_refining_ms"] < 200.0
 
 
 # ---------------------------------------------------------------- more windows
@@ -233,11 +237,41 @@ def test_resize_renders_at_the_new_framebuffer_size(display, tmp_path):
     assert_same_image(image, render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1)).pixels, "resized")
 
 
-def test_martin_method_or_its_error_keeps_the_window_running(display, tmp_path):
-    result = run_preview(display, SCENES / "quad.toml", "--width", 80, "--height", 60,
-                         "--events", "key 4; wait; frames 2; key 3; wait; save n.png; quit", cwd=tmp_path)
+def test_martin_method_then_back_to_newton(display, tmp_path):
+    """Key 4 (martin: no map, the hierarchy) shows the exact image render()
+    gives for that method and camera; key 3 goes back to newton."""
+    result = run_preview(display, SCENES / "quad.toml", "--width", 80, "--height", 60, "--events",
+                         "key 4; wait; camera; save m.png; screenshot m-screen.png; key 3; wait; save n.png; quit",
+                         cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "n.png").exists()
+    scene = load_scene(SCENES / "quad.toml")
+    (camera,) = cameras_printed(result.stdout)
+    for name, method in (("m.png", "martin"), ("n.png", "newton")):
+        want = render(scene, RenderOptions.resolve(scene, method=method, camera=camera, width=80, height=60, spp=1))
+        assert_same_image(read_png(tmp_path / name), want.pixels, name)
+    # the window showed the martin image itself, pixel for pixel
+    assert np.array_equal(read_png(tmp_path / "m-screen.png"), read_png(tmp_path / "m.png"))
+    assert foreground(read_png(tmp_path / "m.png"), scene.film.background).mean() > 0.1
+
+
+def test_camera_overrides_and_format_like_bsrt_render(display, tmp_path):
+    """--camera-eye/--camera-look-at/--camera-up/--fov and --format, loaded by
+    bsrt/loading.py as `bsrt render` does: the window starts at that camera."""
+    result = run_preview(display, SCENES / "quad.toml", "--width", 40, "--height", 30, "--camera-eye", "0,-6,1",
+                         "--camera-look-at", "0,0,1", "--camera-up", "0,0,1", "--fov", "25", "--events", "camera; quit",
+                         cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    (camera,) = cameras_printed(result.stdout)
+    assert camera.eye.tolist() == [0.0, -6.0, 1.0] and camera.look_at.tolist() == [0.0, 0.0, 1.0]
+    assert camera.up.tolist() == [0.0, 0.0, 1.0] and camera.fov == 25.0
+    model = tmp_path / "patches.txt"  # a .bpt file under a name the extension does not tell
+    shutil.copy(ROOT / "tests" / "data" / "patches.bpt", model)
+    opened = run_preview(display, model, "--format", "bpt", "--width", 40, "--height", 30, "--frames", 1)
+    assert opened.returncode == 0, opened.stderr
+    unknown = run_preview(display, model, "--width", 40, "--height", 30, "--frames", 1)
+    assert unknown.returncode == 2 and "patches.txt" in unknown.stderr
+    bad = run_preview(None, SCENES / "quad.toml", "--fov", "200", "--frames", 1)
+    assert bad.returncode == 2 and bad.stderr.strip().splitlines() == ["bsrt: error: --fov: must be between 0 and 180 degrees, got 200"]
 
 
 def test_no_display_exits_2_pointing_at_bsrt_render():
