@@ -455,3 +455,15 @@ def test_map_bands_stitch_to_the_whole_map(ctx):
     assert np.allclose(stitched.u[covered], whole.u[covered], atol=1e-3)
     assert np.allclose(stitched.v[covered], whole.v[covered], atol=1e-3)
     assert ctx.error == "GL_NO_ERROR"
+
+
+def test_every_binding_names_an_action_of_the_application():
+    from bsrt.preview.app import Preview
+    from bsrt.preview.bindings import BINDINGS
+    from bsrt.preview.window import KEY_NAMES
+
+    for name, (action, *arguments) in BINDINGS.items():
+        assert callable(getattr(Preview, f"_do_{action}", None)), (name, action)
+    # every key the window names is bound (Shift+arrows included)
+    assert set(KEY_NAMES.values()) <= set(BINDINGS)
+    assert {f"shift+{k}" for k in ("left", "right", "up", "down")} <= set(BINDINGS)

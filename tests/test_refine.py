@@ -124,3 +124,4 @@ def test_a_dead_solver_fails_every_later_generation():
 
 def test_default_levels_end_with_the_exact_image():
     assert LEVELS[-1] == 1 and list(LEVELS) == sorted(LEVELS, reverse=True)
+

@@ -177,26 +177,39 @@ class Preview:
         return w / max(h, 1)
 
     def press(self, name: str) -> None:
-        """A key, by name (also the script's ``key NAME``): its action in BINDINGS."""
-        action, *a = BINDINGS.get(name.lower(), ("none",))
-        if action == "quit":
-            self.quit = True
-        elif action == "toggle_map":
-            self.show_map = not self.show_map
-        elif action == "method":
-            self.set_method(a[0])
-        elif action == "save":
-            self.request_save(None)
-        elif action == "print_camera":
-            print(camera_toml(self.camera), flush=True)
-        elif action == "reset":
-            self.move(self.home)
-        elif action == "zoom":
-            self.move(zoom(self.camera, a[0]))
-        elif action == "orbit":
-            self.move(orbit(self.camera, a[0], a[1]))
-        elif action == "pan":
-            self.move(pan(self.camera, a[0], a[1], self.aspect()))
+        """A key, by name (also the script's ``key NAME``): its action in
+        BINDINGS, run by the ``_do_<action>`` method of that name."""
+        binding = BINDINGS.get(name.lower())
+        if binding is not None:
+            action, *arguments = binding
+            getattr(self, f"_do_{action}")(*arguments)
+
+    def _do_quit(self) -> None:
+        self.quit = True
+
+    def _do_toggle_map(self) -> None:
+        self.show_map = not self.show_map
+
+    def _do_method(self, method: str) -> None:
+        self.set_method(method)
+
+    def _do_save(self) -> None:
+        self.request_save(None)  # next to the scene
+
+    def _do_print_camera(self) -> None:
+        print(camera_toml(self.camera), flush=True)
+
+    def _do_reset(self) -> None:
+        self.move(self.home)
+
+    def _do_zoom(self, factor: float) -> None:
+        self.move(zoom(self.camera, factor))
+
+    def _do_orbit(self, yaw: float, pitch: float) -> None:
+        self.move(orbit(self.camera, yaw, pitch))
+
+    def _do_pan(self, dx: float, dy: float) -> None:
+        self.move(pan(self.camera, dx, dy, self.aspect()))
 
     def set_method(self, method: str) -> None:
         if method != self.method:

@@ -16,6 +16,8 @@ from ..errors import InputError, RenderError
 from ..settings import METHODS
 from .bindings import BINDINGS
 
+RESIZE_SECONDS = 5.0  # how long ``resize`` waits for the window to take the size
+
 SCRIPT_HELP = """\
 script commands (';' or newline separated, '#' starts a comment):
   orbit DYAW DPITCH [FRAMES]  orbit by degrees (spread over FRAMES frames, default 1)
@@ -23,7 +25,7 @@ script commands (';' or newline separated, '#' starts a comment):
   zoom FACTOR [FRAMES]        multiply the eye's distance to look_at by FACTOR
   key NAME                    press a key: m, s, c, r, 1-4, q, left, right, up, down, plus, minus
   method NAME                 switch the method (gradient, fast, newton, martin)
-  resize W H                  resize the window (screen coordinates)
+  resize W H                  resize the window (screen coordinates), until it has that size
   wait                        until the exact full-resolution image (or its failure)
   frames N                    let N frames pass
   sleep SECONDS               let time pass
@@ -121,8 +123,14 @@ def _run(app, cmd: Command) -> bool:
         app.press(a[0])
     elif name == "method":
         app.set_method(a[0])
-    elif name == "resize":
-        app.window.set_size(a[0], a[1])
+    elif name == "resize":  # finished once the window has the size and the application its framebuffer
+        if state is None:
+            app.window.set_size(a[0], a[1])
+            cmd.state = time.perf_counter() + RESIZE_SECONDS
+            return False
+        fb = app.window.framebuffer_size()
+        done = app.window.size() == (a[0], a[1]) and app.fb_size == fb
+        return done or time.perf_counter() > state  # a window manager may refuse the size
     elif name == "wait":
         return app.refine.complete or app.refine.failed is not None
     elif name == "frames":

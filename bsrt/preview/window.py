@@ -109,6 +109,10 @@ class Window:
     def framebuffer_size(self) -> tuple[int, int]:
         return tuple(glfw.get_framebuffer_size(self.handle))
 
+    def size(self) -> tuple[int, int]:
+        """The window's size in screen coordinates."""
+        return tuple(glfw.get_window_size(self.handle))
+
     def should_close(self) -> bool:
         return bool(glfw.window_should_close(self.handle))
 
