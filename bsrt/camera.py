@@ -8,7 +8,7 @@ maps through ``clip_from_eye`` to the same normalised (x, y) as the ray.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,3 +86,64 @@ def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: flo
         centre, half = (top + bottom) / 2.0, (top - bottom) / 2.0
         clip_from_camera[1] = (clip_from_camera[1] - centre * clip_from_camera[3]) / half
     return clip_from_camera @ camera_from_eye
+
+
+# ---------------------------------------------------------------- camera moves (the preview's orbit, pan, zoom)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v)
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, degrees: float) -> np.ndarray:
+    """v (3,) rotated about the unit axis (3,) by degrees (right-handed, Rodrigues)."""
+    a = np.radians(degrees)
+    return v * np.cos(a) + np.cross(axis, v) * np.sin(a) + axis * float(axis @ v) * (1.0 - np.cos(a))
+
+
+def orbit(camera: Camera, yaw: float, pitch: float) -> Camera:
+    """Turn the eye about look_at: yaw degrees about ``up`` (positive turns the
+    view to the left, the object to the right: the eye moves clockwise seen
+    from above), then pitch degrees about the view's right axis (positive
+    raises the eye); a pitch that would bring the eye within 1 degree of
+    ``up`` is not applied, so the camera stays valid."""
+    up = _unit(camera.up)
+    offset = _rotate(camera.eye - camera.look_at, up, -yaw)
+    right = _unit(np.cross(-offset, up))
+    tilted = _rotate(offset, right, -pitch)
+    angle = np.degrees(np.arccos(np.clip(_unit(tilted) @ up, -1.0, 1.0)))
+    if 1.0 <= angle <= 179.0:
+        offset = tilted
+    return replace(camera, eye=camera.look_at + offset)
+
+
+def pan(camera: Camera, dx: float, dy: float, aspect: float) -> Camera:
+    """Move eye and look_at together by (dx, dy) view heights at look_at's
+    distance (dx to the right, dy up), opposite to the view's right and up
+    axes: the scene follows a dragged cursor. aspect = width / height."""
+    right, up, _ = camera.basis()
+    _, ty = camera.half_extents(aspect, 1.0)
+    scale = 2.0 * ty * float(np.linalg.norm(camera.look_at - camera.eye))
+    shift = -(dx * right + dy * up) * scale
+    return replace(camera, eye=camera.eye + shift, look_at=camera.look_at + shift)
+
+
+def zoom(camera: Camera, factor: float) -> Camera:
+    """Multiply the eye's distance to look_at by factor (< 1: closer); look_at stays."""
+    return replace(camera, eye=camera.look_at + (camera.eye - camera.look_at) * factor)
+
+
+def camera_toml(camera: Camera) -> str:
+    """The camera as a scene file's [camera] table (floats round-trip exactly)."""
+
+    def vec(v) -> str:
+        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+    return (
+        "[camera]\n"
+        f"eye = {vec(camera.eye)}\n"
+        f"look_at = {vec(camera.look_at)}\n"
+        f"up = {vec(camera.up)}\n"
+        f"fov = {float(camera.fov)!r}\n"
+        f'fov_axis = "{camera.fov_axis}"\n'
+    )

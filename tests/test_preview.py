@@ -21,7 +21,9 @@ import pytest
 from PIL import Image
 
 from bsrt import preview
-from bsrt.camera import Camera
+from bsrt.camera import Camera, camera_toml, orbit, pan, zoom
+from bsrt.preview import refine, script, solver as solver_module
+from bsrt.preview.bindings import ZOOM_STEP
 from bsrt.errors import InputError
 from bsrt.settings import RenderOptions
 from bsrt.pipeline import Geometry, render
@@ -202,8 +204,12 @@ def test_frame_log_records_refinement(session):
     assert {"moving", "refining", "exact"} <= set(states)
     summary = log["summary"]
     assert summary["refining_frames"] >= 3  # the window kept drawing while the solver worked
-    # generous (a loaded CI machine): the 100 ms target is measured at 800x600, see the issue notes
-    assert summary["max_gap_refining_ms"] < 1000
+    # measured on a shared 2-core machine (load 5-9): median 16.7 ms (the 60 fps cap), max 33-41 ms
+    # over 6 runs of this session; the bounds leave a margin of 3x and 5x
+    frames = log["frames"]
+    gaps = [(b["t"] - a["t"]) * 1e3 for a, b in zip(frames, frames[1:]) if a["state"] == "refining"]
+    assert float(np.median(gaps)) < 50.0
+    assert summary["max_gap_refining_ms"] < 200.0
 
 
 # ---------------------------------------------------------------- more windows
@@ -231,11 +237,41 @@ def test_resize_renders_at_the_new_framebuffer_size(display, tmp_path):
     assert_same_image(image, render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1)).pixels, "resized")
 
 
-def test_martin_method_or_its_error_keeps_the_window_running(display, tmp_path):
-    result = run_preview(display, SCENES / "quad.toml", "--width", 80, "--height", 60,
-                         "--events", "key 4; wait; frames 2; key 3; wait; save n.png; quit", cwd=tmp_path)
+def test_martin_method_then_back_to_newton(display, tmp_path):
+    """Key 4 (martin: no map, the hierarchy) shows the exact image render()
+    gives for that method and camera; key 3 goes back to newton."""
+    result = run_preview(display, SCENES / "quad.toml", "--width", 80, "--height", 60, "--events",
+                         "key 4; wait; camera; save m.png; screenshot m-screen.png; key 3; wait; save n.png; quit",
+                         cwd=tmp_path)
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "n.png").exists()
+    scene = load_scene(SCENES / "quad.toml")
+    (camera,) = cameras_printed(result.stdout)
+    for name, method in (("m.png", "martin"), ("n.png", "newton")):
+        want = render(scene, RenderOptions.resolve(scene, method=method, camera=camera, width=80, height=60, spp=1))
+        assert_same_image(read_png(tmp_path / name), want.pixels, name)
+    # the window showed the martin image itself, pixel for pixel
+    assert np.array_equal(read_png(tmp_path / "m-screen.png"), read_png(tmp_path / "m.png"))
+    assert foreground(read_png(tmp_path / "m.png"), scene.film.background).mean() > 0.1
+
+
+def test_camera_overrides_and_format_like_bsrt_render(display, tmp_path):
+    """--camera-eye/--camera-look-at/--camera-up/--fov and --format, loaded by
+    bsrt/loading.py as `bsrt render` does: the window starts at that camera."""
+    result = run_preview(display, SCENES / "quad.toml", "--width", 40, "--height", 30, "--camera-eye", "0,-6,1",
+                         "--camera-look-at", "0,0,1", "--camera-up", "0,0,1", "--fov", "25", "--events", "camera; quit",
+                         cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    (camera,) = cameras_printed(result.stdout)
+    assert camera.eye.tolist() == [0.0, -6.0, 1.0] and camera.look_at.tolist() == [0.0, 0.0, 1.0]
+    assert camera.up.tolist() == [0.0, 0.0, 1.0] and camera.fov == 25.0
+    model = tmp_path / "patches.txt"  # a .bpt file under a name the extension does not tell
+    shutil.copy(ROOT / "tests" / "data" / "patches.bpt", model)
+    opened = run_preview(display, model, "--format", "bpt", "--width", 40, "--height", 30, "--frames", 1)
+    assert opened.returncode == 0, opened.stderr
+    unknown = run_preview(display, model, "--width", 40, "--height", 30, "--frames", 1)
+    assert unknown.returncode == 2 and "patches.txt" in unknown.stderr
+    bad = run_preview(None, SCENES / "quad.toml", "--fov", "200", "--frames", 1)
+    assert bad.returncode == 2 and bad.stderr.strip().splitlines() == ["bsrt: error: --fov: must be between 0 and 180 degrees, got 200"]
 
 
 def test_no_display_exits_2_pointing_at_bsrt_render():
@@ -271,42 +307,42 @@ def test_input_callbacks_in_process(display, monkeypatch):
     window = preview.Preview(load_scene(path), path, args, [])
     window.open()
     try:
-        w = window.window
+        w, win = window.window.handle, window.window
         home = window.camera
         distance = np.linalg.norm(home.eye - home.look_at)
-        window._on_mouse_button(w, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
-        x, y = window.mouse["x"], window.mouse["y"]
-        window._on_cursor(w, x + 25, y - 10)
+        win._on_mouse_button(w, glfw.MOUSE_BUTTON_LEFT, glfw.PRESS, 0)
+        x, y = win.cursor
+        win._on_cursor(w, x + 25, y - 10)
         assert window.state() == "moving"
-        window._on_mouse_button(w, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)
+        win._on_mouse_button(w, glfw.MOUSE_BUTTON_LEFT, glfw.RELEASE, 0)
         orbited = window.camera
         assert np.allclose(orbited.look_at, home.look_at) and not np.allclose(orbited.eye, home.eye)
         assert np.isclose(np.linalg.norm(orbited.eye - orbited.look_at), distance)
-        window._on_mouse_button(w, glfw.MOUSE_BUTTON_RIGHT, glfw.PRESS, 0)
-        window._on_cursor(w, x + 35, y)
-        window._on_mouse_button(w, glfw.MOUSE_BUTTON_RIGHT, glfw.RELEASE, 0)
+        win._on_mouse_button(w, glfw.MOUSE_BUTTON_RIGHT, glfw.PRESS, 0)
+        win._on_cursor(w, x + 35, y)
+        win._on_mouse_button(w, glfw.MOUSE_BUTTON_RIGHT, glfw.RELEASE, 0)
         assert np.allclose(window.camera.eye - orbited.eye, window.camera.look_at - orbited.look_at)
         assert not np.allclose(window.camera.look_at, orbited.look_at)
         before = window.camera
-        window._on_scroll(w, 0.0, 1.0)
+        win._on_scroll(w, 0.0, 1.0)
         assert np.isclose(np.linalg.norm(window.camera.eye - window.camera.look_at),
-                          preview.ZOOM_STEP * np.linalg.norm(before.eye - before.look_at))
-        window._on_key(w, glfw.KEY_LEFT, 0, glfw.PRESS, 0)
+                          ZOOM_STEP * np.linalg.norm(before.eye - before.look_at))
+        win._on_key(w, glfw.KEY_LEFT, 0, glfw.PRESS, 0)
         assert not np.allclose(window.camera.eye, before.eye)
-        window._on_key(w, glfw.KEY_M, 0, glfw.PRESS, 0)
+        win._on_key(w, glfw.KEY_M, 0, glfw.PRESS, 0)
         assert window.show_map
-        window._on_key(w, glfw.KEY_2, 0, glfw.PRESS, 0)
+        win._on_key(w, glfw.KEY_2, 0, glfw.PRESS, 0)
         assert window.method == "fast"
-        window._on_key(w, glfw.KEY_R, 0, glfw.PRESS, 0)
+        win._on_key(w, glfw.KEY_R, 0, glfw.PRESS, 0)
         assert np.array_equal(window.camera.eye, home.eye)
         window.args.frames = 3
         window.run()
         assert window.frame == 3
-        window._on_key(w, glfw.KEY_ESCAPE, 0, glfw.PRESS, 0)
+        win._on_key(w, glfw.KEY_ESCAPE, 0, glfw.PRESS, 0)
         assert window.quit
     finally:
         window.close()
-    assert window.gl_error == "GL_NO_ERROR" and not window._owned
+    assert window.gl_error == "GL_NO_ERROR" and not window.view.owned
 
 
 def test_solver_abandons_a_stale_job_at_once(ctx):
@@ -317,15 +353,15 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
 
     scene = load_scene(SCENES / "column.toml")
     patches = Geometry(scene).patches
-    solver = preview.Solver(scene, "float")
+    solver = solver_module.Solver(scene, "float")
     solver.start()
     try:
         def job(generation, width, height, camera):
             prelim = render_map(patches, camera, width, height, ctx=ctx)
-            return preview.Job(generation, 0, "newton", camera, width, height, prelim)
+            return solver_module.Job(generation, 0, "newton", camera, width, height, prelim)
 
         deadline = time.monotonic() + 120
-        while solver.spare is None or solver.spare.running.value != preview.IDLE:
+        while solver.spare is None or solver.spare.running.value != solver_module.IDLE:
             solver.outcomes()
             assert time.monotonic() < deadline, "the spare solver never got ready"
             time.sleep(0.02)
@@ -334,7 +370,7 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
             solver.outcomes()
             assert time.monotonic() < deadline
             time.sleep(0.01)
-        moved = preview.orbit(scene.camera, 20.0, 0.0)
+        moved = orbit(scene.camera, 20.0, 0.0)
         solver.cancel_before(2)
         assert solver.swaps == 1
         solver.submit(job(2, 40, 30, moved))
@@ -360,45 +396,45 @@ def _camera():
 
 def test_orbit_keeps_distance_and_target():
     cam = _camera()
-    moved = preview.orbit(cam, 30.0, 10.0)
+    moved = orbit(cam, 30.0, 10.0)
     assert np.allclose(moved.look_at, cam.look_at)
     assert np.isclose(np.linalg.norm(moved.eye - moved.look_at), np.linalg.norm(cam.eye - cam.look_at))
     assert moved.eye[2] > cam.eye[2]  # positive pitch raises the eye
     # a full turn of yaw comes back; pitch never crosses the up axis
-    assert np.allclose(preview.orbit(cam, 360.0, 0.0).eye, cam.eye)
+    assert np.allclose(orbit(cam, 360.0, 0.0).eye, cam.eye)
     top = cam
     for _ in range(40):
-        top = preview.orbit(top, 0.0, 10.0)
+        top = orbit(top, 0.0, 10.0)
     offset = (top.eye - top.look_at) / np.linalg.norm(top.eye - top.look_at)
     assert offset @ cam.up < np.cos(np.radians(0.99))
 
 
 def test_pan_and_zoom():
     cam = _camera()
-    panned = preview.pan(cam, 0.1, -0.2, 4 / 3)
+    panned = pan(cam, 0.1, -0.2, 4 / 3)
     assert np.allclose(panned.eye - cam.eye, panned.look_at - cam.look_at)
     right, up, _ = cam.basis()
     shift = panned.eye - cam.eye
     assert shift @ right < 0 and shift @ up > 0  # the scene follows the cursor
-    zoomed = preview.zoom(cam, 0.5)
+    zoomed = zoom(cam, 0.5)
     assert np.allclose(zoomed.look_at, cam.look_at)
     assert np.isclose(np.linalg.norm(zoomed.eye - cam.look_at), 0.5 * np.linalg.norm(cam.eye - cam.look_at))
 
 
 def test_camera_toml_round_trips_exactly():
-    cam = preview.orbit(_camera(), 12.345, 6.789)
-    (back,) = cameras_printed(preview.camera_toml(cam))
+    cam = orbit(_camera(), 12.345, 6.789)
+    (back,) = cameras_printed(camera_toml(cam))
     assert np.array_equal(back.eye, cam.eye) and np.array_equal(back.look_at, cam.look_at)
     assert back.fov == cam.fov and back.fov_axis == cam.fov_axis
 
 
 def test_parse_script():
-    cmds = preview.parse_script("orbit 30 0; wait  # comment\nsave 'a b.png'\nzoom 0.5 4; key M; quit")
+    cmds = script.parse_script("orbit 30 0; wait  # comment\nsave 'a b.png'\nzoom 0.5 4; key M; quit")
     assert [c.name for c in cmds] == ["orbit", "wait", "save", "zoom", "key", "quit"]
     assert cmds[2].args == ["a b.png"] and cmds[3].args == [0.5, 4]
     for bad in ("fly 1", "orbit 1", "orbit a b", "save out.jpg", "key F13", "method fastest", "frames 0"):
         with pytest.raises(InputError):
-            preview.parse_script(bad)
+            script.parse_script(bad)
 
 
 def test_map_bands_stitch_to_the_whole_map(ctx):
@@ -408,14 +444,26 @@ def test_map_bands_stitch_to_the_whole_map(ctx):
 
     width, height = 120, 90
     whole = render_map(patches, scene.camera, width, height, ctx=ctx)
-    bands = preview.map_bands(width, height)
+    bands = refine.map_bands(width, height)
     assert bands[0][0] == 0 and bands[-1][1] == height
     assert all(a[1] == b[0] for a, b in zip(bands, bands[1:]))
-    assert len(preview.map_bands(800, 600)) == round(800 * 600 / preview.MAP_BAND_PIXELS)
+    assert len(refine.map_bands(800, 600)) == round(800 * 600 / refine.MAP_BAND_PIXELS)
     three = [(0, 30), (30, 60), (60, 90)]
-    stitched = preview.stitch_maps([render_map(patches, scene.camera, width, height, ctx=ctx, rows=r) for r in three])
+    stitched = refine.stitch_maps([render_map(patches, scene.camera, width, height, ctx=ctx, rows=r) for r in three])
     assert np.array_equal(stitched.surface, whole.surface)
     covered = whole.surface >= 0
     assert np.allclose(stitched.u[covered], whole.u[covered], atol=1e-3)
     assert np.allclose(stitched.v[covered], whole.v[covered], atol=1e-3)
     assert ctx.error == "GL_NO_ERROR"
+
+
+def test_every_binding_names_an_action_of_the_application():
+    from bsrt.preview.app import Preview
+    from bsrt.preview.bindings import BINDINGS
+    from bsrt.preview.window import KEY_NAMES
+
+    for name, (action, *arguments) in BINDINGS.items():
+        assert callable(getattr(Preview, f"_do_{action}", None)), (name, action)
+    # every key the window names is bound (Shift+arrows included)
+    assert set(KEY_NAMES.values()) <= set(BINDINGS)
+    assert {f"shift+{k}" for k in ("left", "right", "up", "down")} <= set(BINDINGS)

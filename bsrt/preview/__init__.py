@@ -1,0 +1,15 @@
+"""``bsrt preview``: an interactive window, a fast GL view while the camera
+moves, then the exact image. One module per concern:
+
+- app.py: the application and its frame loop; ``main`` and ``add_arguments``
+- window.py: the glfw window, input callbacks -> named events
+- bindings.py: key names -> actions (data)
+- view.py: the fast GL view, textures, screenshots
+- refine.py: the refinement state machine (levels, bands, stale results)
+- solver.py: the solver processes and their job protocol
+- script.py: ``--events`` / ``--script``
+"""
+
+from .app import Preview, add_arguments, main
+
+__all__ = ["Preview", "add_arguments", "main"]
