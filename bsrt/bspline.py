@@ -283,13 +283,31 @@ def insert_knot(knots: np.ndarray, ctrl: np.ndarray, p: int, x: float):
     return np.insert(knots, k + 1, x), new
 
 
-def _saturate(knots: np.ndarray, ctrl: np.ndarray, p: int, n: int):
-    """Insert knots until every distinct knot in the domain has multiplicity >= p."""
-    a, b = knots[p], knots[n]
-    for x in np.unique(knots[(knots >= a) & (knots <= b)]):
-        while np.count_nonzero(knots == x) < p:
-            knots, ctrl = insert_knot(knots, ctrl, p, x)
-    return knots, ctrl
+def _bezier_rows(knots: np.ndarray, ctrl: np.ndarray, p: int):
+    """The Bezier control points of every non-empty span of a B-spline along axis 0.
+
+    knots: (n + p + 1,); ctrl: (n, ...) homogeneous points. Returns (pieces
+    (S, p + 1, ...), spans (S,) int64 the knot index i of each span [knots[i],
+    knots[i + 1]) in the domain). Bezier point k of span [a, b] is the
+    blossom f(a, .., a, b, .., b) (p - k a's): de Boor's triangle with
+    argument x_r at level r, vectorised over the spans (no knot insertion).
+    """
+    n = ctrl.shape[0]
+    spans = np.array([i for i in range(p, n) if knots[i] < knots[i + 1]], dtype=np.int64)
+    a, b = knots[spans], knots[spans + 1]
+    extra = (1,) * (ctrl.ndim - 1)
+    pieces = np.empty((spans.size, p + 1) + ctrl.shape[1:])
+    for k in range(p + 1):
+        d = [ctrl[spans - p + j] for j in range(p + 1)]  # d[j] ~ P[i - p + j], each (S, ...)
+        for r in range(1, p + 1):
+            x = (a if r <= p - k else b).reshape(-1, *extra)
+            for j in range(p, r - 1, -1):  # knot index i - p + j
+                lo = knots[spans - p + j].reshape(-1, *extra)
+                hi = knots[spans + j + 1 - r].reshape(-1, *extra)
+                alpha = (x - lo) / (hi - lo)  # hi > lo on a non-empty span
+                d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
+        pieces[:, k] = d[p]
+    return pieces, spans
 
 
 def bezier_patches(surface: BSplineSurface):
@@ -297,19 +315,17 @@ def bezier_patches(surface: BSplineSurface):
 
     Returns (ctrl, bounds): ctrl (K, p+1, q+1, 4) homogeneous Bezier control
     points; bounds (K, 4) float64 rows (u0, u1, v0, v1), the piece's rectangle
-    in the surface's own knot domain. Pieces are ordered u-major.
+    in the surface's own knot domain. Pieces are ordered u-major. Vectorised
+    over the spans (a surface of a million pieces takes seconds).
     """
     (p, q) = surface.degree
-    ku, ctrl = _saturate(surface.knots_u, surface.homogeneous(), p, surface.shape[0])
-    ctrl_t = np.swapaxes(ctrl, 0, 1)
-    kv, ctrl_t = _saturate(surface.knots_v, ctrl_t, q, surface.shape[1])
-    ctrl = np.swapaxes(ctrl_t, 0, 1)
-    nu, nv = ctrl.shape[:2]
-    spans_u = [i for i in range(p, nu) if ku[i] < ku[i + 1]]
-    spans_v = [j for j in range(q, nv) if kv[j] < kv[j + 1]]
-    pieces, bounds = [], []
-    for i in spans_u:
-        for j in spans_v:
-            pieces.append(ctrl[i - p : i + 1, j - q : j + 1])
-            bounds.append((ku[i], ku[i + 1], kv[j], kv[j + 1]))
-    return np.array(pieces), np.array(bounds, dtype=np.float64)
+    ku, kv = surface.knots_u, surface.knots_v
+    rows, spans_u = _bezier_rows(ku, surface.homogeneous(), p)  # (Su, p+1, nv, 4)
+    cols, spans_v = _bezier_rows(kv, np.moveaxis(rows, 2, 0), q)  # (Sv, q+1, Su, p+1, 4)
+    ctrl = np.ascontiguousarray(cols.transpose(2, 0, 3, 1, 4)).reshape(-1, p + 1, q + 1, 4)
+    bounds = np.empty((spans_u.size, spans_v.size, 4))
+    bounds[..., 0] = ku[spans_u, None]
+    bounds[..., 1] = ku[spans_u + 1, None]
+    bounds[..., 2] = kv[spans_v][None, :]
+    bounds[..., 3] = kv[spans_v + 1][None, :]
+    return ctrl, bounds.reshape(-1, 4)

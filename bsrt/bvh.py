@@ -180,13 +180,11 @@ class BVH:
 
 def padded_nets(patches: PatchSet):
     """(nets (P, Pm, Qm, 4), degree (P, 2)): every patch's homogeneous net in the corner of one array."""
-    pm = max(b.shape[0] for b in patches.bezier)
-    qm = max(b.shape[1] for b in patches.bezier)
+    degree = patches.arrays.degree
+    pm, qm = (int(degree[:, 0].max()) + 1, int(degree[:, 1].max()) + 1) if patches.size else (1, 1)
     nets = np.zeros((patches.size, pm, qm, 4))
-    degree = np.zeros((patches.size, 2), dtype=np.int64)
-    for k, b in enumerate(patches.bezier):
-        nets[k, : b.shape[0], : b.shape[1]] = b
-        degree[k] = (b.shape[0] - 1, b.shape[1] - 1)
+    for ids, group in patches.groups:
+        nets[ids, : group.shape[1], : group.shape[2]] = group
     return nets, degree
 
 
