@@ -41,7 +41,9 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    mouldings) made leaves that a ray at cos 0.3-0.5 crosses twice, and
    Newton from the centre found the far root.
    Default ``flatness = 2e-3`` (``DEFAULT_FLATNESS``), ``max_depth = 12``
-   (at most 4096 leaves per Bezier patch). Finer values cost little at
+   (at most 4096 leaves per Bezier patch), lowered for the whole scene while
+   the leaves' nets would exceed LEAF_NET_FLOATS (256 MB) or LEAVES_PER_PATCH
+   nets per patch (``flatten``): high-degree patches stay in bounded memory. Finer values cost little at
    render time (the water-lily renders as fast at 1e-3 as at 1e-2) but
    make Newton from the centre fail less often.
 
@@ -89,7 +91,7 @@ import numpy as np
 
 from .hits import Hits
 from .patches import PatchSet
-from .kernels.flatten import build_tree, flatten_patches
+from .kernels.flatten import build_tree, count_leaves, flatten_patches
 from .kernels.trim import OUTSIDE, rect_states
 from .kernels.threads import run_chunks
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
@@ -100,6 +102,9 @@ DEFAULT_MAX_DEPTH = 12
 DEFAULT_LEAF_SIZE = 2
 DEFAULT_RETRY_DEPTH = 4
 BEND = 0.02  # a leaf deviates from its bilinear patch by at most this fraction of its size
+LEAF_NET_FLOATS = 1 << 25  # the leaves' nets hold at most this many floats (256 MB) ...
+LEAVES_PER_PATCH = 4  # ... or this many nets per patch, if more (a patch is at least one leaf)
+BOX_CHUNK_FLOATS = 1 << 21  # control points (x 3 floats) of the leaves boxed at once
 
 
 @dataclass(eq=False)
@@ -191,17 +196,47 @@ def padded_nets(patches: PatchSet):
 def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: int = DEFAULT_MAX_DEPTH):
     """Cut every Bezier patch into flat pieces (compiled: kernels/flatten.py).
 
+    The leaves' nets are bounded: while they would hold more than
+    max(LEAF_NET_FLOATS, LEAVES_PER_PATCH floats per patch's net) floats,
+    max_depth is lowered by one (a high-degree patch then keeps coarser,
+    curved leaves; the grazing/miss retries cut those further per ray).
     Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, nets (L, Pm, Qm,
     4) homogeneous nets in the corner of the array, degree (L, 2) int64).
     """
     nets, degree = padded_nets(patches)
-    patch, rect, depth, leaf_nets = flatten_patches(nets, degree, patches.bounds, flatness * patches.scene_diagonal(),
-                                                    BEND, max_depth)
+    eps = flatness * patches.scene_diagonal()
+    per_leaf = int(np.prod(nets.shape[1:]))
+    allowance = max(LEAF_NET_FLOATS, LEAVES_PER_PATCH * per_leaf * patches.size)
+    counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
+    while max_depth > 0 and int(counts.sum()) * per_leaf > allowance:
+        max_depth -= 1
+        counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
+    patch, rect, depth, leaf_nets = flatten_patches(nets, degree, patches.bounds, eps, BEND, max_depth, counts)
     return patch, rect, depth, leaf_nets, degree[patch]
 
 
 # ---------------------------------------------------------------------------
 # Tree
+
+
+def _leaf_boxes(nets, degree, padding):
+    """(box_min (L, 3), box_max (L, 3), obb (L, 15)) of the leaves' projected
+    control points, padded; computed in chunks of leaves so the temporaries
+    stay within BOX_CHUNK_FLOATS control points whatever the degree."""
+    n, pm, qm = nets.shape[:3]
+    box_min, box_max, obb = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 15))
+    step = max(1, BOX_CHUNK_FLOATS // (pm * qm))
+    used = (np.arange(pm)[None, :, None] <= degree[:, None, None, 0]) & (np.arange(qm)[None, None, :] <= degree[:, None, None, 1])
+    for a in range(0, n, step):
+        part = slice(a, min(n, a + step))
+        with np.errstate(all="ignore"):  # the padding entries have w = 0; they are replaced below
+            points = nets[part, ..., :3] / nets[part, ..., 3:4]
+        # padding entries replaced by the first point: (chunk, Pm * Qm, 3)
+        points = np.where(used[part, ..., None], points, points[:, :1, :1]).reshape(-1, pm * qm, 3)
+        obb[part] = _oriented_boxes(nets[part], degree[part], points, padding)
+        box_min[part] = points.min(axis=1) - padding
+        box_max[part] = points.max(axis=1) + padding
+    return box_min, box_max, obb
 
 
 def _oriented_boxes(nets, degree, points, padding):
@@ -249,16 +284,7 @@ def build_bvh(
     if patches.trimmed:  # pieces the trims remove entirely hold no hit
         keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
         patch, rect, depth, all_nets, degree = patch[keep], rect[keep], depth[keep], all_nets[keep], degree[keep]
-    n = patch.size
-    # the pieces' projected control points (L, Pm * Qm, 3), padding entries replaced by the first point
-    pm, qm = all_nets.shape[1:3]
-    used = (np.arange(pm)[None, :, None] <= degree[:, None, None, 0]) & (np.arange(qm)[None, None, :] <= degree[:, None, None, 1])
-    with np.errstate(all="ignore"):  # the padding entries have w = 0; they are replaced below
-        points = all_nets[..., :3] / all_nets[..., 3:4]
-    points = np.where(used[..., None], points, points[:, :1, :1]).reshape(n, -1, 3)
-    obb = _oriented_boxes(all_nets, degree, points, padding)
-    box_min = points.min(axis=1) - padding
-    box_max = points.max(axis=1) + padding
+    box_min, box_max, obb = _leaf_boxes(all_nets, degree, padding)
     order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
     rect = rect[order]
     return BVH(

@@ -279,3 +279,33 @@ def test_ten_thousand_patches_set_up_vectorised_match_the_reference_evaluator():
         b = patches.bounds[k]
         corner = evaluate(surfaces[patches.surface[k]], [b[0]], [b[2]])[0][0]
         np.testing.assert_allclose(pts[0, 0], corner, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------
+# The hierarchy's leaves in a budget
+
+
+def test_leaf_budget_lowers_the_depth_and_the_retries_keep_the_hits(tmp_path, monkeypatch):
+    """A bumpy degree-12 patch cut under a budget of 16 leaf nets: flatten
+    lowers max_depth until the leaves fit, and the per-ray retries (quarters
+    of a curved leaf) still find the same nearest roots as the full cut."""
+    from bsrt import bvh as bvh_module
+
+    path = write_plane(tmp_path / "bumpy12.bpt", 12, wavy=0.3)
+    scene = bsrt.load(path, width=24, height=24, fov=40, **VIEW)
+    patches = PatchSet([s.geometry for s in scene.surfaces])
+    directions = pixel_rays(scene.camera, 24, 24)
+    full = bvh_module.build_bvh(patches)
+    per_leaf = full.leaf_net[0].size
+    assert full.leaf_total > 16  # the budget below binds
+    want = bvh_module.intersect(full, scene.camera.eye[None, :], directions)
+    monkeypatch.setattr(bvh_module, "LEAF_NET_FLOATS", 16 * per_leaf)
+    monkeypatch.setattr(bvh_module, "LEAVES_PER_PATCH", 1)
+    small = bvh_module.build_bvh(patches)
+    assert 0 < small.leaf_total <= 16
+    assert small.leaf_depth.max() < full.leaf_depth.max()
+    got = bvh_module.intersect(small, scene.camera.eye[None, :], directions)
+    assert want.hit.all()  # the bumps stay inside the view
+    np.testing.assert_array_equal(got.hit, want.hit)
+    # both are roots within the tolerance (1e-9 of the diagonal from the ray); t may differ by that over |cos|
+    np.testing.assert_allclose(got.t[got.hit], want.t[want.hit], rtol=0, atol=4e-9 * patches.scene_diagonal())

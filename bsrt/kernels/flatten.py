@@ -5,8 +5,9 @@ projected control points lie within ``eps`` of its corners' bilinear patch
 and it is not bent (deviation and twist within BEND x its size), or it has
 been cut ``max_depth`` times; otherwise it is cut at the parameter midpoint
 across the direction with the larger directional deviation. Each patch is
-cut depth-first with a stack of nets; two passes (count, then fill) so the
-output arrays are allocated once, both parallel over patches.
+cut depth-first with a stack of nets; two passes (count_leaves, then
+flatten_patches to fill) so the output arrays are allocated once and the
+caller can lower max_depth when the count exceeds its memory budget.
 """
 
 from __future__ import annotations
@@ -141,8 +142,8 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
 
 
 @njit(cache=True)
-def flatten_patches(nets, degree, rects, eps, bend, max_depth):
-    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
+def count_leaves(nets, degree, rects, eps, bend, max_depth):
+    """(P,) int64: the number of leaves of each patch cut at most max_depth times.
 
     nets: (P, Pm, Qm, 4) homogeneous Bezier nets (degree (P, 2) fills the
     corner); rects: (P, 4) parameter rectangles.
@@ -153,6 +154,17 @@ def flatten_patches(nets, degree, rects, eps, bend, max_depth):
     for k in range(n):
         counts[k] = _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, 0,
                          dummy_r, dummy_d, dummy_n)
+    return counts
+
+
+@njit(cache=True)
+def flatten_patches(nets, degree, rects, eps, bend, max_depth, counts):
+    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
+
+    nets, degree, rects: as count_leaves; counts: count_leaves' answer for
+    the same arguments (the output arrays are allocated once from it).
+    """
+    n = nets.shape[0]
     starts = np.zeros(n + 1, dtype=np.int64)
     starts[1:] = np.cumsum(counts)
     total = starts[n]
