@@ -283,31 +283,35 @@ def insert_knot(knots: np.ndarray, ctrl: np.ndarray, p: int, x: float):
     return np.insert(knots, k + 1, x), new
 
 
-def _bezier_rows(knots: np.ndarray, ctrl: np.ndarray, p: int):
-    """The Bezier control points of every non-empty span of a B-spline along axis 0.
+def _span_matrices(knots: np.ndarray, n: int, p: int):
+    """The Bezier extraction matrices of every non-empty span of a degree-p
+    B-spline with n control points along one axis.
 
-    knots: (n + p + 1,); ctrl: (n, ...) homogeneous points. Returns (pieces
-    (S, p + 1, ...), spans (S,) int64 the knot index i of each span [knots[i],
-    knots[i + 1]) in the domain). Bezier point k of span [a, b] is the
-    blossom f(a, .., a, b, .., b) (p - k a's): de Boor's triangle with
-    argument x_r at level r, vectorised over the spans (no knot insertion).
+    Returns (matrices (S, p + 1, p + 1), spans (S,) int64): span s is
+    [knots[i], knots[i + 1]) with i = spans[s], and its Bezier point k is
+    sum_j matrices[s, k, j] P[i - p + j]. Bezier point k of span [a, b] is
+    the blossom f(a, .., a, b, .., b) (p - k a's): de Boor's triangle with
+    argument x_r at level r, run on unit vectors for all spans at once (no
+    knot insertion, no per-span Python loop).
     """
-    n = ctrl.shape[0]
-    spans = np.array([i for i in range(p, n) if knots[i] < knots[i + 1]], dtype=np.int64)
-    a, b = knots[spans], knots[spans + 1]
-    extra = (1,) * (ctrl.ndim - 1)
-    pieces = np.empty((spans.size, p + 1) + ctrl.shape[1:])
+    spans = np.flatnonzero(knots[p:n] < knots[p + 1 : n + 1]).astype(np.int64) + p
+    a, b = knots[spans, None], knots[spans + 1, None]
+    matrices = np.empty((spans.size, p + 1, p + 1))
+    unit = np.eye(p + 1)
     for k in range(p + 1):
-        d = [ctrl[spans - p + j] for j in range(p + 1)]  # d[j] ~ P[i - p + j], each (S, ...)
+        d = [np.broadcast_to(unit[j], (spans.size, p + 1)) for j in range(p + 1)]  # d[j] ~ P[i - p + j]
         for r in range(1, p + 1):
-            x = (a if r <= p - k else b).reshape(-1, *extra)
+            x = a if r <= p - k else b
             for j in range(p, r - 1, -1):  # knot index i - p + j
-                lo = knots[spans - p + j].reshape(-1, *extra)
-                hi = knots[spans + j + 1 - r].reshape(-1, *extra)
+                lo = knots[spans - p + j, None]
+                hi = knots[spans + j + 1 - r, None]
                 alpha = (x - lo) / (hi - lo)  # hi > lo on a non-empty span
                 d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
-        pieces[:, k] = d[p]
-    return pieces, spans
+        matrices[:, k] = d[p]
+    return matrices, spans
+
+
+EXTRACT_CHUNK = 1 << 18  # Bezier points (x 4 floats) gathered at once in the second direction
 
 
 def bezier_patches(surface: BSplineSurface):
@@ -320,9 +324,18 @@ def bezier_patches(surface: BSplineSurface):
     """
     (p, q) = surface.degree
     ku, kv = surface.knots_u, surface.knots_v
-    rows, spans_u = _bezier_rows(ku, surface.homogeneous(), p)  # (Su, p+1, nv, 4)
-    cols, spans_v = _bezier_rows(kv, np.moveaxis(rows, 2, 0), q)  # (Sv, q+1, Su, p+1, 4)
-    ctrl = np.ascontiguousarray(cols.transpose(2, 0, 3, 1, 4)).reshape(-1, p + 1, q + 1, 4)
+    nu, nv = surface.shape
+    mu, spans_u = _span_matrices(ku, nu, p)  # (Su, p+1, p+1)
+    mv, spans_v = _span_matrices(kv, nv, q)  # (Sv, q+1, q+1)
+    window_u = spans_u[:, None] - p + np.arange(p + 1)  # (Su, p+1) control rows of each span
+    rows = np.einsum("skj,sjvc->skvc", mu, surface.homogeneous()[window_u])  # (Su, p+1, nv, 4)
+    window_v = spans_v[:, None] - q + np.arange(q + 1)  # (Sv, q+1)
+    ctrl = np.empty((spans_u.size, spans_v.size, p + 1, q + 1, 4))
+    step = max(1, EXTRACT_CHUNK // max(1, spans_v.size * (p + 1) * (q + 1)))
+    for first in range(0, spans_u.size, step):  # bounded temporaries: a few u spans at a time
+        part = slice(first, first + step)
+        ctrl[part] = np.einsum("tlj,cktjx->ctklx", mv, rows[part][:, :, window_v])
+    ctrl = ctrl.reshape(-1, p + 1, q + 1, 4)
     bounds = np.empty((spans_u.size, spans_v.size, 4))
     bounds[..., 0] = ku[spans_u, None]
     bounds[..., 1] = ku[spans_u + 1, None]

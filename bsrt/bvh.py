@@ -91,7 +91,7 @@ import numpy as np
 
 from .hits import Hits
 from .patches import PatchSet
-from .kernels.flatten import build_tree, count_leaves, flatten_patches
+from .kernels.flatten import build_tree, count_leaves, flatten_patches, leaf_boxes
 from .kernels.trim import OUTSIDE, rect_states
 from .kernels.threads import run_chunks
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
@@ -104,7 +104,6 @@ DEFAULT_RETRY_DEPTH = 4
 BEND = 0.02  # a leaf deviates from its bilinear patch by at most this fraction of its size
 LEAF_NET_FLOATS = 1 << 25  # the leaves' nets hold at most this many floats (256 MB) ...
 LEAVES_PER_PATCH = 4  # ... or this many nets per patch, if more (a patch is at least one leaf)
-BOX_CHUNK_FLOATS = 1 << 21  # control points (x 3 floats) of the leaves boxed at once
 
 
 @dataclass(eq=False)
@@ -187,6 +186,8 @@ def padded_nets(patches: PatchSet):
     """(nets (P, Pm, Qm, 4), degree (P, 2)): every patch's homogeneous net in the corner of one array."""
     degree = patches.arrays.degree
     pm, qm = (int(degree[:, 0].max()) + 1, int(degree[:, 1].max()) + 1) if patches.size else (1, 1)
+    if len(patches.groups) == 1 and patches.groups[0][0].size == patches.size:  # one degree: the table itself, no copy
+        return patches.groups[0][1], degree
     nets = np.zeros((patches.size, pm, qm, 4))
     for ids, group in patches.groups:
         nets[ids, : group.shape[1], : group.shape[2]] = group
@@ -219,50 +220,6 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
 # Tree
 
 
-def _leaf_boxes(nets, degree, padding):
-    """(box_min (L, 3), box_max (L, 3), obb (L, 15)) of the leaves' projected
-    control points, padded; computed in chunks of leaves so the temporaries
-    stay within BOX_CHUNK_FLOATS control points whatever the degree."""
-    n, pm, qm = nets.shape[:3]
-    box_min, box_max, obb = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 15))
-    step = max(1, BOX_CHUNK_FLOATS // (pm * qm))
-    used = (np.arange(pm)[None, :, None] <= degree[:, None, None, 0]) & (np.arange(qm)[None, None, :] <= degree[:, None, None, 1])
-    for a in range(0, n, step):
-        part = slice(a, min(n, a + step))
-        with np.errstate(all="ignore"):  # the padding entries have w = 0; they are replaced below
-            points = nets[part, ..., :3] / nets[part, ..., 3:4]
-        # padding entries replaced by the first point: (chunk, Pm * Qm, 3)
-        points = np.where(used[part, ..., None], points, points[:, :1, :1]).reshape(-1, pm * qm, 3)
-        obb[part] = _oriented_boxes(nets[part], degree[part], points, padding)
-        box_min[part] = points.min(axis=1) - padding
-        box_max[part] = points.max(axis=1) + padding
-    return box_min, box_max, obb
-
-
-def _oriented_boxes(nets, degree, points, padding):
-    """(L, 15) oriented boxes of the leaves' control points (see BVH.leaf_obb)."""
-    n = points.shape[0]
-    corner = np.empty((n, 4, 3))
-    for (p, q) in np.unique(degree, axis=0):
-        sel = (degree[:, 0] == p) & (degree[:, 1] == q)
-        net = nets[sel]
-        c = net[:, [0, p, 0, p], [0, 0, q, q]]  # P00, Pp0, P0q, Ppq
-        corner[sel] = c[..., :3] / c[..., 3:4]
-    du = corner[:, 1] + corner[:, 3] - corner[:, 0] - corner[:, 2]
-    dv = corner[:, 2] + corner[:, 3] - corner[:, 0] - corner[:, 1]
-    normal = np.cross(du, dv)
-    axes = np.tile(np.eye(3), (n, 1, 1))
-    lu, ln = np.linalg.norm(du, axis=1), np.linalg.norm(normal, axis=1)
-    good = (lu > 0) & (ln > 1e-12 * np.maximum(lu, 1e-300) * np.linalg.norm(dv, axis=1))
-    a0 = du[good] / lu[good, None]
-    a2 = normal[good] / ln[good, None]
-    axes[good] = np.stack([a0, np.cross(a2, a0), a2], axis=1)
-    proj = points @ axes.transpose(0, 2, 1)  # (L, C, 3) coordinates along the axes
-    lo, hi = proj.min(axis=1) - padding, proj.max(axis=1) + padding
-    centre = (0.5 * (lo + hi))[:, None, :] @ axes
-    return np.concatenate([centre[:, 0], axes.reshape(n, 9), 0.5 * (hi - lo)], axis=1)
-
-
 def build_bvh(
     patches: PatchSet,
     flatness: float = DEFAULT_FLATNESS,
@@ -284,7 +241,8 @@ def build_bvh(
     if patches.trimmed:  # pieces the trims remove entirely hold no hit
         keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
         patch, rect, depth, all_nets, degree = patch[keep], rect[keep], depth[keep], all_nets[keep], degree[keep]
-    box_min, box_max, obb = _leaf_boxes(all_nets, degree, padding)
+    box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
+    leaf_boxes(all_nets, degree, float(padding), box_min, box_max, obb)
     order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
     rect = rect[order]
     return BVH(

@@ -70,7 +70,8 @@ class PatchSet:
             breaks_u.append(np.unique(bnd[:, :2]))
             breaks_v.append(np.unique(bnd[:, 2:]))
         self.size = size
-        self.groups = [(np.concatenate([i for i, _ in parts]), np.concatenate([c for _, c in parts]))
+        self.groups = [parts[0] if len(parts) == 1 else  # one surface: its array as it is (no copy)
+                       (np.concatenate([i for i, _ in parts]), np.concatenate([c for _, c in parts]))
                        for parts in by_degree.values()]
         self.surface = np.concatenate(surface) if surface else np.zeros(0, np.int64)
         self.bounds = np.concatenate(bounds).reshape(self.size, 4) if bounds else np.zeros((0, 4))

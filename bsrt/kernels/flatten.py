@@ -293,3 +293,53 @@ def build_tree(box_min, box_max, leaf_size):
         node += 1
     return (order, node_min[:made].copy(), node_max[:made].copy(), left[:made].copy(), right[:made].copy(),
             first[:made].copy(), count[:made].copy())
+
+
+@njit(cache=True)
+def leaf_boxes(nets, degree, padding, box_min, box_max, obb):
+    """Boxes of each leaf's projected control points, padded by ``padding``, into
+    box_min, box_max (L, 3) (axis-aligned) and obb (L, 15) (oriented: centre,
+    axes as rows, half extents; axis 0 along the corners' u direction, axis 2
+    their normal, the world axes where those degenerate). nets: (L, Pm, Qm,
+    4) homogeneous nets, degree (L, 2) fills the corner."""
+    axes = np.empty((3, 3))
+    lo, hi = np.empty(3), np.empty(3)
+    corner = np.empty((4, 3))
+    for n in range(nets.shape[0]):
+        p, q = degree[n, 0], degree[n, 1]
+        for c, (i, j) in enumerate(((0, 0), (p, 0), (0, q), (p, q))):
+            for k in range(3):
+                corner[c, k] = nets[n, i, j, k] / nets[n, i, j, 3]
+        du = corner[1] + corner[3] - corner[0] - corner[2]
+        dv = corner[2] + corner[3] - corner[0] - corner[1]
+        normal = np.cross(du, dv)
+        lu, ln = np.sqrt(np.sum(du * du)), np.sqrt(np.sum(normal * normal))
+        if lu > 0 and ln > 1e-12 * max(lu, 1e-300) * np.sqrt(np.sum(dv * dv)):
+            axes[0] = du / lu
+            axes[2] = normal / ln
+            axes[1] = np.cross(axes[2], axes[0])
+        else:
+            axes[:] = np.eye(3)
+        for k in range(3):
+            lo[k], hi[k] = np.inf, -np.inf
+            box_min[n, k], box_max[n, k] = np.inf, -np.inf
+        for i in range(p + 1):
+            for j in range(q + 1):
+                w = nets[n, i, j, 3]
+                x, y, z = nets[n, i, j, 0] / w, nets[n, i, j, 1] / w, nets[n, i, j, 2] / w
+                box_min[n, 0], box_max[n, 0] = min(box_min[n, 0], x), max(box_max[n, 0], x)
+                box_min[n, 1], box_max[n, 1] = min(box_min[n, 1], y), max(box_max[n, 1], y)
+                box_min[n, 2], box_max[n, 2] = min(box_min[n, 2], z), max(box_max[n, 2], z)
+                for k in range(3):
+                    d = axes[k, 0] * x + axes[k, 1] * y + axes[k, 2] * z
+                    lo[k], hi[k] = min(lo[k], d), max(hi[k], d)
+        for k in range(3):
+            box_min[n, k] -= padding
+            box_max[n, k] += padding
+            obb[n, k] = 0.0
+            obb[n, 12 + k] = 0.5 * (hi[k] - lo[k]) + padding
+        for a in range(3):
+            mid = 0.5 * (lo[a] + hi[a])
+            for k in range(3):
+                obb[n, k] += mid * axes[a, k]
+                obb[n, 3 + 3 * a + k] = axes[a, k]
