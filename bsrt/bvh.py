@@ -41,7 +41,9 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    mouldings) made leaves that a ray at cos 0.3-0.5 crosses twice, and
    Newton from the centre found the far root.
    Default ``flatness = 2e-3`` (``DEFAULT_FLATNESS``), ``max_depth = 12``
-   (at most 4096 leaves per Bezier patch). Finer values cost little at
+   (at most 4096 leaves per Bezier patch), lowered for the whole scene while
+   the leaves' nets would exceed LEAF_NET_FLOATS (256 MB) or LEAVES_PER_PATCH
+   nets per patch (``flatten``): high-degree patches stay in bounded memory. Finer values cost little at
    render time (the water-lily renders as fast at 1e-3 as at 1e-2) but
    make Newton from the centre fail less often.
 
@@ -89,7 +91,7 @@ import numpy as np
 
 from .hits import Hits
 from .patches import PatchSet
-from .kernels.flatten import build_tree, flatten_patches
+from .kernels.flatten import build_tree, count_leaves, flatten_patches, leaf_boxes
 from .kernels.trim import OUTSIDE, rect_states
 from .kernels.threads import run_chunks
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
@@ -100,6 +102,8 @@ DEFAULT_MAX_DEPTH = 12
 DEFAULT_LEAF_SIZE = 2
 DEFAULT_RETRY_DEPTH = 4
 BEND = 0.02  # a leaf deviates from its bilinear patch by at most this fraction of its size
+LEAF_NET_FLOATS = 1 << 25  # the leaves' nets hold at most this many floats (256 MB) ...
+LEAVES_PER_PATCH = 4  # ... or this many nets per patch, if more (a patch is at least one leaf)
 
 
 @dataclass(eq=False)
@@ -180,54 +184,40 @@ class BVH:
 
 def padded_nets(patches: PatchSet):
     """(nets (P, Pm, Qm, 4), degree (P, 2)): every patch's homogeneous net in the corner of one array."""
-    pm = max(b.shape[0] for b in patches.bezier)
-    qm = max(b.shape[1] for b in patches.bezier)
+    degree = patches.arrays.degree
+    pm, qm = (int(degree[:, 0].max()) + 1, int(degree[:, 1].max()) + 1) if patches.size else (1, 1)
+    if len(patches.groups) == 1 and patches.groups[0][0].size == patches.size:  # one degree: the table itself, no copy
+        return patches.groups[0][1], degree
     nets = np.zeros((patches.size, pm, qm, 4))
-    degree = np.zeros((patches.size, 2), dtype=np.int64)
-    for k, b in enumerate(patches.bezier):
-        nets[k, : b.shape[0], : b.shape[1]] = b
-        degree[k] = (b.shape[0] - 1, b.shape[1] - 1)
+    for ids, group in patches.groups:
+        nets[ids, : group.shape[1], : group.shape[2]] = group
     return nets, degree
 
 
 def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: int = DEFAULT_MAX_DEPTH):
     """Cut every Bezier patch into flat pieces (compiled: kernels/flatten.py).
 
+    The leaves' nets are bounded: while they would hold more than
+    max(LEAF_NET_FLOATS, LEAVES_PER_PATCH floats per patch's net) floats,
+    max_depth is lowered by one (a high-degree patch then keeps coarser,
+    curved leaves; the grazing/miss retries cut those further per ray).
     Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, nets (L, Pm, Qm,
     4) homogeneous nets in the corner of the array, degree (L, 2) int64).
     """
     nets, degree = padded_nets(patches)
-    patch, rect, depth, leaf_nets = flatten_patches(nets, degree, patches.bounds, flatness * patches.scene_diagonal(),
-                                                    BEND, max_depth)
+    eps = flatness * patches.scene_diagonal()
+    per_leaf = int(np.prod(nets.shape[1:]))
+    allowance = max(LEAF_NET_FLOATS, LEAVES_PER_PATCH * per_leaf * patches.size)
+    counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
+    while max_depth > 0 and int(counts.sum()) * per_leaf > allowance:
+        max_depth -= 1
+        counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
+    patch, rect, depth, leaf_nets = flatten_patches(nets, degree, patches.bounds, eps, BEND, max_depth, counts)
     return patch, rect, depth, leaf_nets, degree[patch]
 
 
 # ---------------------------------------------------------------------------
 # Tree
-
-
-def _oriented_boxes(nets, degree, points, padding):
-    """(L, 15) oriented boxes of the leaves' control points (see BVH.leaf_obb)."""
-    n = points.shape[0]
-    corner = np.empty((n, 4, 3))
-    for (p, q) in np.unique(degree, axis=0):
-        sel = (degree[:, 0] == p) & (degree[:, 1] == q)
-        net = nets[sel]
-        c = net[:, [0, p, 0, p], [0, 0, q, q]]  # P00, Pp0, P0q, Ppq
-        corner[sel] = c[..., :3] / c[..., 3:4]
-    du = corner[:, 1] + corner[:, 3] - corner[:, 0] - corner[:, 2]
-    dv = corner[:, 2] + corner[:, 3] - corner[:, 0] - corner[:, 1]
-    normal = np.cross(du, dv)
-    axes = np.tile(np.eye(3), (n, 1, 1))
-    lu, ln = np.linalg.norm(du, axis=1), np.linalg.norm(normal, axis=1)
-    good = (lu > 0) & (ln > 1e-12 * np.maximum(lu, 1e-300) * np.linalg.norm(dv, axis=1))
-    a0 = du[good] / lu[good, None]
-    a2 = normal[good] / ln[good, None]
-    axes[good] = np.stack([a0, np.cross(a2, a0), a2], axis=1)
-    proj = points @ axes.transpose(0, 2, 1)  # (L, C, 3) coordinates along the axes
-    lo, hi = proj.min(axis=1) - padding, proj.max(axis=1) + padding
-    centre = (0.5 * (lo + hi))[:, None, :] @ axes
-    return np.concatenate([centre[:, 0], axes.reshape(n, 9), 0.5 * (hi - lo)], axis=1)
 
 
 def build_bvh(
@@ -251,16 +241,8 @@ def build_bvh(
     if patches.trimmed:  # pieces the trims remove entirely hold no hit
         keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
         patch, rect, depth, all_nets, degree = patch[keep], rect[keep], depth[keep], all_nets[keep], degree[keep]
-    n = patch.size
-    # the pieces' projected control points (L, Pm * Qm, 3), padding entries replaced by the first point
-    pm, qm = all_nets.shape[1:3]
-    used = (np.arange(pm)[None, :, None] <= degree[:, None, None, 0]) & (np.arange(qm)[None, None, :] <= degree[:, None, None, 1])
-    with np.errstate(all="ignore"):  # the padding entries have w = 0; they are replaced below
-        points = all_nets[..., :3] / all_nets[..., 3:4]
-    points = np.where(used[..., None], points, points[:, :1, :1]).reshape(n, -1, 3)
-    obb = _oriented_boxes(all_nets, degree, points, padding)
-    box_min = points.min(axis=1) - padding
-    box_max = points.max(axis=1) + padding
+    box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
+    leaf_boxes(all_nets, degree, float(padding), box_min, box_max, obb)
     order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
     rect = rect[order]
     return BVH(

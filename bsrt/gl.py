@@ -173,3 +173,14 @@ def release_cached(ctx: moderngl.Context) -> int:
         prog.release()
     ctx.extra.pop("bsrt_default_fbo", None)
     return len(programs)
+
+
+def max_framebuffer_side(ctx: moderngl.Context) -> int:
+    """The largest square framebuffer the context draws into at once: the
+    least of its texture, renderbuffer and viewport limits (llvmpipe: 16384)."""
+    info = ctx.info
+    limits = [info.get("GL_MAX_TEXTURE_SIZE"), info.get("GL_MAX_RENDERBUFFER_SIZE")]
+    viewport = info.get("GL_MAX_VIEWPORT_DIMS")
+    if viewport:
+        limits += list(viewport)
+    return int(min(x for x in limits if x))

@@ -19,6 +19,8 @@ import numpy as np
 from .bspline import BSplineSurface, bezier_patches
 from .kernels import patches as kp
 
+CHUNK = 1 << 16  # patches converted to the power basis at once
+
 
 def power_from_bernstein(n: int) -> np.ndarray:
     """(n + 1, n + 1) matrix M with B_{k,n}(s) = sum_j M[k, j] s^j."""
@@ -36,12 +38,16 @@ class PatchSet:
       surfaces: the M BSplineSurface objects.
       surface: (P,) int64, the surface each patch belongs to.
       bounds: (P, 4) float64, (u0, u1, v0, v1) in the surface's knot domain.
-      bezier: list of P arrays (p + 1, q + 1, 4), homogeneous Bezier points.
+      groups: list of (ids (K,) int64, nets (K, p + 1, q + 1, 4) float64), the
+        homogeneous Bezier points of the patches of one degree (p, q), one
+        entry per degree; ids are increasing.
       box_min, box_max: (P, 3) float64, bounding box of each patch's control
         points (it contains the patch: convex hull, positive weights).
       domain: (M, 4) float64, (umin, umax, vmin, vmax) of each surface.
       arrays: kernels.patches.PatchArrays, the same table for the kernels.
     Patches are numbered surface by surface, u-major within a surface.
+    Set-up is vectorised over the patches (per surface and degree, no
+    per-patch Python loop).
     """
 
     def __init__(self, surfaces: list[BSplineSurface]):
@@ -49,26 +55,32 @@ class PatchSet:
         self.derived: dict = {}  # data other modules derive from the table, cached (prelim's tessellation)
         m_count = len(self.surfaces)
         self.domain = np.zeros((m_count, 4))
-        self.bezier, bounds, surface = [], [], []
+        by_degree: dict = {}  # (p, q) -> [(ids, nets)] of the surfaces of that degree
+        bounds, surface = [], []
         breaks_u, breaks_v, grid_start = [], [], np.zeros(m_count, dtype=np.int64)
+        size = 0
         for m, surf in enumerate(self.surfaces):
             ctrl, bnd = bezier_patches(surf)
-            grid_start[m] = len(self.bezier)
-            self.bezier += list(ctrl)
+            grid_start[m] = size
+            by_degree.setdefault(tuple(surf.degree), []).append((np.arange(size, size + len(ctrl)), ctrl))
+            size += len(ctrl)
             bounds.append(bnd)
             surface.append(np.full(len(ctrl), m, dtype=np.int64))
             self.domain[m] = (*surf.domain_u, *surf.domain_v)
             breaks_u.append(np.unique(bnd[:, :2]))
             breaks_v.append(np.unique(bnd[:, 2:]))
-        self.size = len(self.bezier)
+        self.size = size
+        self.groups = [parts[0] if len(parts) == 1 else  # one surface: its array as it is (no copy)
+                       (np.concatenate([i for i, _ in parts]), np.concatenate([c for _, c in parts]))
+                       for parts in by_degree.values()]
         self.surface = np.concatenate(surface) if surface else np.zeros(0, np.int64)
         self.bounds = np.concatenate(bounds).reshape(self.size, 4) if bounds else np.zeros((0, 4))
         self.box_min, self.box_max = np.empty((self.size, 3)), np.empty((self.size, 3))
-        for ids, nets in _by_shape(self.bezier):
+        for ids, nets in self.groups:
             pts = nets[..., :3] / nets[..., 3:4]
             self.box_min[ids], self.box_max[ids] = pts.min(axis=(1, 2)), pts.max(axis=(1, 2))
         self.arrays = kp.PatchArrays(
-            *_power_coefficients(self.bezier),
+            *_power_coefficients(self.groups, self.size),
             bounds=self.bounds,
             inv_size=1.0 / np.stack([self.bounds[:, 1] - self.bounds[:, 0], self.bounds[:, 3] - self.bounds[:, 2]], 1),
             surface=self.surface,
@@ -80,6 +92,14 @@ class PatchSet:
             grid_start=grid_start,
             patch_grid=np.arange(self.size, dtype=np.int64),  # u-major per surface, as bezier_patches orders them
         )
+
+    def net(self, k: int) -> np.ndarray:
+        """(p + 1, q + 1, 4) homogeneous Bezier points of patch k."""
+        for ids, nets in self.groups:
+            at = np.searchsorted(ids, k)
+            if at < ids.size and ids[at] == k:
+                return nets[at]
+        raise IndexError(f"patch {k} of {self.size}")
 
     @cached_property
     def trims(self):
@@ -136,37 +156,29 @@ def _starts(parts: list) -> np.ndarray:
     return np.concatenate([[0], np.cumsum([len(x) for x in parts])]).astype(np.int64)
 
 
-def _by_shape(bezier: list):
-    """[(patch ids (K,), nets (K, p+1, q+1, 4))] grouping the patches of one degree."""
-    shapes: dict = {}
-    for k, b in enumerate(bezier):
-        shapes.setdefault(b.shape, []).append(k)
-    return [(np.array(ids, dtype=np.int64), np.array([bezier[k] for k in ids])) for ids in shapes.values()]
-
-
-def _power_coefficients(bezier: list):
-    """(coef, coef_start, degree, dim) of PatchArrays from homogeneous Bezier nets (p+1, q+1, 4).
+def _power_coefficients(groups: list, n: int):
+    """(coef, coef_start, degree, dim) of PatchArrays from PatchSet.groups (n patches).
 
     A patch whose weights are all equal is stored polynomial (x, y, z), else
-    homogeneous (x w, y w, z w, w)."""
-    n = len(bezier)
-    degree = np.array([b.shape[:2] for b in bezier], dtype=np.int64).reshape(n, 2) - 1
-    dim = np.empty(n, dtype=np.int64)
-    blocks = [None] * n
-    for ids, nets in _by_shape(bezier):
-        p, q = nets.shape[1] - 1, nets.shape[2] - 1
-        rational = ~np.all(nets[..., 3] == nets[:, :1, :1, 3], axis=(1, 2))
-        for flag in (False, True):
-            sel = ids[rational == flag]
-            if not sel.size:
-                continue
-            ctrl = nets[rational == flag]
-            if not flag:
-                ctrl = ctrl[..., :3] / ctrl[..., 3:4]
-            c = np.einsum("ai,bj,kabc->kicj", power_from_bernstein(p), power_from_bernstein(q), ctrl)
-            dim[sel] = ctrl.shape[-1]
-            for k, row in zip(sel, c.reshape(sel.size, -1)):
-                blocks[k] = row
-    sizes = np.array([b.size for b in blocks], dtype=np.int64)
+    homogeneous (x w, y w, z w, w). Vectorised per degree and kind."""
+    degree = np.zeros((n, 2), dtype=np.int64)
+    dim = np.full(n, 3, dtype=np.int64)
+    for ids, nets in groups:
+        degree[ids] = (nets.shape[1] - 1, nets.shape[2] - 1)
+        dim[ids] = np.where(np.all(nets[..., 3] == nets[:, :1, :1, 3], axis=(1, 2)), 3, 4)
+    sizes = (degree[:, 0] + 1) * (degree[:, 1] + 1) * dim
     start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64) if n else np.zeros(0, np.int64)
-    return (np.concatenate(blocks) if n else np.zeros(0)), start, degree, dim
+    coef = np.empty(int(sizes.sum()))
+    for ids, nets in groups:
+        p, q = nets.shape[1] - 1, nets.shape[2] - 1
+        to_power_u, to_power_v = power_from_bernstein(p), power_from_bernstein(q)
+        for kind in (3, 4):
+            sel = dim[ids] == kind
+            for part in range(0, int(sel.sum()), CHUNK):  # bounded temporaries
+                which = np.flatnonzero(sel)[part : part + CHUNK]
+                ctrl = nets[which]
+                if kind == 3:
+                    ctrl = ctrl[..., :3] / ctrl[..., 3:4]
+                c = np.einsum("ai,bj,kabc->kicj", to_power_u, to_power_v, ctrl).reshape(which.size, -1)
+                coef[start[ids[which]][:, None] + np.arange(c.shape[1])[None, :]] = c
+    return coef, start, degree, dim

@@ -4,7 +4,9 @@ The CLI, the preview window, the Python API and the benchmarks all call
 :func:`render` with a :class:`~bsrt.settings.RenderOptions`. Camera rays go
 through the tracer the method picks (trace.py); shading sends shadow and
 mirror rays through the hierarchy. Anti-aliased and large films are traced in
-bands of at most MAX_BAND_SAMPLES samples, which bounds memory.
+bands of at most MAX_BAND_SAMPLES samples (at least one row of the sample
+film, width * columns <= width * sqrt(spp) samples), which bounds memory
+whatever spp is.
 """
 
 from __future__ import annotations
@@ -122,9 +124,11 @@ class Geometry:
 
 
 def sample_grid(spp: int) -> tuple[int, int]:
-    """(columns, rows) of the stratified sub-pixel grid: columns * rows = spp, as square as possible."""
-    rows = max(d for d in range(1, int(np.sqrt(spp)) + 1) if spp % d == 0)
-    return spp // rows, rows
+    """(columns, rows) of the stratified sub-pixel grid: columns * rows = spp, as
+    square as possible, columns <= rows (so a row of the sample film is at most
+    width * sqrt(spp) samples, even for a prime spp: 1 x spp)."""
+    columns = max(d for d in range(1, int(np.sqrt(spp)) + 1) if spp % d == 0)
+    return columns, spp // columns
 
 
 def render(
@@ -150,8 +154,8 @@ def render(
     Anti-aliasing: spp samples per pixel sit at the centres of a stratified
     columns x rows grid (sample_grid), which is exactly the pixel-centre grid
     of a film spp times larger; that film is traced band by band (each band
-    with its own preliminary map, so every sample is seeded) and box-filtered
-    down. The AOVs always describe the pixel-centre rays (a second pass when
+    with its own preliminary map, so every sample is seeded; a band may end
+    inside a pixel row) and box-filtered down. The AOVs always describe the pixel-centre rays (a second pass when
     spp > 1).
     """
     opts = options or RenderOptions.resolve(scene)
@@ -165,22 +169,28 @@ def render(
     shader = _Shader(scene, opts, geometry, stats, report)
     cols, rows = sample_grid(spp)
     sample_w, sample_h = width * cols, height * rows
-    band = max(rows, (MAX_BAND_SAMPLES // sample_w) // rows * rows)
+    band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
-    linear = np.zeros((height, width, 3))
+    linear = np.zeros((height, width, 3))  # sums of the samples until a pixel row is complete
     pixels = np.zeros((height, width, 3), dtype=np.uint8)
     primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
+    complete = 0  # pixel rows 0..complete-1 are final
     for first in range(0, sample_h, band):
         stop = min(sample_h, first + band)
         hits, directions = tracer.trace(sample_w, sample_h, (first, stop), prelim, first / total)
         shader.begin_band(hits, (first / total, stop / total))
         with stats.timer("shade"):
             colour = shader.shade(hits, directions)
-        band_rows = slice(first // rows, stop // rows)
-        linear[band_rows] = colour.reshape((stop - first) // rows, rows, width, cols, 3).mean(axis=(1, 3))
-        pixels[band_rows] = srgb_encode(linear[band_rows])  # per band: no film-sized temporaries
+        sums = colour.reshape(stop - first, width, cols, 3).sum(axis=2)  # (band rows, width, 3)
+        np.add.at(linear, np.arange(first, stop) // rows, sums)
+        done = stop // rows
+        if done > complete:
+            final = slice(complete, done)
+            linear[final] /= spp
+            pixels[final] = srgb_encode(linear[final])  # per band: no film-sized temporaries
+            complete = done
         if spp == 1:
             primary.put(slice(first * width, stop * width), hits)
     if spp > 1:  # the AOVs: pixel-centre rays

@@ -26,6 +26,7 @@ from .patches import PatchSet
 from .settings import MAP_MODES
 
 MAX_SEGMENTS = 64
+TILE: int | None = None  # largest framebuffer side drawn at once; None: the GL context's limit
 
 
 @dataclass
@@ -58,11 +59,8 @@ def segments_per_patch(patches: PatchSet, camera: Camera, width: int, height: in
     diag = max(patches.scene_diagonal(), 1e-300)
     tolerance = 0.5 * pixel_at_unit_distance * np.maximum(nearest, 1e-3 * diag)
     out = np.ones((patches.size, 2), dtype=np.int64)
-    shapes: dict[tuple, list[int]] = {}
-    for k, ctrl in enumerate(patches.bezier):
-        shapes.setdefault(ctrl.shape, []).append(k)
-    for shape, ids in shapes.items():  # vectorised over the patches of one degree
-        ctrl = np.array([patches.bezier[k] for k in ids])
+    for ids, ctrl in patches.groups:  # vectorised over the patches of one degree
+        shape = ctrl.shape[1:3]
         pts = ctrl[..., :3] / ctrl[..., 3:4]  # (K, p+1, q+1, 3)
         p, q = shape[0] - 1, shape[1] - 1
         m_uu = p * (p - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2])
@@ -154,13 +152,16 @@ def far_distance(patches: PatchSet, camera: Camera) -> float:
 
 
 def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode: str = "float", ctx=None,
-               rows=None) -> PrelimMap:
+               rows=None, tile: int | None = None) -> PrelimMap:
     """Rasterise the preliminary map for a width x height film.
 
     mode: "float" (32-bit channels) or "rgba8" (the paper's 8-bit map, at
     most 255 surfaces). ctx: a moderngl context (default: the process's
     headless EGL context). rows: (first, stop) to rasterise only that band
-    of film rows (the arrays are then (stop - first, width)).
+    of film rows (the arrays are then (stop - first, width)). tile: the
+    largest framebuffer side drawn at once (default: the context's limit,
+    gl.max_framebuffer_side, or TILE when set); a larger film is drawn tile by tile, each tile
+    with the off-centre projection of its own pixels.
     """
     if mode not in MAP_MODES:
         raise InputError(f"map: expected one of {', '.join(MAP_MODES)}, got {mode!r}")
@@ -171,7 +172,7 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
         )
     ctx = ctx or gl.headless_context()
     with ctx:  # current on this thread for the duration (another context may be current)
-        return _rasterise(patches, camera, width, height, mode, ctx, rows)
+        return _rasterise(patches, camera, width, height, mode, ctx, rows, tile or TILE or gl.max_framebuffer_side(ctx))
 
 
 def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
@@ -185,17 +186,35 @@ def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
     return cached[1]
 
 
-def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
+def tiles(first: int, stop: int, width: int, side: int):
+    """The (rows, columns) ranges, each (start, stop), that cover film rows
+    first..stop-1 and all width columns in tiles of at most side x side."""
+    return [((r, min(stop, r + side)), (c, min(width, c + side)))
+            for r in range(first, stop, side) for c in range(0, width, side)]
+
+
+def window(matrix: np.ndarray, columns: tuple[int, int], width: int) -> np.ndarray:
+    """The (4, 4) projection ``matrix`` of the whole film narrowed to film
+    columns columns[0]..columns[1]-1 (the x of clip_from_eye's rows)."""
+    left, right = -1.0 + 2.0 * columns[0] / width, -1.0 + 2.0 * columns[1] / width
+    centre, half = (left + right) / 2.0, (right - left) / 2.0
+    out = matrix.copy()
+    out[0] = (matrix[0] - centre * matrix[3]) / half
+    return out
+
+
+def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimMap:
     near, far = depth_range(patches, camera)
     vertices, indices = _tessellation(patches, camera, width, height)
     program = gl.program(ctx, "prelim")
-    program["clip_from_eye"].write(clip_from_eye(camera, width, height, near, far, rows).T.astype("f4").tobytes())
     program["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0
     program["inv_far"].value = 1.0 / far_distance(patches, camera)
     first, stop = rows if rows is not None else (0, height)
-    height = stop - first
-    size = (width, height)
     dtype = "f4" if mode == "float" else "f1"
+    raw = np.zeros((stop - first, width, 4), dtype=np.float32 if dtype == "f4" else np.uint8)
+    line_raw = np.zeros_like(raw)
+    eye_distance = np.zeros((stop - first, width), dtype=np.float32)
+    line_distance = np.zeros_like(eye_distance)
     resources = []
     try:
         vbo = ctx.buffer(vertices.tobytes())
@@ -207,13 +226,17 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
         resources = [lines, vao, edges, ibo, vbo]
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
-        raw, eye_distance = _draw(ctx, size, dtype, vao, moderngl.TRIANGLES, resources)
-        # Every triangle edge again as a line, in a pass of its own: a sliver
-        # thinner than a pixel covers no pixel centre, but its edges still
-        # leave fragments. They fill pixels the triangles left empty and win
-        # where they show a nearer other surface; elsewhere the triangles'
-        # exact pixel-centre values stay.
-        line_raw, line_distance = _draw(ctx, size, dtype, lines, moderngl.LINES, resources)
+        for (r0, r1), (c0, c1) in tiles(first, stop, width, side):
+            matrix = window(clip_from_eye(camera, width, height, near, far, (r0, r1)), (c0, c1), width)
+            program["clip_from_eye"].write(matrix.T.astype("f4").tobytes())
+            out = (slice(r0 - first, r1 - first), slice(c0, c1))
+            raw[out], eye_distance[out] = _draw(ctx, (c1 - c0, r1 - r0), dtype, vao, moderngl.TRIANGLES)
+            # Every triangle edge again as a line, in a pass of its own: a sliver
+            # thinner than a pixel covers no pixel centre, but its edges still
+            # leave fragments. They fill pixels the triangles left empty and win
+            # where they show a nearer other surface; elsewhere the triangles'
+            # exact pixel-centre values stay.
+            line_raw[out], line_distance[out] = _draw(ctx, (c1 - c0, r1 - r0), dtype, lines, moderngl.LINES)
         error = ctx.error
         if error != "GL_NO_ERROR":
             raise RenderError(f"OpenGL reported {error} while rendering the preliminary map")
@@ -229,20 +252,30 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows) -> PrelimMap:
     return decode_map(patches, raw, eye_distance, mode)
 
 
-def _draw(ctx, size, dtype, vao, mode, resources):
-    """One pass into a fresh framebuffer: (raw (H, W, 4), eye distance (H, W) float32), row 0 at the top."""
+def _draw(ctx, size, dtype, vao, mode):
+    """One pass into a fresh framebuffer (released here): (raw (H, W, 4), eye distance (H, W) float32), row 0 at the top."""
     width, height = size
-    color = ctx.texture(size, 4, dtype=dtype)
-    dist = ctx.texture(size, 1, dtype="f4")
-    depth = ctx.depth_renderbuffer(size)
-    fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
-    resources += [fbo, depth, dist, color]
-    fbo.use()
-    ctx.viewport = (0, 0, width, height)
-    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-    vao.render(mode)
-    raw = np.frombuffer(fbo.read(components=4, dtype=dtype, attachment=0), dtype=np.float32 if dtype == "f4" else np.uint8)
-    distance = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype=np.float32)
+    resources = []
+    try:
+        color = ctx.texture(size, 4, dtype=dtype)
+        resources.append(color)
+        dist = ctx.texture(size, 1, dtype="f4")
+        resources.append(dist)
+        depth = ctx.depth_renderbuffer(size)
+        resources.append(depth)
+        fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
+        resources.append(fbo)
+        fbo.use()
+        ctx.viewport = (0, 0, width, height)
+        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        vao.render(mode)
+        raw = np.frombuffer(fbo.read(components=4, dtype=dtype, attachment=0),
+                            dtype=np.float32 if dtype == "f4" else np.uint8)
+        distance = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype=np.float32)
+    finally:
+        gl.bind_default_framebuffer(ctx)
+        for res in reversed(resources):
+            res.release()
     return raw.reshape(height, width, 4)[::-1], distance.reshape(height, width)[::-1]
 
 

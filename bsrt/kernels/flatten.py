@@ -5,8 +5,9 @@ projected control points lie within ``eps`` of its corners' bilinear patch
 and it is not bent (deviation and twist within BEND x its size), or it has
 been cut ``max_depth`` times; otherwise it is cut at the parameter midpoint
 across the direction with the larger directional deviation. Each patch is
-cut depth-first with a stack of nets; two passes (count, then fill) so the
-output arrays are allocated once, both parallel over patches.
+cut depth-first with a stack of nets; two passes (count_leaves, then
+flatten_patches to fill) so the output arrays are allocated once and the
+caller can lower max_depth when the count exceeds its memory budget.
 """
 
 from __future__ import annotations
@@ -141,8 +142,8 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
 
 
 @njit(cache=True)
-def flatten_patches(nets, degree, rects, eps, bend, max_depth):
-    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
+def count_leaves(nets, degree, rects, eps, bend, max_depth):
+    """(P,) int64: the number of leaves of each patch cut at most max_depth times.
 
     nets: (P, Pm, Qm, 4) homogeneous Bezier nets (degree (P, 2) fills the
     corner); rects: (P, 4) parameter rectangles.
@@ -153,6 +154,17 @@ def flatten_patches(nets, degree, rects, eps, bend, max_depth):
     for k in range(n):
         counts[k] = _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, 0,
                          dummy_r, dummy_d, dummy_n)
+    return counts
+
+
+@njit(cache=True)
+def flatten_patches(nets, degree, rects, eps, bend, max_depth, counts):
+    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
+
+    nets, degree, rects: as count_leaves; counts: count_leaves' answer for
+    the same arguments (the output arrays are allocated once from it).
+    """
+    n = nets.shape[0]
     starts = np.zeros(n + 1, dtype=np.int64)
     starts[1:] = np.cumsum(counts)
     total = starts[n]
@@ -281,3 +293,53 @@ def build_tree(box_min, box_max, leaf_size):
         node += 1
     return (order, node_min[:made].copy(), node_max[:made].copy(), left[:made].copy(), right[:made].copy(),
             first[:made].copy(), count[:made].copy())
+
+
+@njit(cache=True)
+def leaf_boxes(nets, degree, padding, box_min, box_max, obb):
+    """Boxes of each leaf's projected control points, padded by ``padding``, into
+    box_min, box_max (L, 3) (axis-aligned) and obb (L, 15) (oriented: centre,
+    axes as rows, half extents; axis 0 along the corners' u direction, axis 2
+    their normal, the world axes where those degenerate). nets: (L, Pm, Qm,
+    4) homogeneous nets, degree (L, 2) fills the corner."""
+    axes = np.empty((3, 3))
+    lo, hi = np.empty(3), np.empty(3)
+    corner = np.empty((4, 3))
+    for n in range(nets.shape[0]):
+        p, q = degree[n, 0], degree[n, 1]
+        for c, (i, j) in enumerate(((0, 0), (p, 0), (0, q), (p, q))):
+            for k in range(3):
+                corner[c, k] = nets[n, i, j, k] / nets[n, i, j, 3]
+        du = corner[1] + corner[3] - corner[0] - corner[2]
+        dv = corner[2] + corner[3] - corner[0] - corner[1]
+        normal = np.cross(du, dv)
+        lu, ln = np.sqrt(np.sum(du * du)), np.sqrt(np.sum(normal * normal))
+        if lu > 0 and ln > 1e-12 * max(lu, 1e-300) * np.sqrt(np.sum(dv * dv)):
+            axes[0] = du / lu
+            axes[2] = normal / ln
+            axes[1] = np.cross(axes[2], axes[0])
+        else:
+            axes[:] = np.eye(3)
+        for k in range(3):
+            lo[k], hi[k] = np.inf, -np.inf
+            box_min[n, k], box_max[n, k] = np.inf, -np.inf
+        for i in range(p + 1):
+            for j in range(q + 1):
+                w = nets[n, i, j, 3]
+                x, y, z = nets[n, i, j, 0] / w, nets[n, i, j, 1] / w, nets[n, i, j, 2] / w
+                box_min[n, 0], box_max[n, 0] = min(box_min[n, 0], x), max(box_max[n, 0], x)
+                box_min[n, 1], box_max[n, 1] = min(box_min[n, 1], y), max(box_max[n, 1], y)
+                box_min[n, 2], box_max[n, 2] = min(box_min[n, 2], z), max(box_max[n, 2], z)
+                for k in range(3):
+                    d = axes[k, 0] * x + axes[k, 1] * y + axes[k, 2] * z
+                    lo[k], hi[k] = min(lo[k], d), max(hi[k], d)
+        for k in range(3):
+            box_min[n, k] -= padding
+            box_max[n, k] += padding
+            obb[n, k] = 0.0
+            obb[n, 12 + k] = 0.5 * (hi[k] - lo[k]) + padding
+        for a in range(3):
+            mid = 0.5 * (lo[a] + hi[a])
+            for k in range(3):
+                obb[n, k] += mid * axes[a, k]
+                obb[n, 3 + 3 * a + k] = axes[a, k]

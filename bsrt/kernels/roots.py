@@ -32,6 +32,12 @@ Methods (``METHOD_IDS``):
 
 Parameters are clipped to the surface's domain after every step; an item
 whose clipped step is zero is stuck and fails.
+
+Stagnation: every method stops (not converged) once w has not fallen below
+half its last marked value for STALL_STEPS evaluations in a row: the
+steps no longer move the point by more than float64's rounding of S (w
+then only jitters at its noise floor), so a tolerance at that floor ends
+in a few dozen iterations, whatever max_iterations is.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ from .patches import clamp, frame, inside_patch, locate, point
 METHOD_IDS = {"gradient": 0, "fast": 1, "newton": 2}
 GRADIENT, FAST, NEWTON = 0, 1, 2
 MAX_HALVINGS = 60
+STALL_STEPS = 32  # evaluations without halving w: stagnation
 
 
 @njit(cache=True)
@@ -78,6 +85,7 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
     refresh = False
     halvings = 0
     w_prev = np.inf
+    w_mark, stall = np.inf, 0  # stagnation: the last w that halved the one before, evaluations since
     converged = False
     x = y = z = xu = yu = zu = xv = yv = zv = 0.0
     iterations = 0
@@ -95,6 +103,12 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
             break
         if not w < np.inf or it == max_iterations:  # NaN or overflow, or out of iterations
             break
+        if w < 0.5 * w_mark:
+            w_mark, stall = w, 0
+        else:
+            stall += 1
+            if stall >= STALL_STEPS:  # stagnation: float64 resolves no further progress
+                break
         if method == NEWTON:
             if stop_on_growth and w > w_prev:
                 break
