@@ -18,7 +18,7 @@ from .errors import InputError
 
 # The limits (README, "Limits"), each with its reason there.
 MAX_COORDINATE = 1e15  # |x|, |y|, |z| of points, eye, look_at, lights, translations
-MAX_DEGREE = 16  # the patch table's power basis stays exact (README, Limits)
+MAX_DEGREE = 10  # the patch table's power basis stays within 1e-9 (README, Limits)
 MAX_WEIGHT_RATIO = 1e12  # largest / smallest weight of one surface
 MAX_SPP = 256  # 8-bit output: a coverage step finer than 1/256 cannot show
 MAX_ITERATIONS = 10_000  # root finders converge in tens of steps

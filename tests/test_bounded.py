@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import bsrt
-from bsrt import prelim
+from bsrt import prelim, validate
 from bsrt.bspline import evaluate, make_surface
 from bsrt.bvh import padded_nets
 from bsrt.camera import pixel_rays
@@ -74,8 +74,8 @@ def run_cli(*args, cwd):
 # High degree
 
 
-def test_degree_16_plane_hits_every_pixel_at_the_closed_form_depth_in_bounded_memory(tmp_path):
-    path = write_plane(tmp_path / "plane16.bpt", 16)
+def test_plane_of_the_highest_degree_hits_every_pixel_at_the_closed_form_depth_in_bounded_memory(tmp_path):
+    path = write_plane(tmp_path / "plane.bpt", validate.MAX_DEGREE)
     for method in ("newton", "martin"):
         proc, peak = run_cli(path, "-o", tmp_path / "p.png", "--width", 64, "--height", 64, *CLI_VIEW, "--fov", 20,
                              "--method", method, "--aov", tmp_path / "a.npz", cwd=tmp_path)
@@ -88,24 +88,15 @@ def test_degree_16_plane_hits_every_pixel_at_the_closed_form_depth_in_bounded_me
         assert peak < 700, (method, peak)
 
 
-def test_degree_25_surface_renders_in_bounded_memory(tmp_path):
-    """The largest legal degree (25, OpenCASCADE's), curved: the hierarchy's
-    leaves keep (26 x 26) nets, never (rays x net) at once. The plane of that
-    degree: every hit at the closed-form depth."""
-    wavy = write_plane(tmp_path / "wavy25.bpt", 25, wavy=0.3)
+def test_highest_degree_surface_renders_in_bounded_memory(tmp_path):
+    """The largest legal degree (README, Limits), curved: the hierarchy's
+    leaves keep (n+1 x n+1) nets, never (rays x net) at once."""
+    degree = validate.MAX_DEGREE
+    wavy = write_plane(tmp_path / "wavy.bpt", degree, wavy=0.3)
     for method in ("newton", "martin"):
         _, peak = run_cli(wavy, "-o", tmp_path / "w.png", "--width", 64, "--height", 64, "--method", method,
                           cwd=tmp_path)
         assert peak < 1000, (method, peak)
-    plane = write_plane(tmp_path / "plane25.bpt", 25)
-    _, peak = run_cli(plane, "-o", tmp_path / "p.png", "--width", 64, "--height", 64, *CLI_VIEW, "--fov", 20,
-                      "--method", "martin", "--aov", tmp_path / "a.npz", cwd=tmp_path)
-    aov = np.load(tmp_path / "a.npz")
-    _, t = plane_t(bsrt.load(plane, width=64, height=64, fov=20, **VIEW), 64, 64)
-    hit = aov["hit"]
-    assert hit.sum() > 0.5 * hit.size  # the power basis of degree 25 loses digits near s, t = 1 (see README)
-    np.testing.assert_allclose(aov["t"][hit], t[hit], rtol=0, atol=1e-9)
-    assert peak < 1000
 
 
 # ---------------------------------------------------------------------------
@@ -233,7 +224,8 @@ def test_newton_stops_at_float64_resolution_whatever_max_iterations(tmp_path):
         if method == "newton":  # quadratic: a few steps of progress, then at most STALL_STEPS more
             assert res.iterations.max() <= STALL_STEPS + 40
             assert (~res.converged).sum() > 0  # the noise floor is real: some starts cannot reach it
-    stats = bsrt.render(scene, method="newton", tolerance=2.3e-16, max_iterations=10_000).stats
+    floor = validate.smallest_tolerance([s.geometry for s in scene.surfaces], scene.camera.eye)
+    stats = bsrt.render(scene, method="newton", tolerance=floor, max_iterations=10_000).stats
     assert stats["iterations_max"] < 1000  # own start, up to 9 neighbour starts of 16, the hierarchy
 
 
@@ -286,12 +278,12 @@ def test_ten_thousand_patches_set_up_vectorised_match_the_reference_evaluator():
 
 
 def test_leaf_budget_lowers_the_depth_and_the_retries_keep_the_hits(tmp_path, monkeypatch):
-    """A bumpy degree-12 patch cut under a budget of 16 leaf nets: flatten
+    """A bumpy degree-10 patch cut under a budget of 16 leaf nets: flatten
     lowers max_depth until the leaves fit, and the per-ray retries (quarters
     of a curved leaf) still find the same nearest roots as the full cut."""
     from bsrt import bvh as bvh_module
 
-    path = write_plane(tmp_path / "bumpy12.bpt", 12, wavy=0.3)
+    path = write_plane(tmp_path / "bumpy10.bpt", 10, wavy=0.3)
     scene = bsrt.load(path, width=24, height=24, fov=40, **VIEW)
     patches = PatchSet([s.geometry for s in scene.surfaces])
     directions = pixel_rays(scene.camera, 24, 24)
@@ -309,3 +301,22 @@ def test_leaf_budget_lowers_the_depth_and_the_retries_keep_the_hits(tmp_path, mo
     np.testing.assert_array_equal(got.hit, want.hit)
     # both are roots within the tolerance (1e-9 of the diagonal from the ray); t may differ by that over |cos|
     np.testing.assert_allclose(got.t[got.hit], want.t[want.hit], rtol=0, atol=4e-9 * patches.scene_diagonal())
+
+
+@pytest.mark.parametrize("degree", [3, 8, validate.MAX_DEGREE])
+def test_patch_table_evaluation_within_1e_9_up_to_the_degree_limit(degree):
+    """The compiled power-basis evaluation against the reference (de Boor) evaluator
+    on a wavy patch of each degree up to the limit: within 1e-9 of the diagonal."""
+    s = np.linspace(-1.0, 1.0, degree + 1)
+    points = np.zeros((degree + 1, degree + 1, 3))
+    points[..., 0], points[..., 1] = s[:, None], s[None, :]
+    points[..., 2] = 0.2 * np.sin(3 * points[..., 0]) * np.cos(2 * points[..., 1])
+    knots = [0.0] * (degree + 1) + [1.0] * (degree + 1)
+    surface = make_surface([degree, degree], knots, knots, points.tolist(), None)
+    rng = np.random.default_rng(degree)
+    u, v = rng.random(400), rng.random(400)
+    got = PatchSet([surface]).evaluate(np.zeros(400, dtype=np.int64), u, v, derivatives=False)
+    want = evaluate(surface, u, v)
+    want = np.asarray(want[0] if isinstance(want, tuple) else want)
+    want = want.reshape(-1, 3) if want.shape[-1] == 3 else want.T
+    assert np.abs(np.asarray(got).T - want).max() <= 1e-9 * np.sqrt(8.0)

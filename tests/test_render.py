@@ -170,7 +170,7 @@ def test_bands_and_a_given_map_give_the_same_hits(ctx, monkeypatch):
         np.testing.assert_allclose(res.linear, one.linear, atol=1e-9)
 
 
-@pytest.mark.parametrize("degree", [1, 9, 16])
+@pytest.mark.parametrize("degree", [1, 5, 10])
 @pytest.mark.parametrize("method", ["newton", "martin"])
 def test_a_plane_of_the_highest_allowed_degree_is_exact(ctx, degree, method):
     """The square of quad.toml degree-elevated to ``degree`` (its control points a uniform grid,
