@@ -90,4 +90,15 @@ class RenderOptions:
         if self.tolerance < smallest:
             raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves "
                              f"at this scene's size and distance; the smallest usable value is {smallest:.2g}")
+        geometry = [s.geometry for s in scene.surfaces]
+        worst = validate.smallest_tolerance_of_high_degrees(geometry, [s.name for s in scene.surfaces],
+                                                           validate.diagonal(geometry))
+        if worst is not None and worst[0] > 1.0:
+            raise InputError(f"{scene.path}: surface {worst[1]!r} of degree {worst[2]}: bsrt's power-basis evaluation "
+                             f"is off by {worst[0] / 4:.2g} of the scene's size at this degree, so it cannot be "
+                             f"rendered (see the README's Limits)")
+        if worst is not None and self.tolerance < worst[0]:
+            raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves on "
+                             f"surface {worst[1]!r} of degree {worst[2]} (its power-basis evaluation is off by "
+                             f"{worst[0] / 4:.2g} of the scene's size); the smallest usable value is {worst[0]:.2g}")
         return self

@@ -18,7 +18,8 @@ from .errors import InputError
 
 # The limits (README, "Limits"), each with its reason there.
 MAX_COORDINATE = 1e15  # |x|, |y|, |z| of points, eye, look_at, lights, translations
-MAX_DEGREE = 10  # the patch table's power basis stays within 1e-9 (README, Limits)
+MAX_DEGREE = 25  # OpenCASCADE's Geom_BSplineSurface::MaxDegree() (README, Limits)
+CHECKED_DEGREE = 9  # above this, the power-basis evaluation is measured against the reference (README, Limits)
 MAX_WEIGHT_RATIO = 1e12  # largest / smallest weight of one surface
 MAX_SPP = 256  # 8-bit output: a coverage step finer than 1/256 cannot show
 MAX_ITERATIONS = 10_000  # root finders converge in tens of steps
@@ -170,8 +171,7 @@ def smallest_tolerance(surfaces, eye) -> float:
     """The smallest [render].tolerance float64 resolves for these surfaces seen from eye:
     FLOAT_STEPS steps (eps) of the largest coordinate, as a fraction of the scene's diagonal
     (above 1: no tolerance is usable)."""
-    lo = np.min([s.points.reshape(-1, 3).min(axis=0) for s in surfaces], axis=0)
-    hi = np.max([s.points.reshape(-1, 3).max(axis=0) for s in surfaces], axis=0)
+    lo, hi = _box(surfaces)
     diagonal = float(np.linalg.norm(hi - lo))
     reach = max(float(np.abs(lo).max()), float(np.abs(hi).max()), float(np.abs(np.asarray(eye)).max()))
     if diagonal == 0:  # a scene that is one point: no size to resolve against, nothing to refuse
@@ -192,3 +192,47 @@ def show(value) -> str:
     """A short repr for messages."""
     text = repr(value)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def evaluation_error(surface, samples: int = 4) -> float:
+    """Largest distance between the patch table's power-basis evaluation and the
+    reference (de Boor) evaluator, on a samples x samples grid inside each of the
+    surface's Bezier patches. The power basis loses digits as about 3^degree,
+    so above CHECKED_DEGREE this is measured, not assumed."""
+    from .bspline import evaluate
+    from .patches import PatchSet
+
+    patches = PatchSet([surface])
+    b = patches.bounds  # (P, 4): u0, u1, v0, v1
+    s = (np.arange(samples) + 0.5) / samples
+    su, sv = (x.ravel() for x in np.meshgrid(s, s, indexing="ij"))
+    u = (b[:, :1] + (b[:, 1:2] - b[:, :1]) * su).ravel()
+    v = (b[:, 2:3] + (b[:, 3:4] - b[:, 2:3]) * sv).ravel()
+    patch = np.repeat(np.arange(len(b)), su.size)
+    got = patches.evaluate(patch, u, v, derivatives=False).T
+    return float(np.abs(got - evaluate(surface, u, v)[0]).max())
+
+
+def smallest_tolerance_of_high_degrees(surfaces, names, diagonal: float):
+    """(tolerance, name, degree) of the surface above CHECKED_DEGREE whose measured
+    evaluation error, as a fraction of the scene's diagonal, is largest; None if none."""
+    worst = None
+    for surface, name in zip(surfaces, names):
+        if max(surface.degree) <= CHECKED_DEGREE or diagonal == 0:
+            continue
+        error = 4.0 * evaluation_error(surface) / diagonal
+        if worst is None or error > worst[0]:
+            worst = (error, name, list(surface.degree))
+    return worst
+
+
+def _box(surfaces):
+    lo = np.min([s.points.reshape(-1, 3).min(axis=0) for s in surfaces], axis=0)
+    hi = np.max([s.points.reshape(-1, 3).max(axis=0) for s in surfaces], axis=0)
+    return lo, hi
+
+
+def diagonal(surfaces) -> float:
+    """The diagonal of the control points' box (the scene size tolerances are fractions of)."""
+    lo, hi = _box(surfaces)
+    return float(np.linalg.norm(hi - lo))

@@ -193,8 +193,8 @@ def test_egl_device_index_that_is_not_a_number_is_refused(tmp_path):
     ("knots_u = [0.0, 0.0, 1.0, 1.0]", 'knots_u = ["0", "0", "1", "1"]', ("surface[0].knots_u", "expected numbers")),
     ("[[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0]]", "[[true, 0.0, -1.0], [-1.0, 0.0, 1.0]]",
      ("surface[0].points", "expected numbers, got True")),
-    ("degree = [1, 1]", "degree = [11, 1]", ("surface[0].degree", "at most 10")),
-], ids=["boolean degrees", "string knots", "boolean point", "degree over 10"])
+    ("degree = [1, 1]", "degree = [26, 1]", ("surface[0].degree", "at most 25")),
+], ids=["boolean degrees", "string knots", "boolean point", "degree over 25"])
 def test_wrong_types_in_scene_files_are_refused(tmp_path, old, new, words):
     refused(scene(tmp_path, old, new), *words)
 
