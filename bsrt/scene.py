@@ -83,6 +83,7 @@ class Scene:
     path: str = "<scene>"
     notes: tuple[str, ...] = field(default=())  # warnings from imports
     inputs: tuple[str, ...] = field(default=())  # the files read: the scene file, then its imports
+    keyframes: tuple = field(default=())  # [[camera.keyframe]] for bsrt animate (bsrt/camera_path.py)
 
 
 DEFAULT_MATERIAL = Material("default")
@@ -221,6 +222,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
     fov = cam_t.number("fov", 40.0, lo=0.0, hi=180.0, lo_open=True, hi_open=True)
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
+    keyframes = cam_t.raw("keyframe", [])  # parsed below, by bsrt/camera_path.py
     cam_t.finish()
     view = look_at - eye
     if np.linalg.norm(view) == 0:
@@ -228,6 +230,10 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     if np.linalg.norm(up) == 0 or np.linalg.norm(np.cross(view / np.linalg.norm(view), up / np.linalg.norm(up))) < 1e-9:
         cam_t.fail("up", "must not be parallel to the view direction (look_at - eye)")
     camera = Camera(eye, look_at, up, fov, fov_axis)
+    if keyframes != []:
+        from .camera_path import parse_keyframes
+
+        keyframes = parse_keyframes(keyframes, where, camera)
 
     ren_t = _Table(where, data.get("render", {}), "render")
     render = RenderSettings(
@@ -311,7 +317,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
     return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes),
-                 tuple(inputs))
+                 tuple(inputs), tuple(keyframes))
 
 
 def _trimmed(t: _Table, geometry):
