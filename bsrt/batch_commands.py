@@ -136,10 +136,10 @@ def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=Fa
     start = time.perf_counter()
     require_dask("batch")
     paths = batching.discover([inputs] if isinstance(inputs, (str, os.PathLike)) else inputs)
-    out = _output_folder(out)
-    summary_file = _summary_path(summary)
     options = {"width": width, "height": height, "spp": spp, "method": method}
     _check_options(options)
+    summary_file = _summary_path(summary)
+    out = _output_folder(out)
     work, notes = batching.plan(paths, out, options, aov)
     for item, _ in work:
         item.notes = [n for n in notes if n.startswith(f"{item.input}: ")]
@@ -180,8 +180,8 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wi
             raise InputError("--frames: required with --orbit")
         frames = scene.keyframes[-1].frame
     cameras = camera_path.frame_cameras(scene, frames, orbit)
-    out = _output_folder(out)
     summary_file = _summary_path(summary)
+    out = _output_folder(out)
     work = []
     for k, cam in enumerate(cameras, start=1):
         name = f"frame_{k:04d}"
