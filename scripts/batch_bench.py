@@ -73,7 +73,7 @@ def overhead(files, out: Path) -> tuple[float, float]:
         scene = bsrt.load(f, width=8, height=8)
         render(scene, RenderOptions.resolve(scene)).png_bytes()
     in_process = time.perf_counter() - start
-    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None, silence_logs=logging.ERROR) as c, \
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=":0", silence_logs=logging.ERROR) as c, \
             Client(c) as client:
         bsrt.batch(files[:2], out / "warm", width=8, height=8, client=client)  # the worker's kernels and GL loaded
         start = time.perf_counter()

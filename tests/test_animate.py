@@ -14,6 +14,7 @@ from distributed import LocalCluster
 from PIL import Image
 
 import bsrt
+from bsrt.kernels import compile as kernels
 from bsrt.camera import Camera
 from bsrt.camera_path import Keyframe, frame_cameras, keyframe_camera, orbit_camera
 from bsrt.errors import InputError
@@ -24,7 +25,9 @@ SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 @pytest.fixture(scope="module")
 def cluster():
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    """One local cluster (2 worker processes, 1 thread each) for the module's tests."""
+    kernels.warm_up()  # compiled once here (a fresh install), not by every worker at once: they load the cache
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         yield c
 
 

@@ -18,6 +18,7 @@ import pytest
 from distributed import Client, LocalCluster
 
 import bsrt
+from bsrt.kernels import compile as kernels
 from bsrt import batching
 from bsrt.errors import InputError
 
@@ -31,7 +32,8 @@ SPHERE = MODELS / "nurbs" / "splipy" / "sphere.g2"
 @pytest.fixture(scope="module")
 def cluster():
     """One local cluster (2 worker processes, 1 thread each) for the module's tests."""
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as c:
+    kernels.warm_up()  # compiled once here (a fresh install), not by every worker at once: they load the cache
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         yield c
 
 
@@ -52,7 +54,7 @@ def single_render(source: Path, out: Path, *options) -> bytes:
     return out.read_bytes()
 
 
-def test_six_items_match_single_renders_and_one_failure_is_reported(tmp_path):
+def test_six_items_match_single_renders_and_one_failure_is_reported(tmp_path, cluster):  # cluster: kernels warm
     bad = tmp_path / "broken.obj"
     bad.write_text("v 1 2\nthis is not a model\n")
     inputs = [SCENES / "quad.toml", SCENES / "column.toml", SCENES / "bench-64.toml", SPHERE, TEACUP, bad]
