@@ -10,7 +10,8 @@ The Python API (docs/python-api.md)::
 ``bsrt.load``, ``bsrt.render``, ``bsrt.Scene`` (``Scene.build``,
 ``to_toml``, ``save``), ``bsrt.Surface``, ``bsrt.Camera``, ``bsrt.Light``,
 ``bsrt.Material``, ``bsrt.Film``, ``bsrt.Import``, ``bsrt.from_splipy``,
-``bsrt.from_geomdl``. They are imported on first use, so ``import bsrt``
+``bsrt.from_geomdl``; ``bsrt.batch`` and ``bsrt.animate`` (many renders
+on Dask, the extra ``bsrt[dask]``). They are imported on first use, so ``import bsrt``
 stays fast (NumPy, OpenGL and the compiled kernels load when needed).
 
 The rendering pipeline itself is ``bsrt.pipeline`` (``render(scene,
@@ -31,16 +32,18 @@ _LAZY = {
     "from_splipy": "adapters", "from_geomdl": "adapters",
     "InputError": "errors", "RenderError": "errors",
     "render": "api", "RenderResult": "pipeline",
+    "batch": "batch_commands", "animate": "batch_commands",
 }
 
 __all__ = [
     "Camera", "Film", "Import", "InputError", "Light", "Material", "RenderError", "RenderResult", "RenderSettings",
-    "Scene", "Surface", "__version__", "from_geomdl", "from_splipy", "load", "render",
+    "Scene", "Surface", "__version__", "animate", "batch", "from_geomdl", "from_splipy", "load", "render",
 ]
 
 if TYPE_CHECKING:  # what type checkers and IDEs see
     from .adapters import from_geomdl, from_splipy
     from .api import Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, load, render
+    from .batch_commands import animate, batch
     from .errors import InputError, RenderError
     from .pipeline import RenderResult
 

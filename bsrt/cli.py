@@ -1,4 +1,4 @@
-"""Command line: ``bsrt render | map | info | doctor | bench``.
+"""Command line: ``bsrt render | map | info | doctor | bench | preview | batch | animate``.
 
 Exit codes: 0 success, 2 bad usage or bad input (scene, model, options),
 1 a render failure (e.g. no OpenGL context) or an output that could not be
@@ -90,6 +90,9 @@ def _parser() -> argparse.ArgumentParser:
     from .preview import add_arguments as _preview_arguments
 
     _preview_arguments(sub.add_parser("preview", help="interactive window: orbit, pan, zoom; refines to the exact image"))
+    from .batch_commands import add_commands as _batch_commands
+
+    _batch_commands(sub, _positive_int)
     return parser
 
 
@@ -309,7 +312,20 @@ def _cmd_preview(args) -> int:
     return preview.main(args)
 
 
-COMMANDS = {"render": _cmd_render, "map": _cmd_map, "info": _cmd_info, "doctor": _cmd_doctor, "bench": _cmd_bench, "preview": _cmd_preview}
+def _cmd_batch(args) -> int:
+    from .batch_commands import cmd_batch
+
+    return cmd_batch(args)
+
+
+def _cmd_animate(args) -> int:
+    from .batch_commands import cmd_animate
+
+    return cmd_animate(args)
+
+
+COMMANDS = {"render": _cmd_render, "map": _cmd_map, "info": _cmd_info, "doctor": _cmd_doctor, "bench": _cmd_bench, "preview": _cmd_preview,
+            "batch": _cmd_batch, "animate": _cmd_animate}
 
 
 # Values that start with '-': `--camera-eye -1,-2,3`, `--camera-look-at

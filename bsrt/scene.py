@@ -84,6 +84,7 @@ class Scene:
     path: str = "<scene>"
     notes: tuple[str, ...] = field(default=())  # warnings from imports
     inputs: tuple[str, ...] = field(default=())  # the files read: the scene file, then its imports
+    keyframes: tuple = field(default=())  # [[camera.keyframe]] for bsrt animate (bsrt/camera_path.py)
 
 
 DEFAULT_MATERIAL = Material("default")
@@ -233,12 +234,17 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     if fov < validate.MIN_FOV:
         cam_t.fail("fov", f"must be at least {validate.MIN_FOV:g} degrees (see the README's Limits), got {fov:g}")
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
+    keyframes = cam_t.raw("keyframe", [])  # parsed below, by bsrt/camera_path.py
     cam_t.finish()
     camera = Camera(eye, look_at, up, fov, fov_axis)
     try:
         validate.camera(camera)
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
+    if keyframes != []:
+        from .camera_path import parse_keyframes
+
+        keyframes = parse_keyframes(keyframes, where, camera)
 
     ren_t = _Table(where, data.get("render", {}), "render")
     render = RenderSettings(
@@ -319,7 +325,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
     return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes),
-                 tuple(inputs))
+                 tuple(inputs), tuple(keyframes))
 
 
 def _surface_arrays(t: _Table) -> tuple:
