@@ -17,7 +17,7 @@ import numpy as np
 
 from . import hard_pixels
 from .camera import pixel_footprint, pixel_rays
-from .hits import Hits, keep_nearest
+from .hits import Hits
 from .prelim import PrelimMap, render_map
 from .settings import RenderOptions
 from .solve import Rays, find_roots
@@ -86,9 +86,8 @@ class MapTracer:
         res = find_roots(patches, rays, covered, seed[covered], prelim.u.ravel()[covered], prelim.v.ravel()[covered],
                          method=options.method, tolerance=self.tolerance, max_iterations=options.max_iterations,
                          stop_on_growth=options.method == "newton")  # a failure is re-solved as a suspect
-        hits.iterations[covered] = res.iterations
         candidates = res.as_hits(patches)
-        keep_nearest(hits, covered, candidates)
+        hits.put(covered, candidates)  # one item per covered pixel: nothing to choose between yet
         failed = np.zeros(len(rays), dtype=bool)
         failed[covered[~candidates.hit]] = True
         suspect, layer = hard_pixels.suspect_pixels(prelim, hits, failed, footprint, self.tolerance)

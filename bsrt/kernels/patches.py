@@ -52,7 +52,7 @@ class PatchArrays(NamedTuple):
     patch_grid: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _horner(coef, base, p, q, dim, s, t, derivatives):
     """Homogeneous value (and d/ds, d/dt) of one patch at local (s, t), all components in one pass.
 
@@ -86,7 +86,7 @@ def _horner(coef, base, p, q, dim, s, t, derivatives):
     return x, y, z, w, xs, ys, zs, ws, xt, yt, zt, wt
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def point(P, k, u, v):
     """S(u, v) of patch k at global parameters: (x, y, z)."""
     s = (u - P.bounds[k, 0]) * P.inv_size[k, 0]
@@ -95,7 +95,7 @@ def point(P, k, u, v):
     return h[0] / h[3], h[1] / h[3], h[2] / h[3]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def frame(P, k, u, v):
     """S, S_u, S_v of patch k at global (u, v): 9 floats (x, y, z, xu, yu, zu, xv, yv, zv)."""
     du, dv = P.inv_size[k, 0], P.inv_size[k, 1]
@@ -109,7 +109,7 @@ def frame(P, k, u, v):
     return x, y, z, xs * du, ys * du, zs * du, xt * dv, yt * dv, zt * dv
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def _span(breaks, first, stop, x):
     """Index (0-based within the surface) of the span of sorted breaks[first:stop] holding x."""
     lo, hi = first, stop - 2  # spans first .. stop - 2
@@ -122,14 +122,14 @@ def _span(breaks, first, stop, x):
     return lo - first
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def clamp(P, m, u, v):
     """(u, v) clipped into surface m's domain."""
-    d = P.domain[m]
-    return min(max(u, d[0]), d[1]), min(max(v, d[2]), d[3])
+    d = P.domain  # scalar indexing: a row view would cost a reference count per call
+    return min(max(u, d[m, 0]), d[m, 1]), min(max(v, d[m, 2]), d[m, 3])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def locate(P, m, u, v):
     """Patch of surface m holding (u, v) (parameters outside the domain: the nearest)."""
     fu, su = P.break_start_u[m], P.break_start_u[m + 1]
@@ -139,13 +139,13 @@ def locate(P, m, u, v):
     return P.patch_grid[P.grid_start[m] + iu * (sv - fv - 1) + iv]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def inside_patch(P, k, u, v):
-    b = P.bounds[k]
-    return b[0] <= u <= b[1] and b[2] <= v <= b[3]
+    b = P.bounds
+    return b[k, 0] <= u <= b[k, 1] and b[k, 2] <= v <= b[k, 3]
 
 
-@njit(cache=True, parallel=False)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def evaluate_many(P, patch, u, v, S, Su, Sv, derivatives):
     """S (and S_u, S_v) of patch[i] at (u[i], v[i]) into (3, N) arrays."""
     for i in range(patch.shape[0]):
@@ -159,7 +159,7 @@ def evaluate_many(P, patch, u, v, S, Su, Sv, derivatives):
             S[0, i], S[1, i], S[2, i] = x, y, z
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def locate_many(P, surface, u, v, out):
     """out[i] = the patch of surface[i] holding (u[i], v[i])."""
     for i in range(surface.shape[0]):

@@ -53,7 +53,7 @@ MAX_HALVINGS = 60
 STALL_STEPS = 32  # evaluations without halving w: stagnation
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False)
 def ray_frame(dx, dy, dz):
     """e1, e2 (6 floats) perpendicular to the unit direction d and to each other
     (Duff et al. 2017, "Building an orthonormal basis, revisited")."""
@@ -63,7 +63,7 @@ def ray_frame(dx, dy, dz):
     return 1.0 + sign * dx * dx * a, sign * b, -sign * dx, b, sign + dy * dy * a, -dy
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, stop_on_growth):
     """One item from (u, v) on surface m.
 
@@ -172,7 +172,7 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
     return converged, u, v, k, t, np.sqrt(w), iterations
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
 def solve_items(start, stop, P, origin, direction, ray, surface, u0, v0, method, tolerance, max_iterations,
                 stop_on_growth, converged, u, v, patch, t, residual, iterations):
     """solve_one for items start..stop-1: item i is ray[i] (into origin, direction
