@@ -23,7 +23,23 @@ def main(argv=None) -> int:
         interrupts.ignore()
         message, code = interrupts.describe(exc)
         print(message, file=sys.stderr)
+        _leave_now(code)
     return code
+
+
+def _leave_now(code: int) -> None:
+    """Exit at once after an interruption, without the interpreter's shutdown:
+    kernel threads may still be inside a compiled loop, and tearing Python and
+    the GL context down under them can crash. Staged outputs were already
+    discarded on the way here; only the standard streams need flushing."""
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 
 Everything here is re-exported from the package (``bsrt.load``,
 ``bsrt.Scene``, ``bsrt.render``, ...); ``docs/python-api.md`` is the guide.
+(Over 500 lines on purpose: the whole public surface in one module, so that
+its signatures, docstrings and keyword checks read as one page.)
 
 One rule keeps the API and the scene files in step: a scene built in Python
 is turned into the same document a TOML file gives (tables, lists and

@@ -20,7 +20,6 @@ import time
 from pathlib import Path
 
 from . import __version__
-from . import interrupts
 from .errors import InputError, OutputError, RenderError
 from .settings import MAP_MODES, METHODS
 
@@ -372,10 +371,8 @@ def main(argv=None) -> int:
     except RenderError as exc:
         print(f"bsrt: render failed: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as exc:
-        message, code = interrupts.describe(exc)
-        print(message, file=sys.stderr)
-        return code
+    except KeyboardInterrupt:
+        raise  # bsrt/__main__.py reports it and leaves at once
     except MemoryError:
         print("bsrt: render failed: out of memory (a smaller film, fewer samples per pixel or a simpler model "
               "needs less)", file=sys.stderr)

@@ -1,5 +1,9 @@
 """Scene files (TOML, format version 1) into frozen dataclasses.
 
+(Over 500 lines: the whole scene-file contract, table by table, is checked
+here, next to the dataclasses it fills, so one file answers "what does a
+scene accept".)
+
 Every problem is an InputError naming the file, the table and the key, e.g.
 ``column.toml: surface[3].knots_u: expected 12 values (8 points + degree 3 +
 1), got 11``. Unknown keys are errors: nothing is silently ignored.
@@ -206,6 +210,9 @@ def load_scene(path: str | Path) -> Scene:
 
 def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, order=None) -> Scene:
     """Validate an already-parsed TOML document.
+
+    (Long: it walks the tables in the format's order, each a short block, and
+    the materials and lights it builds are what later tables refer to.)
 
     folder resolves [[import]] files; order: the kinds ("surface" or
     "import") of the surface-producing tables as they appear in the text,

@@ -238,7 +238,10 @@ class LoopBuilder:
         return tuple(float(x) for x in box)
 
     def _chain(self, items: list, label: str, s) -> TrimLoop:
-        """The loop's curves end to end, turned round where needed, gaps closed (s: the surface)."""
+        """The loop's curves end to end, turned round where needed, gaps closed (s: the surface).
+
+        (Long: orienting, gap measuring and closing depend on each other curve by curve.)
+        """
         (u0, u1), (v0, v1) = s.domain_u, s.domain_v
         size = math.hypot(u1 - u0, v1 - v0)
         gap = GAP * size

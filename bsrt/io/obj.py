@@ -72,6 +72,11 @@ class _Body:
 
 
 def read(path: str) -> Model:
+    """A .obj file's free-form surfaces (cstype/deg/surf/parm/end).
+
+    (Long: one pass over the lines, each statement a short branch sharing the
+    reader's state: the current curve type, degree and vertex lists.)
+    """
     text = read_text(path)
     base = os.path.basename(path)
     verts: list[list[float]] = []  # (x, y, z, w)

@@ -1,6 +1,7 @@
 """STEP, BREP and IGES B-reps through OpenCASCADE (the optional extra ``bsrt[cad]``).
 
-This is the only module that imports OpenCASCADE (the ``OCP`` bindings of
+(Over 500 lines on purpose: it keeps every use of the optional OCP bindings
+in one module.) This is the only module that imports OpenCASCADE (the ``OCP`` bindings of
 ``cadquery-ocp-novtk``), and it does so inside functions, so the rest of bsrt
 never needs it. ``read(path, format)`` turns every face of the file into one
 trimmed :class:`~bsrt.bspline.BSplineSurface`:
@@ -120,6 +121,9 @@ def kind_of(path: str, format: str) -> str:
 
 def read(path, format: str = "occt"):
     """Read a STEP, BREP or IGES file through OpenCASCADE into a :class:`~bsrt.io.Model`.
+
+    (Long: the reader's steps (transfer, assembly walk, face conversion,
+    colours, warnings) run in one OCP session whose objects must stay alive.)
 
     format: "step", "brep", or "occt" (the reader is chosen by the extension,
     IGES included). Every face becomes one trimmed surface, in the file's

@@ -204,6 +204,9 @@ def _grow(lo, hi, bin_lo, bin_hi, j):
 def build_tree(box_min, box_max, leaf_size):
     """Binned surface-area-heuristic tree over L boxes (L, 3), built breadth first.
 
+    (Long: one compiled loop; binning, the sweep and the split share its
+    scratch arrays, which a helper would have to take a dozen arguments for.)
+
     Returns (order (L,): the boxes in tree order, node_min, node_max (K, 3),
     node_left, node_right, node_first, node_count (K,)); node 0 is the root,
     a node's boxes are order[first:first + count], children -1 for a tree

@@ -1,5 +1,9 @@
 """Is (u, v) kept? The even-odd test on a surface's trim loops, exact at the curve.
 
+(Over 500 lines: numba compiles a module's kernels together, and the curve
+splitting, the banded table queries and the grid classification share
+inlined helpers here.)
+
 The table is ``bsrt.trim.TrimTable`` (monotone rational Bezier pieces,
 banded over v; its docstring lists the arrays, bsrt/trim.py's module doc
 says why the answer is exact). A horizontal ray from (u, v) toward +u
