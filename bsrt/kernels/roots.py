@@ -70,6 +70,10 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
     Returns (converged, u, v, patch, t, residual, iterations): the final
     parameters (in the domain), their patch, the distance along the ray and
     the ray-surface distance there.
+    
+    (Long: one loop serves the three methods, which share the evaluation,
+    the acceptance test and the clipping; it is inlined into its callers, so
+    splitting it would cost nothing at run time but scatter one algorithm.)
     """
     e1x, e1y, e1z, e2x, e2y, e2z = ray_frame(dx, dy, dz)
     c1 = e1x * ox + e1y * oy + e1z * oz
