@@ -78,18 +78,19 @@ class Progress:
         self.fraction = max(self.fraction, min(1.0, max(0.0, float(fraction))))  # never backwards
         self.stage = stage
         now = self.clock()
+        first_of_stage = stage not in self._stages  # a stage change is always shown (a handful per render)
         if self.lines:
             percent = int(self.fraction * 100)
             due = self._drawn_at is None or now - self._drawn_at >= LINE_INTERVAL
-            first_of_stage = stage not in self._stages
             if (due or first_of_stage) and (stage, percent) != self._last_line and stage != "done":
                 self._write(f"bsrt: {self._status(now)}\n")
                 self._drawn_at, self._last_line = now, (stage, percent)
                 self._stages.add(stage)
             return
-        if self._drawn_at is not None and now - self._drawn_at < BAR_INTERVAL:
+        if not first_of_stage and self._drawn_at is not None and now - self._drawn_at < BAR_INTERVAL:
             return
         self._drawn_at = now
+        self._stages.add(stage)
         _active = self
         self._draw(f"bsrt: {self._bar()} {self._status(now)}")
 

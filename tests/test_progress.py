@@ -57,13 +57,16 @@ def test_the_bar_redraws_at_most_ten_times_a_second():
     clock, out = Clock(), Terminal()
     bar = Progress(out, clock=clock)
     bar("map", 0.0)
-    for i in range(1, 100):  # 99 reports within 0.099 s: no redraw
+    clock.now += 0.001
+    bar("solve", 0.001)  # a new stage is shown at once
+    assert out.getvalue().count("\r") == 2
+    for i in range(2, 101):  # 99 reports within 0.099 s of that: no redraw
         clock.now += 0.001
         bar("solve", i / 1000)
-    assert out.getvalue().count("\r") == 1
-    clock.now += 0.001
+    assert out.getvalue().count("\r") == 2
+    clock.now += 0.002
     bar("solve", 0.1)
-    assert out.getvalue().count("\r") == 2 and out.getvalue().endswith("10% solve, 0.1 s, about 0.9 s left")
+    assert out.getvalue().count("\r") == 3 and out.getvalue().endswith("10% solve, 0.1 s, about 0.9 s left")
 
 
 def test_the_bar_never_goes_back_and_a_shorter_line_erases_the_longer():
