@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from . import __version__
+from . import interrupts
 from .errors import InputError, OutputError, RenderError
 from .settings import MAP_MODES, METHODS
 
@@ -189,7 +190,7 @@ def _cmd_render(args) -> int:
     _say_if_compiling()
     progress = _progress(args)
     try:
-        with Outputs() as outputs:
+        with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
             result = render(scene, options, progress=progress)

@@ -12,6 +12,7 @@ a background job's SIGINT) stays ignored.
 from __future__ import annotations
 
 import signal
+from contextlib import contextmanager
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
@@ -54,3 +55,31 @@ def describe(exc: KeyboardInterrupt) -> tuple[str, int]:
     """(one-line message, exit code) for an interruption."""
     signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
     return f"bsrt: interrupted ({signal.Signals(signum).name})", 128 + signum
+
+
+_deferring = False
+
+
+@contextmanager
+def at_safe_points():
+    """Within this block the signals wait (blocked in this thread and in every
+    thread started inside it: the kernel pool, Mesa's) and are taken only at
+    :func:`safe_point` or at the end of the block. An exception raised at an
+    arbitrary bytecode could land inside numba's loading of a cached kernel,
+    which then crashed the process (SIGSEGV) in about one run in ten when the
+    signal came in the first second of a render."""
+    global _deferring
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    _deferring = True
+    try:
+        yield
+    finally:
+        _deferring = False
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a waiting signal is taken here
+
+
+def safe_point() -> None:
+    """Take a waiting signal now (raising Interrupted), if inside at_safe_points."""
+    if _deferring and set(signal.sigpending()) & set(SIGNALS):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, SIGNALS)  # the handler runs and raises here
+        signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)

@@ -21,6 +21,7 @@ import os
 import secrets
 from pathlib import Path
 
+from . import interrupts
 from .errors import OutputError
 
 __all__ = ["OutputError", "Outputs", "write_file"]
@@ -96,6 +97,7 @@ class Outputs:
 
     def write(self, path, write) -> None:
         """Stage ``path``: ``write(binary_file)`` fills it; it is flushed to disk at once."""
+        interrupts.safe_point()
         path = Path(path)
         with _os_errors(path):
             staged = _Staged(path)
@@ -107,6 +109,7 @@ class Outputs:
 
     def commit(self) -> None:
         """Link and rename every staged file into place, then fsync their folders."""
+        interrupts.safe_point()  # the last moment a signal can still leave nothing behind
         for staged in self._staged:
             with _os_errors(staged.path):
                 staged.link()

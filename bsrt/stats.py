@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
+from . import interrupts
+
 STAGES = ("setup", "map", "solve", "shade", "secondary")
 
 
@@ -18,6 +20,7 @@ class Stats:
 
     @contextmanager
     def timer(self, stage: str):
+        interrupts.safe_point()  # between stages and bands: a signal may end the run here
         clock = time.perf_counter()
         try:
             yield

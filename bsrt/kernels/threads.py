@@ -9,7 +9,9 @@ slices run at once because the kernel releases the GIL.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
+
+from .. import interrupts
 
 _POOL: ThreadPoolExecutor | None = None
 MIN_CHUNK = 2048
@@ -22,6 +24,7 @@ def workers() -> int:
 def run_chunks(kernel, n: int, *args) -> None:
     """kernel(start, stop, *args) over [0, n) in about 4 slices per core (at least MIN_CHUNK items each)."""
     global _POOL
+    interrupts.safe_point()
     count = min(4 * workers(), max(1, n // MIN_CHUNK))
     if count <= 1:
         kernel(0, n, *args)
@@ -29,5 +32,14 @@ def run_chunks(kernel, n: int, *args) -> None:
     if _POOL is None:
         _POOL = ThreadPoolExecutor(max_workers=workers(), thread_name_prefix="bsrt-kernel")
     bounds = [n * i // count for i in range(count + 1)]
-    for future in [_POOL.submit(kernel, a, b, *args) for a, b in zip(bounds[:-1], bounds[1:])]:
-        future.result()
+    futures = [_POOL.submit(kernel, a, b, *args) for a, b in zip(bounds[:-1], bounds[1:])]
+    try:
+        for future in futures:
+            future.result()
+    except BaseException:
+        # An interruption (a signal raises here) must not free the arrays the
+        # running slices still write into: cancel the rest, let those finish.
+        for future in futures:
+            future.cancel()
+        wait(futures)
+        raise
