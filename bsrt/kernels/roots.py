@@ -22,13 +22,20 @@ Methods (``METHOD_IDS``):
   Gauss-Newton model along that direction g: h = (g . J^T q) / |J g|^2.
   S, S_u, S_v are evaluated at every point; a step that does not decrease w
   is halved from the last accepted point.
-- fast (paper 2.3): as gradient, but the surface derivatives (the Jacobian
-  J of (Qx, Qy)) are kept from the last point where they were computed while
-  w keeps decreasing: each further step evaluates S only and takes the
-  gradient 2 J^T q and the Cauchy step from the new residual q and the kept
-  J. When w stops decreasing, J is recomputed at the last accepted point.
-  (Re-using the gradient *vector* itself would be pointless with a Cauchy
-  step: the step already reaches the model's minimum along that direction.)
+- fast (paper 2.3: keep the previous gradient while w decreases): the
+  surface derivatives (the Jacobian J of (Qx, Qy)) are computed at every
+  other point only. From a point with fresh derivatives it takes gradient's
+  step; the next point evaluates S alone and, if w decreased, steps along
+  its gradient (from the kept J and the new residual) plus beta times the
+  previous direction, beta = (r . z) / (r' . z') with r = J^T q and z the
+  scaled gradient (preconditioned conjugate gradients, Fletcher-Reeves).
+  Two such steps reach the minimum of the kept Gauss-Newton model, where a
+  gradient step alone zig-zags along a narrow valley of w: reusing the
+  previous gradient is what makes the saved derivative evaluations pay.
+  When w stops decreasing on a kept J, J is recomputed at the last accepted
+  point. (Repeating the previous gradient step unchanged, the paper's
+  literal rule, cannot pay after a Cauchy step: that step already reaches
+  the model's minimum along its direction.)
 
 Parameters are clipped to the surface's domain after every step; an item
 whose clipped step is zero is stuck and fails.
@@ -83,7 +90,7 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
     # Gradient methods: the last accepted point and the step taken from it.
     ua, va, ka, wa = u, v, k, np.inf
     a = b = c = d = 0.0  # the Jacobian of (Qx, Qy) in use
-    gu = gv = h = 0.0
+    gu = gv = h = rz_prev = 0.0
     need_derivatives = True
     jacobian_here = False  # J was computed at the accepted point
     refresh = False
@@ -127,7 +134,7 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
             det = (j00 + mu) * (j11 + mu) - j01 * j01
             nu = u - ((j11 + mu) * g0 - j01 * g1) / det
             nv = v - ((j00 + mu) * g1 - j01 * g0) / det
-        elif w < wa or refresh:  # accept this point, take a new Cauchy step
+        elif w < wa or refresh:  # accept this point, take a new step
             refresh = False
             halvings = 0
             ua, va, ka, wa = u, v, k, w
@@ -138,15 +145,20 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
                 c = e2x * xu + e2y * yu + e2z * zu
                 d = e2x * xv + e2y * yv + e2z * zv
             # gradient of w, each parameter scaled by 1 / |d(Qx, Qy)/d(parameter)|^2
-            scale_u = 1.0 / (a * a + c * c + 1e-300)
-            scale_v = 1.0 / (b * b + d * d + 1e-300)
-            gu = 2.0 * (a * qx + c * qy) * scale_u
-            gv = 2.0 * (b * qx + d * qy) * scale_v
+            ru, rv = a * qx + c * qy, b * qx + d * qy  # J^T q: half the gradient of w
+            zu = 2.0 * ru / (a * a + c * c + 1e-300)
+            zv = 2.0 * rv / (b * b + d * d + 1e-300)
+            rz = ru * zu + rv * zv
+            if jacobian_here:  # steepest descent
+                gu, gv = zu, zv
+            else:  # fast, second step on the kept J: conjugate to the first (keeps the previous gradient)
+                beta = rz / (rz_prev + 1e-300)
+                gu, gv = zu + beta * gu, zv + beta * gv
+            rz_prev = rz
             jg0, jg1 = a * gu + b * gv, c * gu + d * gv
-            h = (a * qx + c * qy) * gu + (b * qx + d * qy) * gv  # (J^T q) . g: the Cauchy step along -g
-            h /= jg0 * jg0 + jg1 * jg1 + 1e-300
+            h = (ru * gu + rv * gv) / (jg0 * jg0 + jg1 * jg1 + 1e-300)  # the model's minimum along -g
             nu, nv = ua - h * gu, va - h * gv
-            need_derivatives = method == GRADIENT
+            need_derivatives = method == GRADIENT or not jacobian_here
         elif method == FAST and not jacobian_here:  # the kept J no longer helps: recompute it
             u, v, k = ua, va, ka
             need_derivatives = True
@@ -162,6 +174,11 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
         nu, nv = clamp(P, m, nu, nv)
         base_u, base_v = (u, v) if method == NEWTON else (ua, va)
         if nu == base_u and nv == base_v:  # clipped at the border with nowhere to go
+            if method == FAST and not jacobian_here:  # perhaps only the kept J points outward
+                u, v, k = ua, va, ka
+                need_derivatives = True
+                refresh = True
+                continue
             break
         u, v = nu, nv
         if not inside_patch(P, k, u, v):
