@@ -302,47 +302,12 @@ def load(
 
     Raises InputError naming the file, table and key (or the override).
     """
-    vectors = {k: _override_vector(k, v) for k, v in
-               (("camera_eye", camera_eye), ("camera_look_at", camera_look_at), ("camera_up", camera_up))}
-    if fov is not None:
-        fov = validate.fov(fov)
+    from .loading import CameraOverrides, load_input
+
     settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
                                  max_iterations=max_iterations, max_depth=max_depth)
-    if not isinstance(format, str):
-        raise InputError(f"format: expected a string, got {format!r}")
-    path = Path(path)
-    if path.suffix.lower() == ".toml":
-        if format != "auto":
-            raise InputError(f"format: only for model files; {path.name} is a scene file (.toml)")
-        scene = _scene.load_scene(path)
-        cam = scene.camera
-        camera = replace(
-            cam,
-            eye=cam.eye if vectors["camera_eye"] is None else vectors["camera_eye"],
-            look_at=cam.look_at if vectors["camera_look_at"] is None else vectors["camera_look_at"],
-            up=cam.up if vectors["camera_up"] is None else vectors["camera_up"],
-            fov=cam.fov if fov is None else float(fov),
-        )
-        if any(v is not None for v in vectors.values()):
-            _check_view(camera.eye, camera.look_at, camera.up)
-        scene = replace(scene, camera=camera)
-    else:
-        from .io import load_model
-
-        if not path.is_file():
-            raise InputError(f"{path}: no such file" if not path.exists() else f"{path}: not a file")
-        model = load_model(path, format)
-        up = vectors["camera_up"] if vectors["camera_up"] is not None else (0.0, 0.0, 1.0)
-        if not np.any(up):
-            raise InputError("camera_up: must not be the zero vector")
-        try:
-            scene = _scene.scene_for_model(model, settings.get("width", 512), settings.get("height", 512),
-                                           vectors["camera_eye"], vectors["camera_look_at"], fov, up)
-        except InputError as exc:  # the command line's option names -> the keywords'
-            text = str(exc)
-            for option in ("eye", "look-at", "up"):
-                text = text.replace(f"--camera-{option}", f"camera_{option.replace('-', '_')}")
-            raise InputError(text) from None
+    camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True)
+    scene = load_input(path, format, width=settings.get("width"), height=settings.get("height"), camera=camera)
     return _wrap(_with_settings(scene, settings))
 
 
@@ -373,26 +338,6 @@ def _render_overrides(**values) -> dict:
                 raise InputError(f"{key}: expected one of {', '.join(choices)}, got {value!r}")
             out[key] = value
     return out
-
-
-def _override_vector(key: str, value) -> np.ndarray | None:
-    if value is None:
-        return None
-    try:
-        v = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        v = None
-    if v is None or v.shape != (3,) or isinstance(value, str) or not np.all(np.isfinite(v)):
-        raise InputError(f"{key}: expected three finite numbers like (1, 2, 3), got {value!r}")
-    validate.numbers(key, value, validate.MAX_COORDINATE)
-    return v
-
-
-def _check_view(eye, look_at, up) -> None:
-    view = np.asarray(look_at) - np.asarray(eye)
-    if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
-        raise InputError("camera_eye / camera_look_at / camera_up: the view direction must not be zero or parallel "
-                         "to up")
 
 
 # ---------------------------------------------------------------------------

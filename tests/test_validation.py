@@ -263,6 +263,16 @@ def test_info_refuses_a_model_format_for_a_scene(tmp_path):
     assert run.stderr.splitlines() == [f"bsrt: error: {path}: --format: only for model files; a .toml file is a scene"]
 
 
+def test_render_refuses_a_model_format_for_a_scene(tmp_path):
+    """--format is not silently ignored for a scene file (the CLI and bsrt.load share the loader)."""
+    path = tmp_path / "quad.toml"
+    path.write_text(QUAD)
+    run = bsrt_cli("render", path, "--format", "bez", "-o", tmp_path / "out.png")
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.splitlines() == ["bsrt: error: --format: only for model files; quad.toml is a scene file (.toml)"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["quad.toml"]
+
+
 @pytest.mark.parametrize("methods", [",,", " , "])
 def test_bench_with_no_method_is_refused(methods):
     run = bsrt_cli("bench", "--methods", methods)
