@@ -213,7 +213,8 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_map(args) -> int:
-    from .image import write_png
+    from .image import png_writer
+    from .outputs import Outputs
     from .prelim import render_map
     from .pipeline import Geometry
 
@@ -221,8 +222,10 @@ def _cmd_map(args) -> int:
     scene = _load_input(args)
     _refuse_overwriting([out], scene)
     width, height = args.width or scene.film.width, args.height or scene.film.height
-    prelim = render_map(Geometry(scene).patches, scene.camera, width, height, args.map_mode or scene.render.map)
-    write_png(out, prelim.picture)
+    with interrupts.at_safe_points(), Outputs() as outputs:  # as render: signals wait for a safe point
+        prelim = render_map(Geometry(scene).patches, scene.camera, width, height, args.map_mode or scene.render.map)
+        outputs.write(out, png_writer(prelim.picture))
+        outputs.commit()
     return 0
 
 
@@ -248,8 +251,6 @@ def _cmd_info(args) -> int:
     from .io import load_model
     from .io.info import describe
 
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
     print(describe(load_model(path, args.format)))
     return 0
 

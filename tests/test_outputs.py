@@ -149,6 +149,18 @@ def test_non_regular_inputs_are_refused_at_once(tmp_path, make, kind, name):
     assert run.stderr.splitlines() == [f"bsrt: error: {name}: is {kind}, not a scene or model file"]
 
 
+def test_info_and_load_model_refuse_a_fifo_at_once(tmp_path):
+    os.mkfifo(tmp_path / "cup.bez")
+    run = bsrt("info", "cup.bez", cwd=tmp_path, timeout=60)
+    assert run.returncode == 2
+    assert run.stderr.splitlines() == ["bsrt: error: cup.bez: is a named pipe (FIFO), not a model file"]
+    from bsrt.errors import InputError
+    from bsrt.io import load_model
+
+    with pytest.raises(InputError, match=r"cup.bez: is a named pipe \(FIFO\), not a model file$"):
+        load_model(tmp_path / "cup.bez")
+
+
 def test_an_import_that_is_a_fifo_is_refused(tmp_path):
     os.mkfifo(tmp_path / "cup.bez")
     (tmp_path / "s.toml").write_text(CAMERA + '[[import]]\nfile = "cup.bez"\n')

@@ -70,3 +70,27 @@ def test_sigkill_at_any_moment_leaves_no_lone_output(tmp_path, whole_run_seconds
         outputs = [name for name in left if not TEMPORARY.fullmatch(name)]
         assert outputs in ([], ["out.npz", "out.png"]), f"SIGKILL after {delay:.3f} s: left {left}"
         assert len(left) - len(outputs) <= 2
+
+
+def test_a_signal_during_bsrt_map_leaves_the_map_or_nothing(tmp_path):
+    """bsrt map writes through the same staged outputs and safe points as render."""
+    command = [sys.executable, "-m", "bsrt", "map", str(ROOT / "scenes" / "water-lily.toml"), "-o", "map.png",
+               "--width", "1024", "--height", "1024"]
+    rng = random.Random(5)
+    interrupted = 0
+    for i in range(8):
+        folder = tmp_path / str(i)
+        folder.mkdir()
+        proc = subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        delay = rng.uniform(0.05, 1.5)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=600)
+        left = sorted(os.listdir(folder))
+        if proc.returncode == 0:
+            assert left == ["map.png"]
+            continue
+        interrupted += 1
+        assert proc.returncode == 143, f"after {delay:.3f} s: exit {proc.returncode}, {err!r}"
+        assert err.splitlines() == ["bsrt: interrupted (SIGTERM)"] and left == [], f"after {delay:.3f} s: {left}"
+    assert interrupted >= 2

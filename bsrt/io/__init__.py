@@ -28,6 +28,7 @@ import numpy as np
 from ..bspline import BSplineSurface, insert_knot, make_surface
 from .. import validate
 from ..errors import InputError
+from ..files import check_input_file
 
 __all__ = ["Model", "FORMATS", "load_model"]
 
@@ -82,7 +83,7 @@ def load_model(path, format: str = "auto") -> Model:
     :data:`FORMATS` ("bez", "bpt", "brep", "g2", "iges", "obj", "nurbs",
     "step"), or "occt" (STEP, BREP or IGES through OpenCASCADE, by extension).
     """
-    path = os.fspath(path)
+    path = os.fspath(check_input_file(path, "model file"))  # a FIFO or a device would block or never end
     format = format.lower()
     names = sorted(set(FORMATS.values()) | set(OCCT_FORMATS))
     if format == "auto":
