@@ -83,7 +83,7 @@ def load_model(path, format: str = "auto") -> Model:
     :data:`FORMATS` ("bez", "bpt", "brep", "g2", "iges", "obj", "nurbs",
     "step"), or "occt" (STEP, BREP or IGES through OpenCASCADE, by extension).
     """
-    path = os.fspath(check_input_file(path, "model file"))  # a FIFO or a device would block or never end
+    path = os.fspath(path)
     format = format.lower()
     names = sorted(set(FORMATS.values()) | set(OCCT_FORMATS))
     if format == "auto":
@@ -104,7 +104,12 @@ def load_model(path, format: str = "auto") -> Model:
     if format not in names:
         raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
     reader = importlib.import_module(f".{format}", __name__)
-    return checked(reader.read(path))
+    return checked(reader.read(_regular(path)))
+
+
+def _regular(path: str) -> str:
+    """path, if it is a regular file: a FIFO or a device would block or never end."""
+    return os.fspath(check_input_file(path, "model file"))
 
 
 def checked(model: Model) -> Model:

@@ -76,6 +76,7 @@ import numpy as np
 
 from ..bspline import BSplineSurface, evaluate, insert_knot, make_surface
 from ..errors import InputError
+from ..files import check_input_file
 from ..trim import TrimCurve, TrimLoop, make_trim_curve
 
 #: format name -> the extensions it reads (lower case, with the dot)
@@ -141,8 +142,7 @@ def read(path, format: str = "occt"):
         import OCP  # noqa: F401
     except ImportError:
         raise InputError(needs_message(path, kind)) from None
-    if not os.path.isfile(path):
-        raise InputError(f"{path}: no such file")
+    check_input_file(path, "model file")  # a FIFO or a device would block or never end
     try:
         with open(path, "rb"):
             pass
