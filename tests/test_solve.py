@@ -143,6 +143,34 @@ def test_paraboloid_closed_form(method):
     np.testing.assert_allclose(2 * res.v[inside] - 1, p[inside, 1], atol=1e-9)
 
 
+def test_fast_reaches_a_skewed_planes_root_in_two_steps_where_gradient_zigzags():
+    """S(u, v) = u A + v B with A and B 15 degrees apart: Q is affine in (u, v),
+    so the Gauss-Newton model is exact and fast's two steps on one Jacobian
+    (the second conjugate to the first) land on the root: 3 evaluations (the
+    seed, the first step, the root). gradient's steps zig-zag down the narrow
+    valley of w. The root is the closed-form ray-plane intersection."""
+    a, b = np.array([1.0, 0.0, 0.0]), 0.5 * np.array([np.cos(np.radians(15)), np.sin(np.radians(15)), 0.0])
+    surf = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[0, 0, 0], b], [a, a + b]])
+    ps = PatchSet([surf])
+    rng = np.random.default_rng(4)
+    n = 400
+    u, v = rng.uniform(0.3, 0.7, n), rng.uniform(0.3, 0.7, n)
+    target = u[:, None] * a + v[:, None] * b
+    origin = np.array([0.3, -0.4, 2.0]) + rng.normal(0, 0.3, (n, 3))
+    rays = Rays.from_arrays(origin, target - origin)
+    t_true = np.linalg.norm(target - origin, axis=1)
+    seed_u, seed_v = u + rng.uniform(-0.05, 0.05, n), v + rng.uniform(-0.05, 0.05, n)
+    results = {m: find_roots(ps, rays, np.arange(n), np.zeros(n, dtype=np.int64), seed_u, seed_v, method=m,
+                             tolerance=1e-10, max_iterations=500) for m in ("fast", "gradient")}
+    for res in results.values():
+        assert res.converged.all()
+        np.testing.assert_allclose(res.t, t_true, atol=1e-10)
+        np.testing.assert_allclose(res.u, u, atol=1e-9)
+        np.testing.assert_allclose(res.v, v, atol=1e-9)
+    assert results["fast"].iterations.max() <= 3
+    assert np.median(results["gradient"].iterations) >= 6
+
+
 def test_roots_outside_the_domain_are_not_converged():
     surf = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]])
     ps = PatchSet([surf])
