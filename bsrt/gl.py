@@ -133,20 +133,21 @@ def program(ctx: moderngl.Context, name: str) -> moderngl.Program:
     return programs[name]
 
 
-def keep(ctx: moderngl.Context, key, make, limit: int = 2):
+def keep(ctx: moderngl.Context, key, make, limit: int = 1):
     """make() once per key, kept on ctx for later calls (framebuffers reused
-    by renders of one size); beyond limit keys the least recently used is
-    released. The object needs a release() method; release_cached releases
-    them all."""
+    by renders of one size); the least recently used beyond limit keys is
+    released before a new one is made. The object needs a release() method;
+    release_cached releases them all."""
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     kept = ctx.extra.setdefault("bsrt_kept", {})
     if key in kept:
         kept[key] = kept.pop(key)  # now the most recently used
         return kept[key]
-    kept[key] = made = make()
-    while len(kept) > limit:
+    while kept and len(kept) >= limit:
+        bind_default_framebuffer(ctx)  # the one to release may be bound
         kept.pop(next(iter(kept))).release()
+    kept[key] = made = make()
     return made
 
 

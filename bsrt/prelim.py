@@ -258,8 +258,11 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
     return out
 
 
-# Framebuffers of tiles up to this many pixels stay on the context for the next map of that size.
-KEEP_PIXELS = 2048 * 2048
+# Framebuffers of tiles up to this many pixels (88 bytes each: two passes' GL
+# targets and read-back arrays) stay on the context for the next map of that
+# size; larger ones are given back after each map, so a large film's bands
+# peak no higher than before shading starts.
+KEEP_PIXELS = 512 * 512
 
 
 def _passes(ctx, size, dtype, resources) -> "_Passes":
