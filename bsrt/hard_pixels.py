@@ -82,7 +82,7 @@ def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfac
 
 def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float,
            max_iterations: int) -> None:
-    """Re-solve the suspect pixels (N,) from their neighbours' starts, then with the hierarchy.
+    """Re-solve the suspect pixels (N,) (sorted) from their neighbours' starts, then with the hierarchy.
 
     The nearest valid root of all wins, so a pixel is wrong only if both the
     neighbour starts and the exact intersector miss its nearest root.
@@ -94,7 +94,8 @@ def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.nda
     # Newton from a pixel away converges in a few steps or not at all.
     res = find_roots(patches, rays, pixel, surface, u, v, method="newton", tolerance=tolerance,
                      max_iterations=min(max_iterations, REPAIR_ITERATIONS), stop_on_growth=True)
-    hits.iterations += np.bincount(pixel, weights=res.iterations, minlength=len(hits)).astype(np.int32)
+    spent = np.bincount(np.searchsorted(suspects, pixel), weights=res.iterations, minlength=suspects.size)
+    hits.iterations[suspects] += spent.astype(np.int32)  # every start's evaluations, on its pixel
     keep_nearest(hits, pixel, res.as_hits(patches))
     exact = geometry.intersect(rays.origin[suspects], rays.direction[suspects], tolerance=tolerance)
     hits.iterations[suspects] += exact.iterations

@@ -229,3 +229,33 @@ def test_map_framebuffers_are_reused_and_give_the_same_map(mode):
     for name in ("surface", "u", "v", "distance", "picture"):
         np.testing.assert_array_equal(getattr(first, name), getattr(second, name))
     assert (first.surface == 0).sum() > 0.3 * first.surface.size  # the plate fills the lower part of the film
+
+
+def test_seeded_hits_are_as_hits_put_at_the_covered_pixels():
+    from bsrt.solve import RootResult
+    from bsrt.trace import _seeded_hits
+
+    rng = np.random.default_rng(9)
+    n, patch_surface = 5000, np.array([0, 0, 1, 2, 2])
+    covered = np.sort(rng.choice(n, size=3000, replace=False))
+    m = covered.size
+    res = RootResult(converged=rng.random(m) < 0.8, trimmed=np.zeros(m, dtype=bool), u=rng.normal(size=m),
+                     v=np.where(rng.random(m) < 0.1, -0.0, rng.normal(size=m)), patch=rng.integers(0, 5, size=m),
+                     t=rng.normal(1.0, 1.0, size=m), residual=rng.random(m), iterations=rng.integers(1, 9, size=m,
+                                                                                                    dtype=np.int32))
+    hits, failed = _seeded_hits(n, covered, res, patch_surface)
+    expected = Hits.empty(n)
+
+    class Patches:
+        surface = patch_surface
+
+    candidates = res.as_hits(Patches)
+    expected.put(covered, candidates)
+    for name in Hits.FIELDS:
+        a, b = getattr(hits, name), getattr(expected, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    assert ((hits.t > 0) | ~hits.hit).all() and 0 < hits.hit.sum() < m
+    np.testing.assert_array_equal(np.flatnonzero(failed), covered[~candidates.hit])
+    empty, none = _seeded_hits(3, np.zeros(0, dtype=np.int64), res, patch_surface)
+    assert not empty.hit.any() and not none.any() and (empty.surface == -1).all() and (empty.iterations == 0).all()

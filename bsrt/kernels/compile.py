@@ -21,6 +21,7 @@ ENTRY_KERNELS = (roots.solve_items, traverse.trace_rays, patches.evaluate_many, 
                  flatten.count_leaves, flatten.flatten_patches, flatten.leaf_boxes, flatten.build_tree,
                  shading.frames_many, shading.blinn_phong,
                  prelim.decode_tile, prelim.pixel_rays_into, prelim.normalise_rows, prelim.map_suspects,
+                 prelim.seeded_hits,
                  trim._kept_many, trim._rect_states, trim.classify_grid, trim.bezier_spans, trim.monotone_pieces)
 
 

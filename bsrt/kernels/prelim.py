@@ -126,3 +126,33 @@ def _kink(a, b, c, fold_scale):
     b = b if np.isfinite(b) else 0.0
     c = c if np.isfinite(c) else 0.0
     return abs((c - b) - (b - a)) > fold_scale * b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def seeded_hits(start, stop, covered, converged, t, u, v, patch, residual, iterations, patch_surface,
+                hit_out, t_out, surface_out, patch_out, u_out, v_out, iterations_out, residual_out, failed):
+    """The hits of pixels start..stop-1 from the roots of their map seeds.
+
+    covered: (M,) sorted pixel index of each root item; converged, t, u, v,
+    patch, residual, iterations: (M,) the items' RootResult fields;
+    patch_surface: (P,) surface of each patch. Writes every pixel's Hits
+    fields (*_out, (N,)): a hit where the item converged with t > 0 (as
+    RootResult.as_hits), else no hit (NaN, -1, 0 iterations for an uncovered
+    pixel); failed (N,) bool: covered without a hit.
+    """
+    m = np.searchsorted(covered, start)
+    for p in range(start, stop):
+        if m < covered.shape[0] and covered[m] == p:
+            hit = converged[m] and t[m] > 0
+            add = 0.0 if hit else np.nan
+            hit_out[p], failed[p] = hit, not hit
+            t_out[p], u_out[p], v_out[p], residual_out[p] = t[m] + add, u[m] + add, v[m] + add, residual[m] + add
+            surface_out[p] = patch_surface[patch[m]] if hit else -1
+            patch_out[p] = patch[m] if hit else -1
+            iterations_out[p] = iterations[m]
+            m += 1
+        else:
+            hit_out[p], failed[p] = False, False
+            t_out[p] = u_out[p] = v_out[p] = residual_out[p] = np.nan
+            surface_out[p] = patch_out[p] = -1
+            iterations_out[p] = 0
