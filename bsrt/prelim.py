@@ -8,7 +8,8 @@ triangles, then their edges as lines (so slivers thinner than a pixel still
 leave fragments), with a depth test into two targets: the map itself (red = surface
 index + 1, green/blue = u, v normalised over the surface's domain), either
 32-bit float or the paper's 8-bit RGBA decoded with eq. 6, and the distance
-from the eye (32-bit float). Arrays leave this module; no GL object does.
+from the eye (32-bit float). Arrays leave this module; no GL object does (the
+framebuffers of small maps stay on the context, gl.keep, for the next map).
 """
 
 from __future__ import annotations

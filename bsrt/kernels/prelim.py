@@ -1,4 +1,5 @@
-"""Per-pixel loops of the preliminary map and the camera rays (compiled).
+"""Per-pixel loops of the map tracer (compiled): the preliminary map's merge
+and decode, camera rays, the seeded roots as hits, the suspect pixels.
 
 Each kernel does exactly the floating-point operations, in the same order,
 of the NumPy expressions it replaces (kept as references in the tests), so
