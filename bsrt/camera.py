@@ -12,6 +12,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .kernels.prelim import pixel_rays_into
+from .kernels.threads import run_chunks
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -58,9 +61,9 @@ def pixel_rays(camera: Camera, width: int, height: int, rows=None):
     tx, ty = camera.half_extents(width, height)
     x = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * tx
     y = (1.0 - 2.0 * (np.arange(first, stop) + 0.5) / height) * ty
-    d = f[None, None, :] + x[None, :, None] * r[None, None, :] + y[:, None, None] * u[None, None, :]
-    d = d.reshape(-1, 3)
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
+    directions = np.empty(((stop - first) * width, 3))
+    run_chunks(pixel_rays_into, directions.shape[0], f, r, u, x, y, directions)  # (f + x r + y u) / |...|
+    return directions
 
 
 def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: float, rows=None) -> np.ndarray:

@@ -133,6 +133,24 @@ def program(ctx: moderngl.Context, name: str) -> moderngl.Program:
     return programs[name]
 
 
+def keep(ctx: moderngl.Context, key, make, limit: int = 1):
+    """make() once per key, kept on ctx for later calls (framebuffers reused
+    by renders of one size); the least recently used beyond limit keys is
+    released before a new one is made. The object needs a release() method;
+    release_cached releases them all."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    kept = ctx.extra.setdefault("bsrt_kept", {})
+    if key in kept:
+        kept[key] = kept.pop(key)  # now the most recently used
+        return kept[key]
+    while kept and len(kept) >= limit:
+        bind_default_framebuffer(ctx)  # the one to release may be bound
+        kept.pop(next(iter(kept))).release()
+    kept[key] = made = make()
+    return made
+
+
 def bind_default_framebuffer(ctx: moderngl.Context) -> None:
     """Bind framebuffer 0 (the window, or none headless).
 
@@ -163,16 +181,19 @@ def create_window_context() -> moderngl.Context:
 
 
 def release_cached(ctx: moderngl.Context) -> int:
-    """Release the programs :func:`program` cached on ctx. Call it before
-    releasing a window's context: that GL context belongs to glfw, so
-    releasing the moderngl wrapper frees nothing. Returns how many."""
+    """Release the programs :func:`program` and the objects :func:`keep`
+    cached on ctx. Call it before releasing a window's context: that GL
+    context belongs to glfw, so releasing the moderngl wrapper frees
+    nothing. Returns how many."""
     if not isinstance(ctx.extra, dict):
         return 0
-    programs = ctx.extra.pop("bsrt_programs", {})
-    for prog in programs.values():
-        prog.release()
+    objects = list(ctx.extra.pop("bsrt_programs", {}).values()) + list(ctx.extra.pop("bsrt_kept", {}).values())
+    if objects:
+        bind_default_framebuffer(ctx)  # a kept framebuffer may be bound
+    for obj in objects:
+        obj.release()
     ctx.extra.pop("bsrt_default_fbo", None)
-    return len(programs)
+    return len(objects)
 
 
 def max_framebuffer_side(ctx: moderngl.Context) -> int:

@@ -25,6 +25,8 @@ from __future__ import annotations
 import numpy as np
 
 from .hits import Hits, keep_nearest
+from .kernels.prelim import map_suspects
+from .kernels.threads import run_chunks
 from .prelim import PrelimMap
 from .solve import Rays, find_roots
 
@@ -38,38 +40,6 @@ NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
 REPAIR_ITERATIONS = 16
 
 
-def border_pixels(surface: np.ndarray) -> np.ndarray:
-    """(H, W) bool: a pixel whose 8-neighbourhood shows another surface id in the map."""
-    h, w = surface.shape
-    padded = np.pad(surface, 1, mode="edge")
-    border = np.zeros((h, w), dtype=bool)
-    for di, dj in NEIGHBOURS:
-        border |= padded[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] != surface
-    return border
-
-
-def fold_pixels(distance: np.ndarray, footprint: float) -> np.ndarray:
-    """(H, W) bool: a kink of the map's distance (second difference along a row or
-    column above FOLD_PIXELS footprints at that distance). Films thinner than 3
-    pixels along an axis have no second difference there."""
-    dist = np.where(np.isfinite(distance), distance, 0.0)
-    fold = np.zeros(dist.shape, dtype=bool)
-    for axis in (0, 1):
-        if dist.shape[axis] < 3:
-            continue
-        curve = np.abs(np.diff(dist, 2, axis=axis))
-        middle = dist.take(range(1, dist.shape[axis] - 1), axis=axis)
-        pad = [(0, 0), (0, 0)]
-        pad[axis] = (1, 1)
-        fold |= np.pad(curve > FOLD_PIXELS * footprint * middle, pad)
-    return fold
-
-
-def wrong_layer(hits: Hits, distance: np.ndarray, footprint: float, tolerance: float) -> np.ndarray:
-    """(N,) bool: a hit whose t is off the map's rasterised distance (N,) by more than the slack."""
-    return hits.hit & (np.abs(hits.t - distance) > LAYER_SLACK_PIXELS * footprint * distance + tolerance)
-
-
 def suspect_pixels(prelim: PrelimMap, hits: Hits, failed: np.ndarray, footprint: float, tolerance: float):
     """The suspect pixels (the module doc) of a solved map.
 
@@ -77,9 +47,11 @@ def suspect_pixels(prelim: PrelimMap, hits: Hits, failed: np.ndarray, footprint:
     footprint: pixel size at unit distance. Returns (suspect (N,) bool,
     layer (N,) bool, the wrong-layer part).
     """
-    layer = wrong_layer(hits, prelim.distance.ravel(), footprint, tolerance)
-    suspect = (border_pixels(prelim.surface) | fold_pixels(prelim.distance, footprint)).ravel()
-    return suspect | failed | layer, layer
+    suspect, layer = np.empty(len(hits), dtype=bool), np.empty(len(hits), dtype=bool)
+    run_chunks(map_suspects, len(hits), np.ascontiguousarray(prelim.surface), np.ascontiguousarray(prelim.distance),
+               hits.hit, hits.t, np.ascontiguousarray(failed, dtype=bool), FOLD_PIXELS * footprint,
+               LAYER_SLACK_PIXELS * footprint, float(tolerance), suspect, layer)
+    return suspect, layer
 
 
 def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfaces: int):
@@ -110,7 +82,7 @@ def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfac
 
 def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float,
            max_iterations: int) -> None:
-    """Re-solve the suspect pixels (N,) from their neighbours' starts, then with the hierarchy.
+    """Re-solve the suspect pixels (N,) (sorted) from their neighbours' starts, then with the hierarchy.
 
     The nearest valid root of all wins, so a pixel is wrong only if both the
     neighbour starts and the exact intersector miss its nearest root.
@@ -122,7 +94,8 @@ def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.nda
     # Newton from a pixel away converges in a few steps or not at all.
     res = find_roots(patches, rays, pixel, surface, u, v, method="newton", tolerance=tolerance,
                      max_iterations=min(max_iterations, REPAIR_ITERATIONS), stop_on_growth=True)
-    np.add.at(hits.iterations, pixel, res.iterations)
+    spent = np.bincount(np.searchsorted(suspects, pixel), weights=res.iterations, minlength=suspects.size)
+    hits.iterations[suspects] += spent.astype(np.int32)  # every start's evaluations, on its pixel
     keep_nearest(hits, pixel, res.as_hits(patches))
     exact = geometry.intersect(rays.origin[suspects], rays.direction[suspects], tolerance=tolerance)
     hits.iterations[suspects] += exact.iterations

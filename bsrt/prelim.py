@@ -8,7 +8,8 @@ triangles, then their edges as lines (so slivers thinner than a pixel still
 leave fragments), with a depth test into two targets: the map itself (red = surface
 index + 1, green/blue = u, v normalised over the surface's domain), either
 32-bit float or the paper's 8-bit RGBA decoded with eq. 6, and the distance
-from the eye (32-bit float). Arrays leave this module; no GL object does.
+from the eye (32-bit float). Arrays leave this module; no GL object does (the
+framebuffers of small maps stay on the context, gl.keep, for the next map).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ import numpy as np
 from . import gl
 from .camera import Camera, clip_from_eye, pixel_footprint
 from .errors import InputError, RenderError
+from .kernels.prelim import decode_tile
+from .kernels.threads import run_chunks
 from .kernels.trim import OUTSIDE, classify_grid
 from .patches import PatchSet
 from .settings import MAP_MODES
@@ -176,12 +179,15 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
 
 
 def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
-    """tessellate() for this view, cached (one entry on the PatchSet): the
-    bands of one map, and repeated renders of one view, share it."""
+    """tessellate() for this view and its triangles' edges (E, 6) uint32, cached
+    (one entry on the PatchSet): the bands of one map, and repeated renders of
+    one view, share it."""
     key = (tuple(camera.eye), tuple(camera.look_at), tuple(camera.up), camera.fov, camera.fov_axis, width, height)
     cached = patches.derived.get("tessellation")
     if cached is None or cached[0] != key:
-        mesh = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
+        vertices, indices = tessellate(patches, segments_per_patch(patches, camera, width, height), camera.eye)
+        edges = indices[:, [0, 1, 1, 2, 2, 0]]  # every triangle edge as a line
+        mesh = tuple(np.ascontiguousarray(a) for a in (vertices, indices, edges))  # GL buffers take C order
         patches.derived["tessellation"] = cached = (key, mesh)
     return cached[1]
 
@@ -205,38 +211,44 @@ def window(matrix: np.ndarray, columns: tuple[int, int], width: int) -> np.ndarr
 
 def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimMap:
     near, far = depth_range(patches, camera)
-    vertices, indices = _tessellation(patches, camera, width, height)
+    vertices, indices, edges = _tessellation(patches, camera, width, height)
     program = gl.program(ctx, "prelim")
     program["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0
     program["inv_far"].value = 1.0 / far_distance(patches, camera)
     first, stop = rows if rows is not None else (0, height)
+    shape = (stop - first, width)
+    out = PrelimMap(np.empty(shape, dtype=np.int64), np.empty(shape), np.empty(shape), np.empty(shape),
+                    np.empty(shape + (3,), dtype=np.uint8))
+    domain = np.ascontiguousarray(patches.domain, dtype=np.float64)
     dtype = "f4" if mode == "float" else "f1"
-    raw = np.zeros((stop - first, width, 4), dtype=np.float32 if dtype == "f4" else np.uint8)
-    line_raw = np.zeros_like(raw)
-    eye_distance = np.zeros((stop - first, width), dtype=np.float32)
-    line_distance = np.zeros_like(eye_distance)
     resources = []
     try:
-        vbo = ctx.buffer(vertices.tobytes())
-        ibo = ctx.buffer(indices.tobytes())
-        edges = ctx.buffer(indices[:, [0, 1, 1, 2, 2, 0]].tobytes())
+        vbo = ctx.buffer(vertices)
+        ibo = ctx.buffer(indices)
+        edge_buffer = ctx.buffer(edges)
         layout = [(vbo, "3f 2f 1f", "position", "uv", "surface_id")]
         vao = ctx.vertex_array(program, layout, index_buffer=ibo, index_element_size=4)
-        lines = ctx.vertex_array(program, layout, index_buffer=edges, index_element_size=4)
-        resources = [lines, vao, edges, ibo, vbo]
+        lines = ctx.vertex_array(program, layout, index_buffer=edge_buffer, index_element_size=4)
+        resources = [lines, vao, edge_buffer, ibo, vbo]
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         for (r0, r1), (c0, c1) in tiles(first, stop, width, side):
             matrix = window(clip_from_eye(camera, width, height, near, far, (r0, r1)), (c0, c1), width)
             program["clip_from_eye"].write(matrix.T.astype("f4").tobytes())
-            out = (slice(r0 - first, r1 - first), slice(c0, c1))
-            raw[out], eye_distance[out] = _draw(ctx, (c1 - c0, r1 - r0), dtype, vao, moderngl.TRIANGLES)
+            size = (c1 - c0, r1 - r0)
+            passes = _passes(ctx, size, dtype, resources)
+            tri, line = passes.tri, passes.line
+            tri.draw(ctx, vao, moderngl.TRIANGLES)
             # Every triangle edge again as a line, in a pass of its own: a sliver
             # thinner than a pixel covers no pixel centre, but its edges still
             # leave fragments. They fill pixels the triangles left empty and win
-            # where they show a nearer other surface; elsewhere the triangles'
-            # exact pixel-centre values stay.
-            line_raw[out], line_distance[out] = _draw(ctx, (c1 - c0, r1 - r0), dtype, lines, moderngl.LINES)
+            # where they show a nearer other surface (decode_tile); elsewhere the
+            # triangles' exact pixel-centre values stay.
+            line.draw(ctx, lines, moderngl.LINES)
+            tri.read()
+            line.read()
+            run_chunks(decode_tile, size[0] * size[1], tri.raw, tri.distance, line.raw, line.distance, mode == "float",
+                       domain, r0 - first, c0, out.surface, out.u, out.v, out.distance, out.picture)
         error = ctx.error
         if error != "GL_NO_ERROR":
             raise RenderError(f"OpenGL reported {error} while rendering the preliminary map")
@@ -244,59 +256,75 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
         gl.bind_default_framebuffer(ctx)
         for res in resources:
             res.release()
-    tri_empty = raw[..., 0] == 0
-    other = line_raw[..., 0] != raw[..., 0]  # another surface: a sliver in front
-    nearer = (line_raw[..., 0] != 0) & (tri_empty | (other & (line_distance < eye_distance)))
-    raw = np.where(nearer[..., None], line_raw, raw)
-    eye_distance = np.where(nearer, line_distance, eye_distance)
-    return decode_map(patches, raw, eye_distance, mode)
+    return out
 
 
-def _draw(ctx, size, dtype, vao, mode):
-    """One pass into a fresh framebuffer (released here): (raw (H, W, 4), eye distance (H, W) float32), row 0 at the top."""
-    width, height = size
-    resources = []
-    try:
-        color = ctx.texture(size, 4, dtype=dtype)
-        resources.append(color)
-        dist = ctx.texture(size, 1, dtype="f4")
-        resources.append(dist)
-        depth = ctx.depth_renderbuffer(size)
-        resources.append(depth)
-        fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
-        resources.append(fbo)
-        fbo.use()
-        ctx.viewport = (0, 0, width, height)
-        fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+# Framebuffers of tiles up to this many pixels (88 bytes each: two passes' GL
+# targets and read-back arrays) stay on the context for the next map of that
+# size; larger ones are given back after each map, so a large film's bands
+# peak no higher than before shading starts.
+KEEP_PIXELS = 512 * 512
+
+
+def _passes(ctx, size, dtype, resources) -> "_Passes":
+    """The two passes' framebuffers for a tile of size (w, h): kept on ctx
+    (gl.keep) when small enough, else made here and appended to resources
+    (released by the caller)."""
+    if size[0] * size[1] <= KEEP_PIXELS:
+        return gl.keep(ctx, ("prelim", size, dtype), lambda: _Passes(ctx, size, dtype))
+    passes = _Passes(ctx, size, dtype)
+    resources.insert(0, passes)
+    return passes
+
+
+class _Passes:
+    """The triangle pass's and the line pass's framebuffers (_Target) of one tile size."""
+
+    def __init__(self, ctx, size, dtype):
+        self.tri = _Target(ctx, size, dtype)
+        try:
+            self.line = _Target(ctx, size, dtype)
+        except BaseException:
+            self.tri.release()
+            raise
+
+    def release(self) -> None:
+        self.tri.release()
+        self.line.release()
+
+
+class _Target:
+    """A framebuffer (map colour, eye distance, depth) of size (w, h) and the
+    arrays its pixels are read into: raw (h, w, 4) float32 or uint8 and
+    distance (h, w) float32, row 0 at the bottom (OpenGL's order)."""
+
+    def __init__(self, ctx, size, dtype):
+        self.size, self.dtype, self.parts = size, dtype, []
+        try:
+            for make in (lambda: ctx.texture(size, 4, dtype=dtype), lambda: ctx.texture(size, 1, dtype="f4"),
+                         lambda: ctx.depth_renderbuffer(size)):
+                self.parts.append(make())
+            color, dist, depth = self.parts
+            self.fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
+        except BaseException:
+            self.release()
+            raise
+        self.parts.insert(0, self.fbo)
+        self.raw = np.empty((size[1], size[0], 4), dtype=np.float32 if dtype == "f4" else np.uint8)
+        self.distance = np.empty((size[1], size[0]), dtype=np.float32)
+
+    def draw(self, ctx, vao, mode) -> None:
+        self.fbo.use()
+        ctx.viewport = (0, 0) + tuple(self.size)
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         vao.render(mode)
-        raw = np.frombuffer(fbo.read(components=4, dtype=dtype, attachment=0),
-                            dtype=np.float32 if dtype == "f4" else np.uint8)
-        distance = np.frombuffer(fbo.read(components=1, dtype="f4", attachment=1), dtype=np.float32)
-    finally:
-        gl.bind_default_framebuffer(ctx)
-        for res in reversed(resources):
+
+    def read(self) -> None:
+        """Read the pixels into raw and distance (waits for the drawing)."""
+        self.fbo.read_into(self.raw, components=4, dtype=self.dtype, attachment=0)
+        self.fbo.read_into(self.distance, components=1, dtype="f4", attachment=1)
+
+    def release(self) -> None:
+        for res in self.parts:
             res.release()
-    return raw.reshape(height, width, 4)[::-1], distance.reshape(height, width)[::-1]
-
-
-def decode_map(patches: PatchSet, raw: np.ndarray, eye_distance: np.ndarray, mode: str) -> PrelimMap:
-    """Seeds from the raw map pixels (eq. 6 for the 8-bit map).
-
-    raw: (H, W, 4) float32 (float mode: r = index + 1, g, b in [0, 1]) or
-    uint8 (rgba8: r = index + 1, g, b in 0..255).
-    """
-    if mode == "float":
-        ident = np.rint(raw[..., 0]).astype(np.int64) - 1
-        g, b = raw[..., 1].astype(np.float64), raw[..., 2].astype(np.float64)
-        picture = np.stack([np.clip(ident + 1, 0, 255), np.rint(g * 255), np.rint(b * 255)], axis=-1).astype(np.uint8)
-    else:
-        ident = raw[..., 0].astype(np.int64) - 1
-        g, b = raw[..., 1] / 255.0, raw[..., 2] / 255.0
-        picture = raw[..., :3].copy()
-    covered = ident >= 0
-    safe = np.where(covered, ident, 0)
-    d = patches.domain[safe]
-    u = np.where(covered, d[..., 0] + (d[..., 1] - d[..., 0]) * g, np.nan)  # eq. 6
-    v = np.where(covered, d[..., 2] + (d[..., 3] - d[..., 2]) * b, np.nan)
-    distance = np.where(covered, eye_distance.astype(np.float64), np.inf)
-    return PrelimMap(np.where(covered, ident, -1), u, v, distance, picture)
+        self.parts = []

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .hits import Hits
+from .kernels.prelim import normalise_rows
 from .kernels.roots import METHOD_IDS, solve_items
 from .kernels.threads import run_chunks
 from .kernels.trim import kept_many
@@ -30,8 +31,10 @@ class Rays:
     @classmethod
     def from_arrays(cls, origins: np.ndarray, directions: np.ndarray) -> "Rays":
         """origins: (N, 3) or (1, 3) (broadcast); directions: (N, 3), normalised here."""
-        d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+        unit = np.empty_like(d)
+        run_chunks(normalise_rows, d.shape[0], d, unit)  # d / |d|, row by row
+        d = unit
         o = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), d.shape)
         return cls(np.ascontiguousarray(o), np.ascontiguousarray(d))
 

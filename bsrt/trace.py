@@ -20,7 +20,9 @@ from .camera import pixel_footprint, pixel_rays
 from .hits import Hits
 from .prelim import PrelimMap, render_map
 from .settings import RenderOptions
-from .solve import Rays, find_roots
+from .kernels.prelim import seeded_hits
+from .kernels.threads import run_chunks
+from .solve import Rays, RootResult, find_roots
 from .stats import Stats
 
 
@@ -80,16 +82,12 @@ class MapTracer:
 
     def _solve(self, rays: Rays, prelim: PrelimMap, footprint: float) -> Hits:
         patches, options, stats = self.geometry.patches, self.options, self.stats
-        hits = Hits.empty(len(rays))
         seed = prelim.surface.ravel()
         covered = np.flatnonzero(seed >= 0)
         res = find_roots(patches, rays, covered, seed[covered], prelim.u.ravel()[covered], prelim.v.ravel()[covered],
                          method=options.method, tolerance=self.tolerance, max_iterations=options.max_iterations,
                          stop_on_growth=options.method == "newton")  # a failure is re-solved as a suspect
-        candidates = res.as_hits(patches)
-        hits.put(covered, candidates)  # one item per covered pixel: nothing to choose between yet
-        failed = np.zeros(len(rays), dtype=bool)
-        failed[covered[~candidates.hit]] = True
+        hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
         suspect, layer = hard_pixels.suspect_pixels(prelim, hits, failed, footprint, self.tolerance)
         suspects = np.flatnonzero(suspect)
         before = (hits.hit[suspects].copy(), hits.surface[suspects].copy(), np.nan_to_num(hits.t[suspects]))
@@ -101,6 +99,19 @@ class MapTracer:
                            ("wrong_layer", layer.sum()), ("repaired", changed.sum()), ("hierarchy", suspects.size)):
             stats.add(key, value)
         return hits
+
+
+def _seeded_hits(n: int, covered: np.ndarray, res: RootResult, patch_surface: np.ndarray):
+    """(Hits (n,), failed (n,) bool) of n pixels from the roots res of the covered
+    pixels' seeds (covered: (M,) sorted), one item per covered pixel: hits as
+    res.as_hits() puts them there, no hit elsewhere; failed: covered, no hit."""
+    hits = Hits(np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
+                np.empty(n), np.empty(n), np.empty(n, dtype=np.int32), np.empty(n))
+    failed = np.empty(n, dtype=bool)
+    run_chunks(seeded_hits, n, covered, res.converged, res.t, res.u, res.v, res.patch, res.residual, res.iterations,
+               np.ascontiguousarray(patch_surface, dtype=np.int64), hits.hit, hits.t, hits.surface, hits.patch, hits.u,
+               hits.v, hits.iterations, hits.residual, failed)
+    return hits, failed
 
 
 def _count_repairs(stats: Stats) -> None:

@@ -1,0 +1,159 @@
+"""Per-pixel loops of the map tracer (compiled): the preliminary map's merge
+and decode, camera rays, the seeded roots as hits, the suspect pixels.
+
+Each kernel does exactly the floating-point operations, in the same order,
+of the NumPy expressions it replaces (kept as references in the tests), so
+its results are bit-identical; it only skips their temporaries and copies.
+Kernels take (start, stop) over flat pixel indices, for ``run_chunks``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def decode_tile(start, stop, tri, tri_dist, line, line_dist, float_map, domain, row0, col0,
+                surface, u, v, distance, picture):
+    """Merge the two passes of one tile and decode them into the map's arrays.
+
+    tri, line: (h, w, 4) float32 (float map: r = index + 1, g, b in [0, 1])
+    or uint8 (8-bit map, eq. 6) as OpenGL reads them, row 0 at the bottom;
+    tri_dist, line_dist: (h, w) float32 eye distances. A line pixel wins where
+    it has a surface and the triangles have none, or show another surface
+    farther away. Pixel k = i * w + j (GL row i) lands at film row
+    row0 + h - 1 - i, column col0 + j of surface (H, W) int64 (-1: empty),
+    u, v (H, W) float64 (NaN: empty), distance (H, W) float64 (inf: empty)
+    and picture (H, W, 3) uint8. domain: (S, 4) float64 surface domains.
+    """
+    h, w = tri.shape[0], tri.shape[1]
+    i, j = start // w, start % w
+    for _ in range(start, stop):
+        t0, l0 = tri[i, j, 0], line[i, j, 0]
+        d = tri_dist[i, j]
+        r, c = row0 + h - 1 - i, col0 + j
+        # scalars only in this loop: array variables and views would cost reference counting
+        if l0 != 0 and (t0 == 0 or (l0 != t0 and line_dist[i, j] < d)):
+            d = line_dist[i, j]
+            ident, g, b, p0, p1, p2 = _decode(l0, line[i, j, 1], line[i, j, 2], float_map)
+        else:
+            ident, g, b, p0, p1, p2 = _decode(t0, tri[i, j, 1], tri[i, j, 2], float_map)
+        picture[r, c, 0], picture[r, c, 1], picture[r, c, 2] = p0, p1, p2
+        if ident >= 0:
+            surface[r, c] = ident
+            u[r, c] = domain[ident, 0] + (domain[ident, 1] - domain[ident, 0]) * g  # eq. 6
+            v[r, c] = domain[ident, 2] + (domain[ident, 3] - domain[ident, 2]) * b
+            distance[r, c] = np.float64(d)
+        else:
+            surface[r, c] = -1
+            u[r, c] = np.nan
+            v[r, c] = np.nan
+            distance[r, c] = np.inf
+        i, j = (i, j + 1) if j + 1 < w else (i + 1, 0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _decode(red, green, blue, float_map):
+    """(surface index or -1, g, b in [0, 1], the picture's r, g, b uint8) of one raw pixel."""
+    if float_map:
+        ident = np.int64(np.rint(np.float64(red))) - 1
+        g, b = np.float64(green), np.float64(blue)
+        return (ident, g, b, np.uint8(min(max(ident + 1, 0), 255)), np.uint8(np.rint(g * 255)),
+                np.uint8(np.rint(b * 255)))
+    ident = np.int64(red) - 1
+    return ident, np.float64(green) / 255.0, np.float64(blue) / 255.0, np.uint8(red), np.uint8(green), np.uint8(blue)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pixel_rays_into(start, stop, forward, right, up, x, y, directions):
+    """Unit ray directions of pixels k = i * W + j: forward + x[j] right + y[i] up,
+    normalised, into directions (N, 3) float64 (x: (W,), y: (rows,) tangents)."""
+    w = x.shape[0]
+    i, j = start // w, start % w
+    for k in range(start, stop):
+        dx = forward[0] + x[j] * right[0] + y[i] * up[0]
+        dy = forward[1] + x[j] * right[1] + y[i] * up[1]
+        dz = forward[2] + x[j] * right[2] + y[i] * up[2]
+        n = np.sqrt(dx * dx + dy * dy + dz * dz)
+        directions[k, 0], directions[k, 1], directions[k, 2] = dx / n, dy / n, dz / n
+        i, j = (i, j + 1) if j + 1 < w else (i + 1, 0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def normalise_rows(start, stop, d, out):
+    """out[k] = d[k] / |d[k]| for rows k of d (N, 3) float64 (out may be d)."""
+    for k in range(start, stop):
+        x, y, z = d[k, 0], d[k, 1], d[k, 2]
+        n = np.sqrt(x * x + y * y + z * z)
+        out[k, 0], out[k, 1], out[k, 2] = x / n, y / n, z / n
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def map_suspects(start, stop, surface, distance, hit, t, failed, fold_scale, layer_scale, tolerance, suspect, layer):
+    """The suspect pixels k = i * W + j of a solved map (hard_pixels' module doc).
+
+    surface: (H, W) int64; distance: (H, W) float64 (inf where empty, taken
+    as 0 for folds); hit, failed: (H * W,) bool; t: (H * W,) float64.
+    layer[k] (bool (H * W,)): a hit farther from the map's distance than
+    layer_scale * distance + tolerance. suspect[k] (bool (H * W,)): layer,
+    failed, one of the 8 neighbours (the edge repeated beyond the film) with
+    another surface, or a second difference of the distance along the row or
+    column above fold_scale * the middle distance (none along an axis under 3
+    pixels).
+    """
+    h, w = surface.shape
+    i, j = start // w, start % w
+    for k in range(start, stop):
+        s = surface[i, j]
+        dist = distance[i, j]
+        layer[k] = hit[k] and abs(t[k] - dist) > layer_scale * dist + tolerance
+        odd = layer[k] or failed[k]
+        for a in range(max(i - 1, 0), min(i + 2, h)):  # the clamped neighbours repeat these
+            for b in range(max(j - 1, 0), min(j + 2, w)):
+                odd |= surface[a, b] != s
+        if not odd and 0 < i < h - 1:
+            odd = _kink(distance[i - 1, j], dist, distance[i + 1, j], fold_scale)
+        if not odd and 0 < j < w - 1:
+            odd = _kink(distance[i, j - 1], dist, distance[i, j + 1], fold_scale)
+        suspect[k] = odd
+        i, j = (i, j + 1) if j + 1 < w else (i + 1, 0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _kink(a, b, c, fold_scale):
+    """|second difference| of three distances (non-finite as 0) above fold_scale * the middle one."""
+    a = a if np.isfinite(a) else 0.0
+    b = b if np.isfinite(b) else 0.0
+    c = c if np.isfinite(c) else 0.0
+    return abs((c - b) - (b - a)) > fold_scale * b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def seeded_hits(start, stop, covered, converged, t, u, v, patch, residual, iterations, patch_surface,
+                hit_out, t_out, surface_out, patch_out, u_out, v_out, iterations_out, residual_out, failed):
+    """The hits of pixels start..stop-1 from the roots of their map seeds.
+
+    covered: (M,) sorted pixel index of each root item; converged, t, u, v,
+    patch, residual, iterations: (M,) the items' RootResult fields;
+    patch_surface: (P,) surface of each patch. Writes every pixel's Hits
+    fields (*_out, (N,)): a hit where the item converged with t > 0 (as
+    RootResult.as_hits), else no hit (NaN, -1, 0 iterations for an uncovered
+    pixel); failed (N,) bool: covered without a hit.
+    """
+    m = np.searchsorted(covered, start)
+    for p in range(start, stop):
+        if m < covered.shape[0] and covered[m] == p:
+            hit = converged[m] and t[m] > 0
+            add = 0.0 if hit else np.nan
+            hit_out[p], failed[p] = hit, not hit
+            t_out[p], u_out[p], v_out[p], residual_out[p] = t[m] + add, u[m] + add, v[m] + add, residual[m] + add
+            surface_out[p] = patch_surface[patch[m]] if hit else -1
+            patch_out[p] = patch[m] if hit else -1
+            iterations_out[p] = iterations[m]
+            m += 1
+        else:
+            hit_out[p], failed[p] = False, False
+            t_out[p] = u_out[p] = v_out[p] = residual_out[p] = np.nan
+            surface_out[p] = patch_out[p] = -1
+            iterations_out[p] = 0

@@ -1,0 +1,261 @@
+"""The compiled map kernels (bsrt/kernels/prelim.py) against closed forms and
+the NumPy expressions they replace, which must agree bit for bit."""
+
+import numpy as np
+import pytest
+
+from bsrt import gl, prelim
+from bsrt.camera import Camera, pixel_rays
+from bsrt.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, suspect_pixels
+from bsrt.hits import Hits
+from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
+from bsrt.patches import PatchSet
+from bsrt.scene import parse_scene
+from bsrt.solve import Rays
+
+DOMAIN = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
+
+
+def reference_decode(tri, tri_dist, line, line_dist, mode):
+    """The NumPy merge and decode that decode_tile replaced (GL rows flipped first)."""
+    tri, tri_dist, line, line_dist = (a[::-1] for a in (tri, tri_dist, line, line_dist))
+    other = line[..., 0] != tri[..., 0]
+    nearer = (line[..., 0] != 0) & ((tri[..., 0] == 0) | (other & (line_dist < tri_dist)))
+    raw = np.where(nearer[..., None], line, tri)
+    eye_distance = np.where(nearer, line_dist, tri_dist)
+    if mode == "float":
+        ident = np.rint(raw[..., 0]).astype(np.int64) - 1
+        g, b = raw[..., 1].astype(np.float64), raw[..., 2].astype(np.float64)
+        picture = np.stack([np.clip(ident + 1, 0, 255), np.rint(g * 255), np.rint(b * 255)], axis=-1).astype(np.uint8)
+    else:
+        ident = raw[..., 0].astype(np.int64) - 1
+        g, b = raw[..., 1] / 255.0, raw[..., 2] / 255.0
+        picture = raw[..., :3].copy()
+    covered = ident >= 0
+    d = DOMAIN[np.where(covered, ident, 0)]
+    u = np.where(covered, d[..., 0] + (d[..., 1] - d[..., 0]) * g, np.nan)
+    v = np.where(covered, d[..., 2] + (d[..., 3] - d[..., 2]) * b, np.nan)
+    distance = np.where(covered, eye_distance.astype(np.float64), np.inf)
+    return np.where(covered, ident, -1), u, v, distance, picture
+
+
+def random_pass(rng, h, w, mode):
+    """A raw pass as GL writes it: empty (all 0) or surface 1..3 with u, v, and a distance."""
+    ident = rng.integers(0, 4, size=(h, w))
+    if mode == "float":
+        raw = np.zeros((h, w, 4), dtype=np.float32)
+        raw[..., 0] = ident
+        raw[..., 1:3] = rng.random((h, w, 2), dtype=np.float32)
+        raw[..., 3] = 1.0
+    else:
+        raw = np.zeros((h, w, 4), dtype=np.uint8)
+        raw[..., 0] = ident
+        raw[..., 1:3] = rng.integers(0, 256, size=(h, w, 2))
+        raw[..., 3] = 255
+    raw[ident == 0] = 0
+    dist = np.where(ident > 0, rng.choice([2.0, 3.0, 4.0], size=(h, w)), 0.0).astype(np.float32)
+    return raw, dist
+
+
+def run_decode(tri, tri_dist, line, line_dist, mode, out_shape, row0=0, col0=0, outs=None):
+    if outs is None:
+        outs = (np.full(out_shape, 7, dtype=np.int64), np.zeros(out_shape), np.zeros(out_shape), np.zeros(out_shape),
+                np.zeros(out_shape + (3,), dtype=np.uint8))
+    n = tri.shape[0] * tri.shape[1]
+    for start, stop in ((0, min(5, n)), (min(5, n), n)):  # two slices, as run_chunks calls it
+        decode_tile(start, stop, tri, tri_dist, line, line_dist, mode == "float", DOMAIN, row0, col0, *outs)
+    return outs
+
+
+@pytest.mark.parametrize("mode", ["float", "rgba8"])
+def test_decode_tile_is_the_numpy_merge_and_decode_bit_for_bit(mode):
+    rng = np.random.default_rng(4)
+    tri, tri_dist = random_pass(rng, 9, 13, mode)
+    line, line_dist = random_pass(rng, 9, 13, mode)
+    got = run_decode(tri, tri_dist, line, line_dist, mode, (9, 13))
+    for a, b in zip(got, reference_decode(tri, tri_dist, line, line_dist, mode)):
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+
+
+def test_decode_tile_hand_worked_pixels_and_tile_offset():
+    # one GL row (the film's bottom row of the tile), three pixels:
+    # 0: triangles empty, line shows surface 2 -> the line's seed
+    # 1: triangles show surface 1 at 3.0, a nearer line of surface 3 -> the line wins
+    # 2: triangles show surface 2 at 2.0, a nearer line of the same surface -> the triangles stay
+    tri = np.array([[[0, 0, 0, 0], [1, 0.5, 0.25, 1], [2, 1.0, 0.0, 1]]], dtype=np.float32)
+    line = np.array([[[2, 0.5, 0.5, 1], [3, 0.0, 1.0, 1], [2, 0.0, 0.0, 1]]], dtype=np.float32)
+    tri_dist = np.array([[0.0, 3.0, 2.0]], dtype=np.float32)
+    line_dist = np.array([[1.5, 2.5, 1.0]], dtype=np.float32)
+    surface, u, v, distance, picture = run_decode(tri, tri_dist, line, line_dist, "float", (3, 5), row0=2, col0=2)
+    np.testing.assert_array_equal(surface[2, 2:], [1, 2, 1])
+    np.testing.assert_array_equal(u[2, 2:], [2.0 + 3.0 * 0.5, 0.25, 5.0])  # eq. 6: lo + (hi - lo) g
+    np.testing.assert_array_equal(v[2, 2:], [-1.0 + 4.0 * 0.5, 10.5, -1.0])
+    np.testing.assert_array_equal(distance[2, 2:], [1.5, 2.5, 2.0])
+    np.testing.assert_array_equal(picture[2, 2:], [[2, 128, 128], [3, 0, 255], [2, 255, 0]])
+    assert (surface[:2] == 7).all() and (surface[2, :2] == 7).all()  # nothing outside the tile is written
+
+
+def test_decode_tile_leaves_empty_pixels_unseeded():
+    empty = np.zeros((2, 2, 4), dtype=np.uint8)
+    dist = np.zeros((2, 2), dtype=np.float32)
+    surface, u, v, distance, picture = run_decode(empty, dist, empty, dist, "rgba8", (2, 2))
+    assert (surface == -1).all() and np.isnan(u).all() and np.isnan(v).all() and np.isinf(distance).all()
+    assert (picture == 0).all()
+
+
+CAMERA = Camera(eye=np.array([1.0, -2.0, 3.0]), look_at=np.array([0.5, 0.25, -0.5]), up=np.array([0.0, 0.0, 1.0]),
+                fov=50.0)
+
+
+@pytest.mark.parametrize("rows", [None, (3, 8)])
+def test_pixel_rays_are_the_numpy_expression_bit_for_bit(rows):
+    width, height = 11, 9
+    first, stop = rows or (0, height)
+    r, u, f = CAMERA.basis()
+    tx, ty = CAMERA.half_extents(width, height)
+    x = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * tx
+    y = (1.0 - 2.0 * (np.arange(first, stop) + 0.5) / height) * ty
+    d = (f[None, None, :] + x[None, :, None] * r[None, None, :] + y[:, None, None] * u[None, None, :]).reshape(-1, 3)
+    np.testing.assert_array_equal(pixel_rays(CAMERA, width, height, rows), d / np.linalg.norm(d, axis=1, keepdims=True))
+
+
+def test_pixel_rays_closed_form_centre_and_corner():
+    # odd film: the middle pixel looks at look_at; a corner pixel centre lies
+    # (w - 1) / w of the half extents off the axis
+    width, height = 5, 3
+    d = pixel_rays(CAMERA, width, height).reshape(height, width, 3)
+    r, u, f = CAMERA.basis()
+    np.testing.assert_allclose(d[1, 2], f, atol=1e-15)
+    tx, ty = CAMERA.half_extents(width, height)
+    corner = f - 0.8 * tx * r + (2.0 / 3.0) * ty * u
+    np.testing.assert_allclose(d[0, 0], corner / np.linalg.norm(corner), atol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=2), 1.0, atol=1e-15)
+
+
+def test_normalise_rows_and_rays_from_arrays_are_numpy_bit_for_bit():
+    d = np.random.default_rng(2).normal(size=(1000, 3)) * 7.0
+    out = np.empty_like(d)
+    normalise_rows(0, 1000, d, out)
+    expected = d / np.linalg.norm(d, axis=1, keepdims=True)
+    np.testing.assert_array_equal(out, expected)
+    rays = Rays.from_arrays(np.array([[1.0, 2.0, 3.0]]), d)
+    np.testing.assert_array_equal(rays.direction, expected)
+    np.testing.assert_array_equal(rays.origin, np.broadcast_to([1.0, 2.0, 3.0], (1000, 3)))
+    np.testing.assert_array_equal(Rays.from_arrays([[0.0, 0.0, 0.0]], [[3.0, 0.0, 4.0]]).direction, [[0.6, 0.0, 0.8]])
+
+
+def reference_suspects(surface, distance, hit, t, failed, footprint, tolerance):
+    """The NumPy border, fold and layer tests that map_suspects replaced: (suspect, layer), each (N,)."""
+    h, w = surface.shape
+    padded = np.pad(surface, 1, mode="edge")
+    border = np.zeros((h, w), dtype=bool)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            border |= padded[1 + di: 1 + di + h, 1 + dj: 1 + dj + w] != surface
+    dist = np.where(np.isfinite(distance), distance, 0.0)
+    fold = np.zeros(dist.shape, dtype=bool)
+    for axis in (0, 1):
+        if dist.shape[axis] < 3:
+            continue
+        curve = np.abs(np.diff(dist, 2, axis=axis))
+        middle = dist.take(range(1, dist.shape[axis] - 1), axis=axis)
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (1, 1)
+        fold |= np.pad(curve > FOLD_PIXELS * footprint * middle, pad)
+    layer = hit & (np.abs(t - distance.ravel()) > LAYER_SLACK_PIXELS * footprint * distance.ravel() + tolerance)
+    return (border | fold).ravel() | failed | layer, layer
+
+
+@pytest.mark.parametrize("shape", [(12, 17), (1, 9), (2, 5), (7, 1)])
+def test_map_suspects_are_the_numpy_border_fold_and_layer_tests(shape):
+    rng = np.random.default_rng(shape[0] * 31 + shape[1])
+    surface = np.where(rng.random(shape) < 0.8, 0, rng.integers(-1, 3, size=shape))
+    distance = np.where(surface >= 0, 5.0 + rng.normal(scale=0.02, size=shape), np.inf)
+    n = surface.size
+    hit = (surface.ravel() >= 0) & (rng.random(n) < 0.9)
+    t = np.where(hit, distance.ravel() + rng.choice([0.0, 0.1, 0.5, -0.5], size=n), np.nan)
+    failed = (surface.ravel() >= 0) & ~hit
+    suspect, layer = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    for start, stop in ((0, min(3, n)), (min(3, n), n)):
+        map_suspects(start, stop, surface, distance, hit, t, failed, FOLD_PIXELS * 0.01, LAYER_SLACK_PIXELS * 0.01,
+                     1e-3, suspect, layer)
+    expected_suspect, expected_layer = reference_suspects(surface, distance, hit, t, failed, 0.01, 1e-3)
+    assert expected_layer.any() and not expected_layer.all()
+    np.testing.assert_array_equal(layer, expected_layer)
+    np.testing.assert_array_equal(suspect, expected_suspect)
+
+
+def test_suspects_of_a_hand_worked_map():
+    # two surfaces meeting between columns 2 and 3: columns 2 and 3 border;
+    # row 2's distance kinks at column 5 (a fold): 1, 1, 1, 1, 1, 2, 1
+    surface = np.zeros((5, 7), dtype=np.int64)
+    surface[:, 3:] = 1
+    distance = np.ones((5, 7))
+    distance[2, 5] = 2.0
+    prelim_map = prelim.PrelimMap(surface, np.zeros((5, 7)), np.zeros((5, 7)), distance, np.zeros((5, 7, 3), np.uint8))
+    hits = Hits.empty(35)
+    hits.hit[[0, 6]] = True
+    hits.t[[0, 6]] = [1.0 + 0.08, 1.0 + 0.0801]  # slack: 8 footprints at distance 1 = 0.08 (+ tolerance 1e-9)
+    failed = np.zeros(35, dtype=bool)
+    failed[34] = True
+    suspect, layer = suspect_pixels(prelim_map, hits, failed, footprint=0.01, tolerance=1e-9)
+    np.testing.assert_array_equal(np.flatnonzero(layer), [6])
+    expected = np.zeros((5, 7), dtype=bool)
+    expected[0, 6] = expected[4, 6] = True  # the wrong layer; the failed start
+    expected[:, 2:4] = True
+    expected[1:4, 5] = True  # second differences along column 5: 1, -2, 1 (rows 1, 2, 3)
+    expected[2, 4] = True  # along row 2 at column 4: 1 (column 6 is an edge: none)
+    np.testing.assert_array_equal(suspect.reshape(5, 7), expected)
+
+
+PLATE = parse_scene({
+    "film": {"width": 24, "height": 16},
+    "camera": {"eye": [0.5, -0.8, 1.5], "look_at": [0.5, 0.5, 0.0], "up": [0, 0, 1]},
+    "surface": [{"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
+                 "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]]}],
+}, "<plate>")
+
+
+@pytest.mark.parametrize("mode", ["float", "rgba8"])
+def test_map_framebuffers_are_reused_and_give_the_same_map(mode):
+    ctx = gl.headless_context()
+    patches = PatchSet([s.geometry for s in PLATE.surfaces])
+    first = prelim.render_map(patches, PLATE.camera, 24, 16, mode=mode, ctx=ctx)
+    kept = dict(ctx.extra["bsrt_kept"])
+    second = prelim.render_map(patches, PLATE.camera, 24, 16, mode=mode, ctx=ctx)
+    assert ctx.extra["bsrt_kept"][("prelim", (24, 16), "f4" if mode == "float" else "f1")] is \
+        kept[("prelim", (24, 16), "f4" if mode == "float" else "f1")]
+    for name in ("surface", "u", "v", "distance", "picture"):
+        np.testing.assert_array_equal(getattr(first, name), getattr(second, name))
+    assert (first.surface == 0).sum() > 0.3 * first.surface.size  # the plate fills the lower part of the film
+
+
+def test_seeded_hits_are_as_hits_put_at_the_covered_pixels():
+    from bsrt.solve import RootResult
+    from bsrt.trace import _seeded_hits
+
+    rng = np.random.default_rng(9)
+    n, patch_surface = 5000, np.array([0, 0, 1, 2, 2])
+    covered = np.sort(rng.choice(n, size=3000, replace=False))
+    m = covered.size
+    res = RootResult(converged=rng.random(m) < 0.8, trimmed=np.zeros(m, dtype=bool), u=rng.normal(size=m),
+                     v=np.where(rng.random(m) < 0.1, -0.0, rng.normal(size=m)), patch=rng.integers(0, 5, size=m),
+                     t=rng.normal(1.0, 1.0, size=m), residual=rng.random(m), iterations=rng.integers(1, 9, size=m,
+                                                                                                    dtype=np.int32))
+    hits, failed = _seeded_hits(n, covered, res, patch_surface)
+    expected = Hits.empty(n)
+
+    class Patches:
+        surface = patch_surface
+
+    candidates = res.as_hits(Patches)
+    expected.put(covered, candidates)
+    for name in Hits.FIELDS:
+        a, b = getattr(hits, name), getattr(expected, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    assert ((hits.t > 0) | ~hits.hit).all() and 0 < hits.hit.sum() < m
+    np.testing.assert_array_equal(np.flatnonzero(failed), covered[~candidates.hit])
+    empty, none = _seeded_hits(3, np.zeros(0, dtype=np.int64), res, patch_surface)
+    assert not empty.hit.any() and not none.any() and (empty.surface == -1).all() and (empty.iterations == 0).all()
