@@ -14,11 +14,11 @@ from __future__ import annotations
 import os
 import time
 
-from . import flatten, patches, roots, shading, traverse, trim
+from . import flatten, patches, roots, shading, tables, traverse, trim
 
 # the kernels called from Python (the rest are compiled as part of them)
 ENTRY_KERNELS = (roots.solve_items, traverse.trace_rays, patches.evaluate_many, patches.locate_many,
-                 flatten.count_leaves, flatten.flatten_patches, flatten.leaf_boxes, flatten.build_tree,
+                 flatten.count_leaves, flatten.flatten_patches, flatten.leaf_boxes, flatten.build_tree, tables.permute_rows, tables.power_coefficients,
                  shading.frames_many, shading.blinn_phong,
                  trim._kept_many, trim._rect_states, trim.classify_grid, trim.bezier_spans, trim.monotone_pieces)
 
