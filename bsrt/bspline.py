@@ -336,6 +336,8 @@ def bezier_patches(surface: BSplineSurface):
         part = slice(first, first + step)
         ctrl[part] = np.einsum("tlj,cktjx->ctklx", mv, rows[part][:, :, window_v])
     ctrl = ctrl.reshape(-1, p + 1, q + 1, 4)
+    if not surface.is_rational:  # weights 1 exactly, not 1 +- rounding: the patches stay polynomial
+        ctrl[..., 3] = 1.0
     bounds = np.empty((spans_u.size, spans_v.size, 4))
     bounds[..., 0] = ku[spans_u, None]
     bounds[..., 1] = ku[spans_u + 1, None]

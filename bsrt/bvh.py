@@ -92,6 +92,7 @@ import numpy as np
 from .hits import Hits
 from .patches import PatchSet
 from .kernels.flatten import build_tree, count_leaves, flatten_patches, leaf_boxes
+from .kernels.tables import permute_rows
 from .kernels.trim import OUTSIDE, rect_states
 from .kernels.threads import run_chunks
 from .kernels.traverse import BVHArrays, Exclusion, trace_rays
@@ -123,9 +124,14 @@ class BVH:
         (padded likewise): centre (3), three orthonormal axes (3 x 3, row
         k = axis k; axis 0 ~ u, axis 1 ~ v, axis 2 ~ the corners' normal),
         half extents (3).
-      leaf_net: (L, P, Q, 4) float64, the piece's homogeneous Bezier net
-        (P, Q the largest p + 1, q + 1; a net of degree leaf_degree fills
-        the [:p + 1, :q + 1] corner, the rest is zero).
+      patch_net: (Np, P, Q, 4) float64, every patch's homogeneous Bezier
+        net (P, Q the largest p + 1, q + 1; a net of degree (p, q) fills the
+        [:p + 1, :q + 1] corner, the rest is zero): the patch table's own
+        array when the scene has one degree.
+      leaf_net: (R, P, Q, 4) float64, the nets of the pieces of cut patches.
+      leaf_net_row: (L,) int64, where each leaf's net is: leaf_net[r] for
+        r >= 0, patch_net[-1 - r] for a patch that is its own leaf (no copy;
+        kernels.flatten.leaf_net).
       leaf_degree: (L, 2) int64, (p, q) of the piece.
       leaf_depth: (L,) int64, number of cuts from the Bezier patch.
       leaf_planar: (L,) bool, the piece's control points lie in one plane
@@ -146,7 +152,9 @@ class BVH:
     leaf_min: np.ndarray
     leaf_max: np.ndarray
     leaf_obb: np.ndarray
+    patch_net: np.ndarray
     leaf_net: np.ndarray
+    leaf_net_row: np.ndarray
     leaf_degree: np.ndarray
     leaf_depth: np.ndarray
     leaf_planar: np.ndarray
@@ -173,7 +181,8 @@ class BVH:
             node_bounds=np.ascontiguousarray(np.concatenate([self.node_min, self.node_max], axis=1)),
             node_left=self.node_left, node_right=self.node_right, node_first=self.node_first,
             node_count=self.node_count, leaf_surface=self.leaf_surface, leaf_rect=self.leaf_rect,
-            leaf_obb=self.leaf_obb, leaf_net=self.leaf_net, leaf_degree=self.leaf_degree,
+            leaf_obb=self.leaf_obb, patch_net=self.patch_net, leaf_net=self.leaf_net,
+            leaf_net_row=self.leaf_net_row, leaf_degree=self.leaf_degree,
             leaf_planar=self.leaf_planar,
         )
 
@@ -201,19 +210,20 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
     max(LEAF_NET_FLOATS, LEAVES_PER_PATCH floats per patch's net) floats,
     max_depth is lowered by one (a high-degree patch then keeps coarser,
     curved leaves; the grazing/miss retries cut those further per ray).
-    Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, nets (L, Pm, Qm,
-    4) homogeneous nets in the corner of the array, degree (L, 2) int64).
+    Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, degree (L, 2)
+    int64, and the nets: patch_net (P, Pm, Qm, 4), piece_net (R, Pm, Qm, 4),
+    row (L,) int64 as BVH.patch_net, leaf_net, leaf_net_row).
     """
     nets, degree = padded_nets(patches)
     eps = flatness * patches.scene_diagonal()
     per_leaf = int(np.prod(nets.shape[1:]))
     allowance = max(LEAF_NET_FLOATS, LEAVES_PER_PATCH * per_leaf * patches.size)
     counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
-    while max_depth > 0 and int(counts.sum()) * per_leaf > allowance:
+    while max_depth > 0 and int(counts[counts > 1].sum()) * per_leaf > allowance:  # a whole patch keeps its net
         max_depth -= 1
         counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
-    patch, rect, depth, leaf_nets = flatten_patches(nets, degree, patches.bounds, eps, BEND, max_depth, counts)
-    return patch, rect, depth, leaf_nets, degree[patch]
+    patch, rect, depth, row, piece_nets = flatten_patches(nets, degree, patches.bounds, eps, BEND, max_depth, counts)
+    return patch, rect, depth, degree[patch], (nets, piece_nets, row)
 
 
 # ---------------------------------------------------------------------------
@@ -237,13 +247,14 @@ def build_bvh(
     diag = patches.scene_diagonal()
     if padding is None:
         padding = 1e-8 * diag
-    patch, rect, depth, all_nets, degree = flatten(patches, flatness, max_depth)
-    if patches.trimmed:  # pieces the trims remove entirely hold no hit
+    patch, rect, depth, degree, (patch_net, piece_net, row) = flatten(patches, flatness, max_depth)
+    if patches.trimmed:  # pieces the trims remove entirely hold no hit (their nets stay, unused)
         keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
-        patch, rect, depth, all_nets, degree = patch[keep], rect[keep], depth[keep], all_nets[keep], degree[keep]
+        patch, rect, depth, degree, row = patch[keep], rect[keep], depth[keep], degree[keep], row[keep]
     box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
-    leaf_boxes(all_nets, degree, float(padding), box_min, box_max, obb)
+    leaf_boxes(patch_net, piece_net, row, degree, float(padding), box_min, box_max, obb)
     order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
+    permute_rows(obb, order)  # into tree order in place: no second copy of the largest per-leaf table
     rect = rect[order]
     return BVH(
         patches=patches,
@@ -252,11 +263,13 @@ def build_bvh(
         leaf_rect=rect,
         leaf_min=box_min[order],
         leaf_max=box_max[order],
-        leaf_obb=obb[order],
-        leaf_net=all_nets[order],
+        leaf_obb=obb,
+        patch_net=patch_net,
+        leaf_net=piece_net,
+        leaf_net_row=row[order],
         leaf_degree=degree[order],
         leaf_depth=depth[order],
-        leaf_planar=obb[order, 14] <= padding * (1.0 + 1e-6) + 1e-12 * diag,
+        leaf_planar=obb[:, 14] <= padding * (1.0 + 1e-6) + 1e-12 * diag,
         node_min=n_min,
         node_max=n_max,
         node_left=n_left,

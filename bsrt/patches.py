@@ -18,8 +18,9 @@ import numpy as np
 
 from .bspline import BSplineSurface, bezier_patches
 from .kernels import patches as kp
+from .kernels.tables import power_coefficients
 
-CHUNK = 1 << 16  # patches converted to the power basis at once
+CHUNK = 1 << 16  # patches whose boxes and second differences are computed at once
 
 
 def power_from_bernstein(n: int) -> np.ndarray:
@@ -43,6 +44,9 @@ class PatchSet:
         entry per degree; ids are increasing.
       box_min, box_max: (P, 3) float64, bounding box of each patch's control
         points (it contains the patch: convex hull, positive weights).
+      bend: (P, 3) float64, (m_uu, m_vv, m_uv): bounds on |S_ss|, |S_tt|,
+        |S_st| over the patch in its local (s, t), from the projected
+        control points' second differences (the map's tessellation counts).
       domain: (M, 4) float64, (umin, umax, vmin, vmax) of each surface.
       arrays: kernels.patches.PatchArrays, the same table for the kernels.
     Patches are numbered surface by surface, u-major within a surface.
@@ -76,9 +80,14 @@ class PatchSet:
         self.surface = np.concatenate(surface) if surface else np.zeros(0, np.int64)
         self.bounds = np.concatenate(bounds).reshape(self.size, 4) if bounds else np.zeros((0, 4))
         self.box_min, self.box_max = np.empty((self.size, 3)), np.empty((self.size, 3))
+        self.bend = np.empty((self.size, 3))
         for ids, nets in self.groups:
-            pts = nets[..., :3] / nets[..., 3:4]
-            self.box_min[ids], self.box_max[ids] = pts.min(axis=(1, 2)), pts.max(axis=(1, 2))
+            for part in range(0, ids.size, CHUNK):  # bounded temporaries
+                which = slice(part, part + CHUNK)
+                pts = nets[which, ..., :3] / nets[which, ..., 3:4]
+                at = ids[which]
+                self.box_min[at], self.box_max[at] = pts.min(axis=(1, 2)), pts.max(axis=(1, 2))
+                self.bend[at] = _second_differences(pts)
         self.arrays = kp.PatchArrays(
             *_power_coefficients(self.groups, self.size),
             bounds=self.bounds,
@@ -148,6 +157,22 @@ class PatchSet:
         return (S, Su, Sv) if derivatives else S
 
 
+def _second_differences(pts: np.ndarray) -> np.ndarray:
+    """(K, 3) bounds (m_uu, m_vv, m_uv) on a degree (p, q) patch's second
+    derivatives in (s, t), from its projected control points (K, p + 1, q + 1, 3)."""
+    p, q = pts.shape[1] - 1, pts.shape[2] - 1
+    return np.stack([p * (p - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2]),
+                     q * (q - 1) * _max_norm(pts[:, :, 2:] - 2 * pts[:, :, 1:-1] + pts[:, :, :-2]),
+                     p * q * _max_norm(pts[:, 1:, 1:] - pts[:, 1:, :-1] - pts[:, :-1, 1:] + pts[:, :-1, :-1])], axis=1)
+
+
+def _max_norm(a: np.ndarray) -> np.ndarray:
+    """Largest vector length per patch: a (K, ..., 3) -> (K,), zeros if a has no vectors."""
+    if a.size == 0:
+        return np.zeros(a.shape[0])
+    return np.sqrt((a * a).sum(axis=-1)).reshape(a.shape[0], -1).max(axis=1)
+
+
 def _f64(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -160,7 +185,7 @@ def _power_coefficients(groups: list, n: int):
     """(coef, coef_start, degree, dim) of PatchArrays from PatchSet.groups (n patches).
 
     A patch whose weights are all equal is stored polynomial (x, y, z), else
-    homogeneous (x w, y w, z w, w). Vectorised per degree and kind."""
+    homogeneous (x w, y w, z w, w). Compiled (kernels/tables.py): no table-sized temporaries."""
     degree = np.zeros((n, 2), dtype=np.int64)
     dim = np.full(n, 3, dtype=np.int64)
     for ids, nets in groups:
@@ -171,14 +196,5 @@ def _power_coefficients(groups: list, n: int):
     coef = np.empty(int(sizes.sum()))
     for ids, nets in groups:
         p, q = nets.shape[1] - 1, nets.shape[2] - 1
-        to_power_u, to_power_v = power_from_bernstein(p), power_from_bernstein(q)
-        for kind in (3, 4):
-            sel = dim[ids] == kind
-            for part in range(0, int(sel.sum()), CHUNK):  # bounded temporaries
-                which = np.flatnonzero(sel)[part : part + CHUNK]
-                ctrl = nets[which]
-                if kind == 3:
-                    ctrl = ctrl[..., :3] / ctrl[..., 3:4]
-                c = np.einsum("ai,bj,kabc->kicj", to_power_u, to_power_v, ctrl).reshape(which.size, -1)
-                coef[start[ids[which]][:, None] + np.arange(c.shape[1])[None, :]] = c
+        power_coefficients(nets, ids, start, dim, power_from_bernstein(p), power_from_bernstein(q), coef)
     return coef, start, degree, dim

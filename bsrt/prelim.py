@@ -61,27 +61,11 @@ def segments_per_patch(patches: PatchSet, camera: Camera, width: int, height: in
     nearest = np.linalg.norm(np.maximum(np.maximum(lo - camera.eye, camera.eye - hi), 0.0), axis=1)
     diag = max(patches.scene_diagonal(), 1e-300)
     tolerance = 0.5 * pixel_at_unit_distance * np.maximum(nearest, 1e-3 * diag)
-    out = np.ones((patches.size, 2), dtype=np.int64)
-    for ids, ctrl in patches.groups:  # vectorised over the patches of one degree
-        shape = ctrl.shape[1:3]
-        pts = ctrl[..., :3] / ctrl[..., 3:4]  # (K, p+1, q+1, 3)
-        p, q = shape[0] - 1, shape[1] - 1
-        m_uu = p * (p - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2])
-        m_vv = q * (q - 1) * _max_norm(pts[:, :, 2:] - 2 * pts[:, :, 1:-1] + pts[:, :, :-2])
-        m_uv = p * q * _max_norm(pts[:, 1:, 1:] - pts[:, 1:, :-1] - pts[:, :-1, 1:] + pts[:, :-1, :-1])
-        # chord error <= (m_uu / n_u^2 + 2 m_uv / (n_u n_v) + m_vv / n_v^2) / 8
-        tol = tolerance[ids]
-        n_u = np.sqrt((m_uu + m_uv) / (4.0 * tol))
-        n_v = np.sqrt((m_vv + m_uv) / (4.0 * tol))
-        out[ids] = np.clip(np.ceil(np.stack([n_u, n_v], axis=1)), 1, MAX_SEGMENTS)
-    return out
-
-
-def _max_norm(a: np.ndarray) -> np.ndarray:
-    """Largest vector length per patch: a (K, ..., 3) -> (K,), zeros if a has no vectors."""
-    if a.size == 0:
-        return np.zeros(a.shape[0])
-    return np.sqrt((a * a).sum(axis=-1)).reshape(a.shape[0], -1).max(axis=1)
+    m_uu, m_vv, m_uv = patches.bend.T
+    # chord error <= (m_uu / n_u^2 + 2 m_uv / (n_u n_v) + m_vv / n_v^2) / 8
+    n_u = np.sqrt((m_uu + m_uv) / (4.0 * tolerance))
+    n_v = np.sqrt((m_vv + m_uv) / (4.0 * tolerance))
+    return np.clip(np.ceil(np.stack([n_u, n_v], axis=1)), 1, MAX_SEGMENTS).astype(np.int64)
 
 
 def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):

@@ -14,11 +14,12 @@ from __future__ import annotations
 import os
 import time
 
-from . import flatten, patches, prelim, roots, shading, traverse, trim
+from . import flatten, patches, prelim, roots, shading, tables, traverse, trim
 
 # the kernels called from Python (the rest are compiled as part of them)
 ENTRY_KERNELS = (roots.solve_items, traverse.trace_rays, patches.evaluate_many, patches.locate_many,
                  flatten.count_leaves, flatten.flatten_patches, flatten.leaf_boxes, flatten.build_tree,
+                 tables.permute_rows, tables.power_coefficients,
                  shading.frames_many, shading.blinn_phong,
                  prelim.decode_tile, prelim.pixel_rays_into, prelim.normalise_rows, prelim.map_suspects,
                  prelim.seeded_hits,

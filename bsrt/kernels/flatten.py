@@ -159,24 +159,48 @@ def count_leaves(nets, degree, rects, eps, bend, max_depth):
 
 @njit(cache=True)
 def flatten_patches(nets, degree, rects, eps, bend, max_depth, counts):
-    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), net (L, Pm, Qm, 4)).
+    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), row (L,), net (R, Pm, Qm, 4)).
 
     nets, degree, rects: as count_leaves; counts: count_leaves' answer for
-    the same arguments (the output arrays are allocated once from it).
+    the same arguments (the output arrays are allocated once from it). A
+    patch that stays whole is its own leaf and keeps its net where it is
+    (row -1 - patch, see leaf_net); only the pieces of cut patches get a
+    net of their own (row r >= 0: net[r]), so a model of many small
+    patches holds no second copy of its nets.
     """
     n = nets.shape[0]
     starts = np.zeros(n + 1, dtype=np.int64)
     starts[1:] = np.cumsum(counts)
+    net_starts = np.zeros(n + 1, dtype=np.int64)
+    for k in range(n):
+        net_starts[k + 1] = net_starts[k] + (counts[k] if counts[k] > 1 else 0)
     total = starts[n]
     patch = np.empty(total, dtype=np.int64)
     out_rect = np.empty((total, 4))
     out_depth = np.empty(total, dtype=np.int64)
-    out_net = np.zeros((total,) + nets.shape[1:])
+    row = np.empty(total, dtype=np.int64)
+    out_net = np.zeros((net_starts[n],) + nets.shape[1:])
     for k in range(n):
-        _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True, starts[k],
-             out_rect, out_depth, out_net)
-        patch[starts[k]:starts[k + 1]] = k
-    return patch, out_rect, out_depth, out_net
+        first = starts[k]
+        if counts[k] == 1:
+            for c in range(4):
+                out_rect[first, c] = rects[k, c]
+            out_depth[first] = 0
+            row[first] = -1 - k
+        else:
+            _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True, 0,
+                 out_rect[first:], out_depth[first:], out_net[net_starts[k]:])
+            for i in range(counts[k]):
+                row[first + i] = net_starts[k] + i
+        patch[first:starts[k + 1]] = k
+    return patch, out_rect, out_depth, row, out_net
+
+
+@njit(cache=True, inline="always")
+def leaf_net(patch_net, piece_net, row, leaf):
+    """The (Pm, Qm, 4) net of a leaf: its patch's own (row < 0) or its piece's."""
+    r = row[leaf]
+    return piece_net[r] if r >= 0 else patch_net[-1 - r]
 
 
 SAH_BINS = 16
@@ -299,20 +323,22 @@ def build_tree(box_min, box_max, leaf_size):
 
 
 @njit(cache=True)
-def leaf_boxes(nets, degree, padding, box_min, box_max, obb):
+def leaf_boxes(patch_net, piece_net, row, degree, padding, box_min, box_max, obb):
     """Boxes of each leaf's projected control points, padded by ``padding``, into
     box_min, box_max (L, 3) (axis-aligned) and obb (L, 15) (oriented: centre,
     axes as rows, half extents; axis 0 along the corners' u direction, axis 2
-    their normal, the world axes where those degenerate). nets: (L, Pm, Qm,
-    4) homogeneous nets, degree (L, 2) fills the corner."""
+    their normal, the world axes where those degenerate). The leaves' nets:
+    leaf_net(patch_net, piece_net, row, leaf), homogeneous (Pm, Qm, 4);
+    degree (L, 2) fills their corner."""
     axes = np.empty((3, 3))
     lo, hi = np.empty(3), np.empty(3)
     corner = np.empty((4, 3))
-    for n in range(nets.shape[0]):
+    for n in range(row.shape[0]):
+        net = leaf_net(patch_net, piece_net, row, n)
         p, q = degree[n, 0], degree[n, 1]
         for c, (i, j) in enumerate(((0, 0), (p, 0), (0, q), (p, q))):
             for k in range(3):
-                corner[c, k] = nets[n, i, j, k] / nets[n, i, j, 3]
+                corner[c, k] = net[i, j, k] / net[i, j, 3]
         du = corner[1] + corner[3] - corner[0] - corner[2]
         dv = corner[2] + corner[3] - corner[0] - corner[1]
         normal = np.cross(du, dv)
@@ -328,8 +354,8 @@ def leaf_boxes(nets, degree, padding, box_min, box_max, obb):
             box_min[n, k], box_max[n, k] = np.inf, -np.inf
         for i in range(p + 1):
             for j in range(q + 1):
-                w = nets[n, i, j, 3]
-                x, y, z = nets[n, i, j, 0] / w, nets[n, i, j, 1] / w, nets[n, i, j, 2] / w
+                w = net[i, j, 3]
+                x, y, z = net[i, j, 0] / w, net[i, j, 1] / w, net[i, j, 2] / w
                 box_min[n, 0], box_max[n, 0] = min(box_min[n, 0], x), max(box_max[n, 0], x)
                 box_min[n, 1], box_max[n, 1] = min(box_min[n, 1], y), max(box_max[n, 1], y)
                 box_min[n, 2], box_max[n, 2] = min(box_min[n, 2], z), max(box_max[n, 2], z)

@@ -9,8 +9,11 @@
     leaf_surface: (L,) int64. leaf_rect: (L, 4) float64 (u0, u1, v0, v1).
     leaf_obb: (L, 15) float64, oriented box: centre (3), axes (3 x 3, row k
       = axis k), half extents (3), padded.
-    leaf_net: (L, Pm, Qm, 4) float64, the piece's homogeneous Bezier net in
-      its [:p + 1, :q + 1] corner. leaf_degree: (L, 2) int64, (p, q).
+    patch_net: (P, Pm, Qm, 4), leaf_net: (R, Pm, Qm, 4) float64 and
+      leaf_net_row: (L,) int64: a leaf's homogeneous Bezier net (in its
+      [:p + 1, :q + 1] corner) is flatten.leaf_net(patch_net, leaf_net,
+      leaf_net_row, leaf): its patch's own, or a cut piece's.
+      leaf_degree: (L, 2) int64, (p, q).
     leaf_planar: (L,) bool, the piece lies in one plane.
 
 Per ray (``trace_one``): a depth-first walk, nearer child first, that skips
@@ -33,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .flatten import copy_net, split_half
+from .flatten import copy_net, leaf_net, split_half
 from .patches import frame
 from .roots import NEWTON, ray_frame, solve_one
 from .trim import point_kept
@@ -52,7 +55,9 @@ class BVHArrays(NamedTuple):
     leaf_surface: np.ndarray
     leaf_rect: np.ndarray
     leaf_obb: np.ndarray
+    patch_net: np.ndarray
     leaf_net: np.ndarray
+    leaf_net_row: np.ndarray
     leaf_degree: np.ndarray
     leaf_planar: np.ndarray
 
@@ -168,7 +173,7 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
     size = nets.shape[0]
-    copy_net(B.leaf_net[leaf], nets[0], p, q)
+    copy_net(leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf), nets[0], p, q)
     for k in range(4):
         rects[0, k] = rect[k]
     depth[0] = 0
@@ -246,7 +251,7 @@ def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations
                 lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
                 if not (lo <= hi and hi >= t_min and lo <= t_max and lo < best_t):
                     continue
-                if not _straddles(B.leaf_net[leaf], B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e,
+                if not _straddles(leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf), B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e,
                                   dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
                     continue  # the piece's hull misses the ray: no root, no Newton
                 found, t, u, v, k, res, its = _solve_piece(
@@ -284,7 +289,7 @@ def trace_rays(start, stop, P, T, B, origin, direction, t_min, t_max, tol, max_i
     """trace_one for rays start..stop-1 of origin, direction (N, 3) (unit directions),
     with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays);
     results into (N,) outputs. Called on slices by threads.run_chunks."""
-    pm, qm = B.leaf_net.shape[1], B.leaf_net.shape[2]
+    pm, qm = B.patch_net.shape[1], B.patch_net.shape[2]
     size = 4 * retry_depth + 8
     stack = np.empty(STACK, dtype=np.int64)  # scratch, once per slice
     stack_t = np.empty(STACK)
