@@ -33,7 +33,8 @@ class Rays:
         d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
         d = d / np.linalg.norm(d, axis=1, keepdims=True)
         o = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), d.shape)
-        return cls(np.ascontiguousarray(o), np.ascontiguousarray(d))
+        # writable C arrays always (a broadcast view is read-only): numba compiles a kernel again per flag
+        return cls(np.require(o, np.float64, ("C", "W")), np.require(d, np.float64, ("C", "W")))
 
     def __len__(self) -> int:
         return self.direction.shape[0]
