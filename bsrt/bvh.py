@@ -316,15 +316,16 @@ def intersect(
     hits = Hits.empty(n)
     if n == 0 or bvh.leaf_total == 0:
         return hits
-    t_min = np.ascontiguousarray(np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,)))
-    t_max = np.ascontiguousarray(np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,)))
+    # writable C arrays (a broadcast or caller's array may be read-only: another compiled signature)
+    t_min = np.require(np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,)), np.float64, ("C", "W"))
+    t_max = np.require(np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,)), np.float64, ("C", "W"))
     if tolerance is None:
         tolerance = 1e-9 * bvh.patches.scene_diagonal()
     if exclude is None:
         none = np.zeros(n)
         ex = Exclusion(np.full(n, -1, dtype=np.int64), none, none, none, none)
     else:
-        ex = Exclusion(*(np.ascontiguousarray(a, dtype=dt) for a, dt in zip(exclude, (np.int64,) + (np.float64,) * 4)))
+        ex = Exclusion(*(np.require(a, dt, ("C", "W")) for a, dt in zip(exclude, (np.int64,) + (np.float64,) * 4)))
     iterations = np.zeros(n, dtype=np.int64)
     run_chunks(trace_rays, n, bvh.patches.arrays, bvh.patches.trims, bvh.arrays, rays.origin, rays.direction, t_min, t_max,
                float(tolerance), int(max_iterations), bool(any_hit), int(retry_depth), bvh.padding + float(tolerance),

@@ -36,7 +36,8 @@ class Rays:
         run_chunks(normalise_rows, d.shape[0], d, unit)  # d / |d|, row by row
         d = unit
         o = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), d.shape)
-        return cls(np.ascontiguousarray(o), np.ascontiguousarray(d))
+        # writable C arrays always (a broadcast view is read-only): numba compiles a kernel again per flag
+        return cls(np.require(o, np.float64, ("C", "W")), np.require(d, np.float64, ("C", "W")))
 
     def __len__(self) -> int:
         return self.direction.shape[0]

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def measures(net, p, q):
     """(dev, dev_u, dev_v, twist, size) of one homogeneous net ([:p+1, :q+1, 4])."""
     dev = dev_u = dev_v = 0.0
@@ -72,7 +72,10 @@ def measures(net, p, q):
     return dev, dev_u, dev_v, twist, size
 
 
-@njit(cache=True)
+# Explicit signatures: called with a literal axis (traverse) and a variable one (_cut), or a
+# literal fill/first and variable ones, numba would compile one specialisation per call site.
+@njit("void(float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], int64, int64, int64, float64[::1])",
+      cache=True, no_cpython_wrapper=True)
 def split_half(src, lo, hi, p, q, axis, tmp):
     """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)
     into lo, hi; tmp: scratch of at least max(p, q) + 1 floats."""
@@ -93,7 +96,7 @@ def split_half(src, lo, hi, p, q, axis, tmp):
                     hi[j, n - r, c] = tmp[n - r]
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def copy_net(src, dst, p, q):
     for i in range(p + 1):
         for j in range(q + 1):
@@ -101,7 +104,9 @@ def copy_net(src, dst, p, q):
                 dst[i, j, c] = src[i, j, c]
 
 
-@njit(cache=True)
+# (explicit signature: see split_half)
+@njit("int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, int64, boolean, int64, float64[:, ::1], "
+      "int64[::1], float64[:, :, :, ::1])", cache=True, no_cpython_wrapper=True)
 def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth, out_net):
     """Cut one patch depth-first; with fill, write its leaves from index first. Returns the leaf count.
 
@@ -206,19 +211,19 @@ def leaf_net(patch_net, piece_net, row, leaf):
 SAH_BINS = 16
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _area(lo, hi):
     dx, dy, dz = max(hi[0] - lo[0], 0.0), max(hi[1] - lo[1], 0.0), max(hi[2] - lo[2], 0.0)
     return dx * dy + dy * dz + dz * dx
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _reset(lo, hi):
     for k in range(3):
         lo[k], hi[k] = np.inf, -np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _grow(lo, hi, bin_lo, bin_hi, j):
     for k in range(3):
         lo[k], hi[k] = min(lo[k], bin_lo[j, k]), max(hi[k], bin_hi[j, k])

@@ -52,7 +52,9 @@ class PatchArrays(NamedTuple):
     patch_grid: np.ndarray
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+# inline="always": point and frame each get a copy with ``derivatives`` a constant, instead of
+# numba compiling _horner standalone once per literal value of ``derivatives``.
+@njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _horner(coef, base, p, q, dim, s, t, derivatives):
     """Homogeneous value (and d/ds, d/dt) of one patch at local (s, t), all components in one pass.
 
@@ -86,7 +88,7 @@ def _horner(coef, base, p, q, dim, s, t, derivatives):
     return x, y, z, w, xs, ys, zs, ws, xt, yt, zt, wt
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def point(P, k, u, v):
     """S(u, v) of patch k at global parameters: (x, y, z)."""
     s = (u - P.bounds[k, 0]) * P.inv_size[k, 0]
@@ -95,7 +97,7 @@ def point(P, k, u, v):
     return h[0] / h[3], h[1] / h[3], h[2] / h[3]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def frame(P, k, u, v):
     """S, S_u, S_v of patch k at global (u, v): 9 floats (x, y, z, xu, yu, zu, xv, yv, zv)."""
     du, dv = P.inv_size[k, 0], P.inv_size[k, 1]
@@ -109,7 +111,7 @@ def frame(P, k, u, v):
     return x, y, z, xs * du, ys * du, zs * du, xt * dv, yt * dv, zt * dv
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _span(breaks, first, stop, x):
     """Index (0-based within the surface) of the span of sorted breaks[first:stop] holding x."""
     lo, hi = first, stop - 2  # spans first .. stop - 2
@@ -122,14 +124,14 @@ def _span(breaks, first, stop, x):
     return lo - first
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def clamp(P, m, u, v):
     """(u, v) clipped into surface m's domain."""
     d = P.domain  # scalar indexing: a row view would cost a reference count per call
     return min(max(u, d[m, 0]), d[m, 1]), min(max(v, d[m, 2]), d[m, 3])
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def locate(P, m, u, v):
     """Patch of surface m holding (u, v) (parameters outside the domain: the nearest)."""
     fu, su = P.break_start_u[m], P.break_start_u[m + 1]
@@ -139,7 +141,7 @@ def locate(P, m, u, v):
     return P.patch_grid[P.grid_start[m] + iu * (sv - fv - 1) + iv]
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
+@njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def inside_patch(P, k, u, v):
     b = P.bounds
     return b[k, 0] <= u <= b[k, 1] and b[k, 2] <= v <= b[k, 3]

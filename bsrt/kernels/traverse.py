@@ -76,7 +76,7 @@ class Exclusion(NamedTuple):
     radius_v: np.ndarray
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _slab(b, ox, oy, oz, ix, iy, iz):
     """Entry and exit distances of a ray (origin, inverse direction) into box b (6,)."""
     t1, t2 = (b[0] - ox) * ix, (b[3] - ox) * ix
@@ -87,7 +87,7 @@ def _slab(b, ox, oy, oz, ix, iy, iz):
     return max(near, min(t1, t2)), min(far, max(t1, t2))
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     """Entry and exit distances of a ray into an oriented box (15,)."""
     rx, ry, rz = ox - obb[0], oy - obb[1], oz - obb[2]
@@ -104,7 +104,7 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     return near, far
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _grazing(P, k, u, v, dx, dy, dz):
     f = frame(P, k, u, v)
     nx = f[4] * f[8] - f[5] * f[7]
@@ -113,7 +113,7 @@ def _grazing(P, k, u, v, dx, dy, dz):
     return abs(nx * dx + ny * dy + nz * dz) < GRAZING_COSINE * np.sqrt(nx * nx + ny * ny + nz * nz)
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     """Can the ray meet the piece with this net before t_far? (its hull, in the ray's frame)."""
     xlo = ylo = zlo = np.inf
@@ -131,7 +131,7 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     return xlo <= tol and xhi >= -tol and ylo <= tol and yhi >= -tol and zhi + tol >= t_min and zlo - tol < t_far
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
     """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either).
 
@@ -152,7 +152,7 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
     return 1
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, max_iterations, retry_depth,
                  cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv, nets, rects, depth, tmp):
     """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations).
@@ -219,7 +219,7 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
     return found, best_t, best_u, best_v, best_k, best_res, iterations
 
 
-@njit(cache=True)
+@njit(cache=True, no_cpython_wrapper=True)
 def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations, any_hit, retry_depth, cull_tol,
               ex_m, ex_u, ex_v, ex_ru, ex_rv, stack, stack_t, nets, rects, depth, tmp):
     """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations)."""
