@@ -118,6 +118,9 @@ class TrimCurve:
 
     def ends(self) -> np.ndarray:
         """(2, 2): the curve's first and last point."""
+        p, k = self.degree, self.knots
+        if k[0] == k[p] and k[-1] == k[-1 - p]:  # clamped: the end control points
+            return self.points[[0, -1]].copy()
         return self.evaluate(np.array(self.domain))
 
 

@@ -1,0 +1,223 @@
+"""Pcurves: an edge's curve on a face, as OpenCASCADE gives it, and mapped into the B-spline's domain.
+
+``pcurve(edge, face)`` is the edge's 2-D curve in the original surface's
+(u, v), converted exactly to a (rational) B-spline by ``Geom2dConvert`` over
+the edge's range and reversed for a reversed edge, so the curves of a wire
+run end to end. ``map_curve(curve, pmap, tolerance)`` carries it into the
+converted B-spline's (x, y) through the face's :class:`ParamMap`:
+
+* where both directions keep their parameter (up to a whole period), the
+  control points move by the shift: exact;
+* an iso-line (a seam, a cylinder's circle, a pole's degenerate edge) is
+  the straight segment between its mapped ends: exact;
+* any other curve is fitted, all at once (NumPy over every piece): pieces
+  between the curve's knots and the parameters where it crosses the
+  B-spline's knot lines (where the map's smoothness breaks), each a
+  degree-7 polynomial through Chebyshev-Lobatto points of the mapped curve,
+  halved until it is within ``tolerance`` (in (x, y), from the model-space
+  tolerance and the B-spline's largest derivative) at 24 check points.
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+from ...bspline import BSplineSurface
+from ...errors import InputError
+from ...trim import TrimCurve, make_trim_curve
+from .surfaces import ParamMap, flat_knots
+
+FIT_DEGREE = 7
+FIT_TOLERANCE = 1e-10  # fitted pcurves: largest 3-D error, as a fraction of the model's size
+_MAX_ROUNDS = 24  # halvings of a fitted piece beyond its breaks (a safeguard)
+
+
+class TrimError(Exception):
+    """The face's wires do not make closed loops in the surface's domain (the reason is the message)."""
+
+
+def pcurve(edge, face) -> TrimCurve | None:
+    """The edge's curve on the face, in the original (u, v), along the edge's direction; None for an empty range."""
+    from OCP.BRep import BRep_Tool
+    from OCP.Geom2d import Geom2d_TrimmedCurve
+    from OCP.Geom2dConvert import Geom2dConvert
+    from OCP.TopAbs import TopAbs_REVERSED
+
+    curve = BRep_Tool.CurveOnSurface_s(edge, face, 0.0, 0.0)
+    if curve is None:
+        raise TrimError("an edge has no curve on the face")
+    first, last = BRep_Tool.Range_s(edge, face)
+    if not first < last:
+        return None
+    try:
+        bc = Geom2dConvert.CurveToBSplineCurve_s(Geom2d_TrimmedCurve(curve, first, last))
+    except Exception as e:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
+        raise TrimError(f"OpenCASCADE cannot convert a {type(curve).__name__} pcurve ({e})") from None
+    if bc.IsPeriodic():
+        bc.SetNotPeriodic()
+    n = bc.NbPoles()
+    pole, weight = bc.Pole, bc.Weight
+    points = np.empty((n, 2))
+    weights = np.empty(n)
+    for i in range(n):
+        p = pole(i + 1)
+        points[i] = p.X(), p.Y()
+        weights[i] = weight(i + 1)
+    knots = flat_knots(bc.Knot, bc.Multiplicity, bc.NbKnots())
+    if edge.Orientation() == TopAbs_REVERSED:
+        points, weights, knots = points[::-1], weights[::-1], (knots[0] + knots[-1]) - knots[::-1]
+    try:
+        return make_trim_curve(bc.Degree(), knots, points, None if np.all(weights == 1.0) else weights)
+    except InputError as e:
+        raise TrimError(f"a pcurve is invalid ({e})") from None
+
+
+def shifted(curve: TrimCurve, offset) -> TrimCurve:
+    """The curve moved by ``offset`` (2,) in (u, v)."""
+    if not np.any(offset):
+        return curve
+    return TrimCurve(curve.degree, curve.knots, curve.points + np.asarray(offset, dtype=np.float64), curve.weights)
+
+
+def segment(a, b) -> TrimCurve:
+    """The straight segment from a (2,) to b (2,)."""
+    return make_trim_curve(1, [0.0, 0.0, 1.0, 1.0], np.array([a, b], dtype=np.float64))
+
+
+def reversed_curve(c: TrimCurve) -> TrimCurve:
+    return TrimCurve(c.degree, (c.knots[0] + c.knots[-1]) - c.knots[::-1], c.points[::-1].copy(),
+                     None if c.weights is None else c.weights[::-1].copy())
+
+
+def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
+    """Upper bounds of |dS/dx| and |dS/dy| over the surface (from its control net; generous for rational ones)."""
+    out = []
+    for axis in (0, 1):
+        p = surface.degree[axis]
+        knots = surface.knots_u if axis == 0 else surface.knots_v
+        pts = np.moveaxis(surface.points, axis, 0)
+        n = pts.shape[0]
+        steps = knots[p + 1: n + p] - knots[1:n]  # the support lengths of the derivative's control points / p
+        diff = np.linalg.norm(np.diff(pts, axis=0), axis=-1).max(axis=-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rate = np.where(steps > 0, p * diff / np.where(steps > 0, steps, 1.0), 0.0)
+        ratio = 1.0
+        if surface.weights is not None:
+            ratio = (surface.weights.max() / surface.weights.min()) ** 2
+        out.append(float(rate.max(initial=0.0)) * ratio)
+    return out[0], out[1]
+
+
+def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) -> TrimCurve:
+    """The pcurve (original (u, v)) as a curve in the B-spline's (x, y).
+
+    tolerance: the largest error allowed in x and in y (a fitted curve's
+    3-D error is at most their sum times the derivative bounds' part).
+    """
+    fu, fv = pmap.fu, pmap.fv
+    if fu.kind == "identity" and fv.kind == "identity":
+        return shifted(curve, (fu.shift, fv.shift))
+    t0, t1 = curve.domain
+    t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
+    uv = curve.evaluate(t)
+    spans = np.array([pmap.bounds[1] - pmap.bounds[0], pmap.bounds[3] - pmap.bounds[2]])
+    for axis in (0, 1):  # an iso-line (axis fixed): a straight segment, exactly
+        fixed, moving = uv[:, axis], uv[:, 1 - axis]
+        if np.ptp(fixed) <= 1e-13 * spans[axis] and (np.all(np.diff(moving) >= 0) or np.all(np.diff(moving) <= 0)):
+            ends = np.empty((2, 2))
+            ends[:, axis] = fixed.mean()
+            ends[:, 1 - axis] = moving[[0, -1]]
+            return segment(*pmap.map(ends))
+    breaks = [np.array([t0, t1]), np.unique(curve.knots[(curve.knots > t0) & (curve.knots < t1)])]
+    for axis, fmap in ((0, fu), (1, fv)):
+        if fmap.kind == "identity":
+            continue
+        values = uv[:, axis]
+        lines = _break_lines(fmap, float(values.min()), float(values.max()))
+        breaks.append(_crossings(curve, axis, lines, t, values))
+    return _fit(curve, pmap, np.unique(np.concatenate(breaks)), tolerance)
+
+
+def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
+    """The original parameters in [lo, hi] where f passes one of the B-spline's knots (its smoothness breaks)."""
+    b = fmap.breaks
+    if fmap.period > 0:
+        first = np.floor((float(fmap(np.array([lo]))[0]) - b[0]) / fmap.period) - 1
+        last = np.ceil((float(fmap(np.array([hi]))[0]) - b[0]) / fmap.period) + 1
+        b = (b[None, :] + fmap.period * np.arange(first, last + 1)[:, None]).ravel()
+    t = fmap.inverse(b)
+    return t[(t > lo) & (t < hi)]
+
+
+def _crossings(curve: TrimCurve, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Curve parameters where coordinate ``axis`` equals one of ``lines`` (sign changes on the samples,
+    then bisection, all crossings at once)."""
+    if lines.size == 0:
+        return np.zeros(0)
+    d = samples[:, None] - lines[None, :]  # (S, L)
+    k, j = np.nonzero(d[:-1] * d[1:] < 0)
+    exact = t[np.nonzero(d == 0)[0]]
+    a, b = t[k], t[k + 1]
+    fa = d[k, j]
+    value = lines[j]
+    for _ in range(60):
+        if a.size == 0:
+            break
+        c = 0.5 * (a + b)
+        fc = curve.evaluate(c)[:, axis] - value
+        left = (fc < 0) == (fa < 0)
+        a = np.where(left, c, a)
+        fa = np.where(left, fc, fa)
+        b = np.where(left, b, c)
+    return np.concatenate([0.5 * (a + b), exact])
+
+
+def _bernstein(d: int, s: np.ndarray) -> np.ndarray:
+    k = np.arange(d + 1)
+    binom = np.array([comb(d, int(i)) for i in k], dtype=np.float64)
+    return binom[None, :] * s[:, None] ** k[None, :] * (1 - s[:, None]) ** (d - k[None, :])
+
+
+_NODES = 0.5 - 0.5 * np.cos(np.pi * np.arange(FIT_DEGREE + 1) / FIT_DEGREE)  # Chebyshev-Lobatto on [0, 1]
+_SOLVE = np.linalg.inv(_bernstein(FIT_DEGREE, _NODES))  # control points from values at the nodes
+_CHECKS = (np.arange(24) + 0.5) / 24
+_AT_CHECKS = _bernstein(FIT_DEGREE, _CHECKS)
+
+
+def _fit(curve: TrimCurve, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
+    """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t))."""
+    d = FIT_DEGREE
+    todo = np.stack([breaks[:-1], breaks[1:]], axis=1)
+    todo = todo[todo[:, 1] > todo[:, 0]]
+    tol = np.asarray(tolerance, dtype=np.float64)
+    length = breaks[-1] - breaks[0]
+    done_a, done_b, done_ctrl = [], [], []
+    for rounds in range(_MAX_ROUNDS + 1):
+        if todo.shape[0] == 0:
+            break
+        a, b = todo[:, :1], todo[:, 1:]
+        nodes = (a + (b - a) * _NODES).ravel()
+        values = pmap.map(curve.evaluate(nodes)).reshape(-1, d + 1, 2)
+        ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
+        checks = (a + (b - a) * _CHECKS).ravel()
+        want = pmap.map(curve.evaluate(checks)).reshape(-1, _CHECKS.size, 2)
+        got = np.einsum("sk,pkc->psc", _AT_CHECKS, ctrl)
+        error = (np.abs(got - want) / tol).max(axis=(1, 2))
+        good = (error <= 1.0) | (rounds == _MAX_ROUNDS) | ((b - a)[:, 0] <= 1e-12 * length)
+        done_a.append(a[good, 0])
+        done_b.append(b[good, 0])
+        done_ctrl.append(ctrl[good])
+        bad = todo[~good]
+        mid = 0.5 * (bad[:, 0] + bad[:, 1])
+        todo = np.concatenate([np.stack([bad[:, 0], mid], axis=1), np.stack([mid, bad[:, 1]], axis=1)])
+    a = np.concatenate(done_a)
+    b = np.concatenate(done_b)
+    ctrl = np.concatenate(done_ctrl)
+    order = np.argsort(a)
+    a, b, ctrl = a[order], b[order], ctrl[order]
+    ctrl[1:, 0] = ctrl[:-1, -1]  # C0 at the breaks, bit for bit
+    points = np.concatenate([ctrl[:1, 0], ctrl[:, 1:].reshape(-1, 2)])
+    knots = np.concatenate([np.full(d + 1, a[0]), np.repeat(b[:-1], d), np.full(d + 1, b[-1])])
+    return make_trim_curve(d, knots, points)

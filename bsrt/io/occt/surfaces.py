@@ -1,0 +1,453 @@
+"""A face's surface as an exact, non-periodic B-spline, and the map of its parameters.
+
+``convert_surface(original, bounds, size)`` gives the B-spline over the face's
+(u, v) bounds and the :class:`ParamMap` from the original surface's (u, v) to
+the B-spline's (x, y).
+
+The conversion. ``GeomConvert::SurfaceToBSplineSurface`` turns planes,
+cylinders, cones, spheres, tori, surfaces of revolution and extrusion and
+B-spline / Bezier surfaces into exact (rational) B-splines. Circles become
+rational quadratic arcs (``Convert_TgtThetaOver2``), lines and B-spline curves
+keep their parameter. For some surfaces (cylinders, periodic B-splines) it
+returns the whole period however the window is cut. Offsets of free-form
+surfaces are approximated here by ``GeomConvert_ApproxSurface`` to
+``OFFSET_TOLERANCE`` of the model's size (checked on a grid; the bound is the
+measured deviation, reported per model).
+
+The map is separable, x = f(u) and y = g(v), one :class:`AxisMap` per
+direction, in closed form:
+
+* ``identity``: x = u + shift (planes' and B-splines' directions, lines);
+* ``arc``: the B-spline's parameter equals the angle at its knots
+  (b_i, b_i+1) and, in between, follows the rational quadratic arc:
+  x = b_i + h (1 + tan((u + shift - m) / 2) / tan(h / 4)) / 2 with
+  h = b_i+1 - b_i and m the span's middle (measured: 1e-15 of the radius);
+* ``table``: anything else (parabolas, hyperbolas, approximations): f
+  tabulated per span at Chebyshev points by inverting the B-spline, and
+  interpolated (barycentric), to rounding level.
+
+``shift`` is a whole number of periods (OpenCASCADE may convert a torus cut
+at -1 rad over [-1 + 2 pi, ...]). Which kind holds is decided per direction by
+testing points inside every span, and the whole map is checked on a grid
+against the original surface: ``ParamMap.deviation``.
+
+The seam. A face of a periodic direction may straddle the B-spline's own
+seam (a cylinder face from -60 to +60 degrees, converted over [0, 2 pi]), or
+go all the way round with its seam anywhere. Where the B-spline is periodic
+in a direction, it is rotated (cut at f(umin) by knot insertion and its two
+pieces joined the other way round) so that its domain starts at the face's
+own lower bound; then (any direction) it is restricted to [f(umin), f(umax)],
+so every pcurve of the face maps inside the domain and no patch lies
+outside the face's bounds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...bspline import BSplineSurface, evaluate, insert_knot, make_surface
+from ...errors import InputError
+from ..invert import invert
+
+EXACT_TOLERANCE = 1e-9  # the conversion counts as exact below this, as a fraction of the model's size
+OFFSET_TOLERANCE = 1e-8  # approximated offsets: the requested tolerance, as a fraction of the model's size
+_TABLE_NODES = 17  # Chebyshev-Lobatto points per span of a tabulated map
+
+
+class FaceError(Exception):
+    """A face that cannot become a surface at all (the reason is the message)."""
+
+
+# ---------------------------------------------------------------------------
+# One direction's map
+
+
+@dataclass
+class AxisMap:
+    """x = f(t): one direction's increasing map from the original parameter t to the B-spline's x.
+
+    kind: "identity", "arc" or "table" (see the module doc).
+    breaks: (K,) float64, the B-spline's distinct knots in this direction
+      (before any rotation), the ends of the spans of f.
+    period: the B-spline's period in x (0 when it is not periodic); f is
+      extended by f(t + period) = f(t) + period.
+    shift: added to t before the spans are looked up (a whole number of
+      the original surface's periods).
+    table: for kind "table", (K - 1, N) t-values and (K - 1, N) x-values of
+      the Chebyshev-Lobatto points of each span; else None.
+    """
+
+    kind: str
+    breaks: np.ndarray
+    period: float = 0.0
+    shift: float = 0.0
+    table: tuple[np.ndarray, np.ndarray] | None = None
+
+    def __call__(self, t) -> np.ndarray:
+        """(N,) x of (N,) t."""
+        t = np.asarray(t, dtype=np.float64) + self.shift
+        if self.kind == "identity":
+            return t.copy()
+        b = self.breaks
+        if self.table is not None:
+            ends = self.table[0][:, 0]
+            lo = ends[0]
+            span_source = np.append(ends, self.table[0][-1, -1])
+        else:
+            lo = b[0]
+            span_source = b
+        wraps = np.zeros_like(t)
+        if self.period > 0:
+            wraps = np.floor((t - lo) / self.period)
+            t = t - wraps * self.period
+        span = np.clip(np.searchsorted(span_source, t, side="right") - 1, 0, b.size - 2)
+        if self.kind == "arc":
+            h = b[span + 1] - b[span]
+            m = 0.5 * (b[span] + b[span + 1])
+            x = b[span] + 0.5 * h * (1.0 + np.tan(0.5 * (t - m)) / np.tan(0.25 * h))
+        else:
+            x = _barycentric(self.table[0][span], self.table[1][span], t)
+        return x + wraps * self.period
+
+    def inverse(self, x) -> np.ndarray:
+        """(N,) t of (N,) x: f's inverse."""
+        x = np.asarray(x, dtype=np.float64)
+        if self.kind == "identity":
+            return x - self.shift
+        b = self.breaks
+        wraps = np.zeros_like(x)
+        if self.period > 0:
+            wraps = np.floor((x - b[0]) / self.period)
+            x = x - wraps * self.period
+        span = np.clip(np.searchsorted(b, x, side="right") - 1, 0, b.size - 2)
+        if self.kind == "arc":
+            h = b[span + 1] - b[span]
+            m = 0.5 * (b[span] + b[span + 1])
+            s = (x - b[span]) / h
+            t = m + 2.0 * np.arctan((2.0 * s - 1.0) * np.tan(0.25 * h))
+        else:
+            t = _barycentric(self.table[1][span], self.table[0][span], x)
+        return t + wraps * self.period - self.shift
+
+
+def _chebyshev_lobatto(a, b, n: int) -> np.ndarray:
+    """(..., n) Chebyshev-Lobatto points from a to b (increasing)."""
+    s = 0.5 - 0.5 * np.cos(np.pi * np.arange(n) / (n - 1))
+    return np.asarray(a)[..., None] + (np.asarray(b) - np.asarray(a))[..., None] * s
+
+
+def _barycentric(nodes: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Interpolate values (N, n) given at Chebyshev-Lobatto nodes (N, n) at t (N,) (barycentric formula)."""
+    n = nodes.shape[1]
+    w = (-1.0) ** np.arange(n)
+    w[0] *= 0.5
+    w[-1] *= 0.5
+    d = t[:, None] - nodes
+    exact = d == 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = w / d
+        out = (c * values).sum(axis=1) / c.sum(axis=1)
+    hit = exact.any(axis=1)
+    if hit.any():
+        out[hit] = values[hit][exact[hit]]
+    return out
+
+
+# ---------------------------------------------------------------------------
+# The whole map
+
+
+@dataclass
+class ParamMap:
+    """The map (u, v) -> (x, y) from the original surface's parameters to the B-spline's.
+
+    fu, fv: the two directions' maps. bounds: the face's (umin, umax, vmin,
+    vmax) in the original parameters. u_period, v_period: the original
+    surface's periods (0 where not periodic). deviation: the largest distance
+    (local units) between the original surface at (u, v) and the B-spline at
+    the mapped (x, y), on a grid over the bounds. identity: both maps are
+    the identity (planes, B-splines): the pcurves are used as they are.
+    """
+
+    fu: AxisMap
+    fv: AxisMap
+    bounds: tuple[float, float, float, float]
+    u_period: float
+    v_period: float
+    deviation: float = 0.0
+
+    @property
+    def identity(self) -> bool:
+        return self.fu.kind == "identity" and self.fv.kind == "identity" and not self.fu.shift and not self.fv.shift
+
+    def map(self, uv: np.ndarray) -> np.ndarray:
+        """(N, 2) original (u, v) -> (N, 2) B-spline (x, y)."""
+        return np.stack([self.fu(uv[:, 0]), self.fv(uv[:, 1])], axis=1)
+
+
+def _points(original, u, v) -> np.ndarray:
+    """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
+    out = np.empty((len(u), 3))
+    value = original.Value
+    for k, (a, b) in enumerate(zip(np.asarray(u, float).tolist(), np.asarray(v, float).tolist())):
+        p = value(a, b)
+        out[k] = p.X(), p.Y(), p.Z()
+    return out
+
+
+def _breaks(knots: np.ndarray, degree: int, n: int) -> np.ndarray:
+    k = knots[degree: n + 1]
+    return np.unique(k)
+
+
+def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other: float, size: float) -> str:
+    """"identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table"."""
+    s = np.array([0.23, 0.71])
+    x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
+    h = np.repeat(breaks[1:] - breaks[:-1], s.size)
+    m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
+    ss = np.tile(s, breaks.size - 1)
+    candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
+    y = np.full_like(x, other)
+    xy = (x, y) if axis == 0 else (y, x)
+    got = evaluate(whole, *xy)[0]
+    tol = EXACT_TOLERANCE * size
+    for kind, t in candidates.items():
+        want = _points(original, t, y) if axis == 0 else _points(original, y, t)
+        if np.max(np.linalg.norm(want - got, axis=1)) <= tol:
+            return kind
+    return "table"
+
+
+def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other: float, size: float):
+    """The (t, x) Chebyshev tables of a map with no closed form: t at the breaks by OpenCASCADE's
+    projection, x at Chebyshev points of t by inverting the B-spline."""
+    from OCP.gp import gp_Pnt
+    from OCP.ShapeAnalysis import ShapeAnalysis_Surface
+
+    y = np.full(breaks.size, other)
+    xy = (breaks, y) if axis == 0 else (y, breaks)
+    pts = evaluate(whole, *xy)[0]
+    analysis = ShapeAnalysis_Surface(original)
+    t_breaks = np.empty(breaks.size)
+    for k, p in enumerate(pts):
+        uv = analysis.ValueOfUV(gp_Pnt(*map(float, p)), EXACT_TOLERANCE * size)
+        t_breaks[k] = uv.X() if axis == 0 else uv.Y()
+    t_breaks = np.maximum.accumulate(t_breaks)  # rounding at the ends of a periodic range
+    t_nodes = _chebyshev_lobatto(t_breaks[:-1], t_breaks[1:], _TABLE_NODES)  # (K - 1, N)
+    x_start = _chebyshev_lobatto(breaks[:-1], breaks[1:], _TABLE_NODES)
+    flat_t = t_nodes.ravel()
+    other_t = np.full_like(flat_t, other)
+    targets = _points(original, flat_t, other_t) if axis == 0 else _points(original, other_t, flat_t)
+    start = (x_start.ravel(), np.full_like(flat_t, other)) if axis == 0 else (np.full_like(flat_t, other),
+                                                                            x_start.ravel())
+    xs, ys = invert(whole, targets, *start, size)
+    x_nodes = (xs if axis == 0 else ys).reshape(t_nodes.shape)
+    x_nodes[:, 0], x_nodes[:, -1] = breaks[:-1], breaks[1:]
+    return t_nodes, x_nodes
+
+
+# ---------------------------------------------------------------------------
+# Conversion
+
+
+def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, ParamMap]:
+    """The surface over the face's ``bounds`` as a non-periodic B-spline (local coordinates) and its ParamMap.
+
+    bounds: (umin, umax, vmin, vmax), the face's parameter bounds (at most
+    one period long in a periodic direction). size: the model's size in
+    local units (the scale of the tolerances). Raises FaceError.
+    """
+    umin, umax, vmin, vmax = bounds
+    bs, approximated = _to_bspline(original, bounds, size)
+    periodic = (bool(bs.IsUPeriodic()), bool(bs.IsVPeriodic()))
+    whole = _extract(bs)
+    periods = (original.UPeriod() if original.IsUPeriodic() else 0.0,
+               original.VPeriod() if original.IsVPeriodic() else 0.0)
+    maps = []
+    doms = (whole.domain_u, whole.domain_v)
+    for axis in (0, 1):
+        p, n = whole.degree[axis], whole.shape[axis]
+        knots = whole.knots_u if axis == 0 else whole.knots_v
+        breaks = _breaks(knots, p, n)
+        other_breaks = _breaks(*((whole.knots_v, whole.degree[1], whole.shape[1]) if axis == 0 else
+                                 (whole.knots_u, whole.degree[0], whole.shape[0])))
+        other = float(other_breaks[0] if other_breaks.size < 3 else other_breaks[1])
+        if approximated:
+            kind = "identity"
+        else:
+            kind = _kind(original, whole, axis, breaks, other, size)
+        fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
+        if kind == "table":
+            fmap.table = _table(original, whole, axis, breaks, other, size)
+        lo, hi = (umin, umax) if axis == 0 else (vmin, vmax)
+        fmap.shift = _shift(fmap, lo, hi, doms[axis], periods[axis])
+        maps.append(fmap)
+    fu, fv = maps
+    local = whole
+    for axis, fmap in enumerate(maps):
+        lo, hi = (umin, umax) if axis == 0 else (vmin, vmax)
+        a, b = float(fmap(np.array([lo]))[0]), float(fmap(np.array([hi]))[0])
+        if fmap.period > 0:
+            local = _rotated(local, axis, a)
+        local = _restricted(local, axis, a, b)
+    pmap = ParamMap(fu, fv, (umin, umax, vmin, vmax), *periods)
+    pmap.deviation = _deviation(original, local, pmap)
+    if pmap.deviation > EXACT_TOLERANCE * size and not approximated:
+        raise FaceError(f"the conversion of a {type(original).__name__} does not match it "
+                        f"({pmap.deviation / size:.2g} of the model's size off)")
+    return local, pmap
+
+
+def _to_bspline(original, bounds, size: float):
+    """(Geom_BSplineSurface, approximated): OpenCASCADE's conversion over the bounds (a whole period
+    where the face goes all the way round); offsets of free-form surfaces approximated."""
+    from OCP.Geom import Geom_OffsetSurface, Geom_RectangularTrimmedSurface
+    from OCP.GeomConvert import GeomConvert
+
+    umin, umax, vmin, vmax = bounds
+    surface = original
+    while isinstance(surface, Geom_RectangularTrimmedSurface):  # its bounds are in ``bounds`` already
+        surface = surface.BasisSurface()
+    if isinstance(surface, Geom_OffsetSurface):
+        equivalent = surface.Surface()  # a plane's, cylinder's, ... offset is another such surface
+        if equivalent is None or isinstance(equivalent, Geom_OffsetSurface):
+            return _approximated(surface, bounds, size), True
+        surface = equivalent
+    # A whole period is converted from the surface's own start: over any other full period OpenCASCADE
+    # converts the natural one and cuts it in the B-spline's parameter, which is not the angle.
+    window = []
+    su0, _, sv0, _ = surface.Bounds()
+    for lo, hi, start, periodic, period in ((umin, umax, su0, surface.IsUPeriodic(), surface.UPeriod),
+                                            (vmin, vmax, sv0, surface.IsVPeriodic(), surface.VPeriod)):
+        full = periodic and hi - lo >= period() * (1 - 1e-12)
+        window += [start, start + period()] if full else [lo, hi]
+    try:
+        return GeomConvert.SurfaceToBSplineSurface_s(Geom_RectangularTrimmedSurface(surface, *window)), False
+    except Exception as e:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
+        raise FaceError(f"OpenCASCADE cannot convert a {type(surface).__name__}: {e}") from None
+
+
+def _approximated(surface, bounds, size: float):
+    """A free-form offset surface approximated over the bounds (same parameters) to OFFSET_TOLERANCE."""
+    from OCP.Geom import Geom_RectangularTrimmedSurface
+    from OCP.GeomAbs import GeomAbs_C2
+    from OCP.GeomConvert import GeomConvert_ApproxSurface
+
+    trimmed = Geom_RectangularTrimmedSurface(surface, *bounds)
+    try:
+        approx = GeomConvert_ApproxSurface(trimmed, OFFSET_TOLERANCE * size, GeomAbs_C2, GeomAbs_C2, 9, 9, 2000, 0)
+    except Exception as e:  # noqa: BLE001
+        raise FaceError(f"OpenCASCADE cannot approximate an offset surface: {e}") from None
+    if not approx.HasResult():
+        raise FaceError("OpenCASCADE cannot approximate an offset surface")
+    return approx.Surface()
+
+
+def _shift(fmap: AxisMap, lo: float, hi: float, domain, period: float) -> float:
+    """A whole number of periods to add to t so that f([lo, hi]) falls in the B-spline's domain.
+
+    A periodic B-spline (fmap.period > 0) is rotated to start at f(lo), which
+    must then lie in [x0, x0 + period): the shift brings it there. Otherwise
+    f([lo, hi]) is moved (by the original's period) to meet the domain's middle.
+    """
+    if fmap.period > 0:
+        a = float(fmap(np.array([lo]))[0])
+        return -fmap.period * np.floor((a - domain[0]) / fmap.period + 1e-9)  # a rounding below x0 is x0
+    if period <= 0:
+        return 0.0
+    # x = t at the knots, so the domain's middle compares with the bounds' middle directly
+    return period * round((0.5 * (domain[0] + domain[1]) - 0.5 * (lo + hi)) / period)
+
+
+def _rotated(surface: BSplineSurface, axis: int, start: float) -> BSplineSurface:
+    """A surface that is periodic in ``axis`` (given over one period [x0, x0 + P]) re-cut to start at
+    ``start`` (in [x0, x0 + P)): its domain becomes [start, start + P]."""
+    (x0, x1) = surface.domain_u if axis == 0 else surface.domain_v
+    period = x1 - x0
+    if start - x0 <= 1e-9 * period or x1 - start <= 1e-9 * period:
+        return surface  # (the face's pcurves reach past the domain's end by rounding: they are cut there)
+    p = surface.degree[axis]
+    knots = surface.knots_u if axis == 0 else surface.knots_v
+    ctrl = np.moveaxis(surface.homogeneous(), axis, 0)
+    while np.count_nonzero(knots == start) < p:
+        knots, ctrl = insert_knot(knots, ctrl, p, start)
+    first = int(np.searchsorted(knots, start, side="left"))  # index of the first knot equal to start
+    # head: [x0, start] uses points [: first], tail: [start, x1] points [first - 1:] (the split point shared)
+    tail_knots = np.concatenate([[start], knots[first: ]])
+    tail = ctrl[first - 1:]
+    head = ctrl[: first]
+    head_knots = knots[: first + p]  # ends with p copies of start
+    # joined: tail over [start, x1], then head moved by one period over [x1, start + period]
+    new_knots = np.concatenate([tail_knots[:-1], head_knots[p + 1:] + period, [start + period]])
+    new_ctrl = np.concatenate([tail, head[1:]], axis=0)
+    new_ctrl = np.moveaxis(new_ctrl, 0, axis)
+    ku, kv = (new_knots, surface.knots_v) if axis == 0 else (surface.knots_u, new_knots)
+    w = new_ctrl[..., 3]
+    return make_surface(surface.degree, ku, kv, new_ctrl[..., :3] / w[..., None],
+                        None if surface.weights is None else w)
+
+
+def _restricted(surface: BSplineSurface, axis: int, a: float, b: float) -> BSplineSurface:
+    """The surface cut to [a, b] in ``axis`` where that is inside its domain (knot insertion)."""
+    from .. import restrict
+
+    lo, hi = surface.domain_u if axis == 0 else surface.domain_v
+    tol = 1e-12 * max(1.0, abs(lo), abs(hi))
+    a, b = max(a, lo), min(b, hi)
+    if a - lo <= tol:
+        a = lo
+    if hi - b <= tol:
+        b = hi
+    if not a < b or (a == lo and b == hi):
+        return surface
+    ranges = [(surface.domain_u), (surface.domain_v)]
+    ranges[axis] = (a, b)
+    return restrict(surface, *ranges)
+
+
+def _deviation(original, local: BSplineSurface, pmap: ParamMap) -> float:
+    """The largest distance between the original surface and the B-spline at mapped points of a grid."""
+    umin, umax, vmin, vmax = pmap.bounds
+    fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])
+    uu, vv = np.meshgrid(umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin), indexing="ij")
+    uv = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    xy = pmap.map(uv)
+    (a0, a1), (b0, b1) = local.domain_u, local.domain_v
+    xy[:, 0] = np.clip(xy[:, 0], a0, a1)
+    xy[:, 1] = np.clip(xy[:, 1], b0, b1)
+    want = _points(original, uv[:, 0], uv[:, 1])
+    got = evaluate(local, xy[:, 0], xy[:, 1])[0]
+    return float(np.max(np.linalg.norm(got - want, axis=1)))
+
+
+def _extract(bs) -> BSplineSurface:
+    """A Geom_BSplineSurface (made non-periodic, in place) as a BSplineSurface."""
+    if bs.IsUPeriodic():
+        bs.SetUNotPeriodic()
+    if bs.IsVPeriodic():
+        bs.SetVNotPeriodic()
+    nu, nv = bs.NbUPoles(), bs.NbVPoles()
+    points = np.empty((nu, nv, 3))
+    weights = np.empty((nu, nv))
+    pole, weight = bs.Pole, bs.Weight
+    for i in range(nu):
+        for j in range(nv):
+            p = pole(i + 1, j + 1)
+            points[i, j] = p.X(), p.Y(), p.Z()
+            weights[i, j] = weight(i + 1, j + 1)
+    knots_u = flat_knots(bs.UKnot, bs.UMultiplicity, bs.NbUKnots())
+    knots_v = flat_knots(bs.VKnot, bs.VMultiplicity, bs.NbVKnots())
+    try:
+        return make_surface((bs.UDegree(), bs.VDegree()), knots_u, knots_v, points,
+                            None if np.all(weights == 1.0) else weights)
+    except InputError as e:
+        raise FaceError(f"the converted surface is invalid ({e})") from None
+
+
+def flat_knots(knot, multiplicity, n) -> np.ndarray:
+    """(K,) float64: the knots of an OpenCASCADE curve or surface direction, each repeated by its multiplicity."""
+    return np.repeat([knot(i) for i in range(1, n + 1)], [multiplicity(i) for i in range(1, n + 1)]).astype(
+        np.float64)

@@ -1,0 +1,354 @@
+"""A face's wires as closed trim loops in its B-spline's domain.
+
+Every wire of the face (outer and inner alike: bsrt's rule is even-odd)
+becomes one or more :class:`~bsrt.trim.TrimLoop`, in steps:
+
+1. **Edges in order** along the wire (``BRepTools_WireExplorer``, else as
+   stored, chained greedily), each edge's pcurve in the original (u, v)
+   (:func:`~bsrt.io.occt.curves.pcurve`).
+2. **Chained across the seam.** In a periodic direction a pcurve may be
+   given a whole period away from its neighbours (seam edges, third-party
+   files): each curve is moved by whole periods to start where the previous
+   one ends. Where two consecutive ends differ in (u, v) but meet in
+   space (a pole, a cone's apex: a degenerate edge the file leaves out),
+   the straight iso-segment between them is added. A gap that is a gap in
+   space too means the wire does not close: :class:`TrimError`.
+3. **Placed in the face's bounds.** A closed loop is moved by whole periods
+   into the face's (u, v) bounds; where the face goes all the way round a
+   direction and the loop straddles the bounds' end (a hole on the seam),
+   a copy one period over is added, each copy cut at the domain's edge.
+   A chain that goes once round a periodic direction (a circle bounding a
+   band of a cylinder, with no seam edge) ends a whole period from where it
+   starts: it is closed along the domain's top edge, and, since the face
+   lies left of its wire (FORWARD, in (u, v)), the whole domain is added
+   as one more loop when the parity of the region above the topmost such
+   chain would come out wrong.
+4. **Mapped** into the B-spline's (x, y) (:func:`~bsrt.io.occt.curves.map_curve`),
+   the ends of consecutive curves snapped together (they differ by at
+   most the vertex tolerances), and excursions out of the domain (third-party
+   files have them, by about the edge tolerance) cut off at the domain's edge.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...bspline import BSplineSurface, insert_knot
+from ...trim import TrimCurve, TrimLoop, make_trim_curve
+from .curves import TrimError, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
+from .reading import cast
+from .surfaces import ParamMap
+
+_MEET = 1e-7  # ends closer than this (a fraction of the model's size) meet, in space
+
+
+def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: float) -> list[TrimLoop]:
+    """The face's wires as closed loops in ``local``'s (x, y) domain (see the module doc).
+
+    original: the face's OpenCASCADE surface (local coordinates); size: the
+    model's size in those units. Raises TrimError.
+    """
+    from OCP.TopAbs import TopAbs_WIRE
+    from OCP.TopExp import TopExp_Explorer
+
+    closed, around = [], []
+    explorer = TopExp_Explorer(face, TopAbs_WIRE)
+    while explorer.More():
+        wire = cast("Wire", explorer.Current())
+        curves = [c for c in (pcurve(e, face) for e in wire_edges(wire, face)) if c is not None]
+        if curves:
+            chain, gap = _chained(curves, original, pmap, size)
+            (around if gap is not None else closed).append((chain, gap))
+        explorer.Next()
+    loops = []
+    for chain, _ in closed:
+        loops.extend(_placed(chain, pmap))
+    if around:
+        loops.extend(_closed_around(around, pmap))
+    lu, lv = derivative_bounds(local)
+    from .curves import FIT_TOLERANCE
+
+    tol = FIT_TOLERANCE * size
+    tolerance = (tol / max(lu, 1e-300), tol / max(lv, 1e-300))
+    return [TrimLoop(tuple(_close([map_curve(c, pmap, tolerance) for c in loop], local, size))) for loop in loops]
+
+
+def wire_edges(wire, face) -> list:
+    """The wire's edges in order along the wire, each with its orientation in the face."""
+    from OCP.BRepTools import BRepTools_WireExplorer
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+
+    edges = []
+    try:
+        walker = BRepTools_WireExplorer(wire, face)
+        while walker.More():
+            edges.append(cast("Edge", walker.Current()))
+            walker.Next()
+    except Exception:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
+        edges = []
+    stored = []
+    explorer = TopExp_Explorer(wire, TopAbs_EDGE)
+    while explorer.More():
+        stored.append(cast("Edge", explorer.Current()))
+        explorer.Next()
+    return edges if len(edges) == len(stored) else stored  # the walker skips edges of odd wires: take them all
+
+
+def _periods(pmap: ParamMap) -> np.ndarray:
+    return np.array([pmap.u_period, pmap.v_period])
+
+
+def _nearest_shift(frm: np.ndarray, to: np.ndarray, periods: np.ndarray) -> np.ndarray:
+    """The whole periods (2,) that bring point ``frm`` nearest ``to``."""
+    out = np.zeros(2)
+    for axis in (0, 1):
+        if periods[axis] > 0:
+            out[axis] = periods[axis] * np.round((to[axis] - frm[axis]) / periods[axis])
+    return out
+
+
+def _space_gap(original, a: np.ndarray, b: np.ndarray) -> float:
+    pa, pb = original.Value(float(a[0]), float(a[1])), original.Value(float(b[0]), float(b[1]))
+    return float(pa.Distance(pb))
+
+
+def _chained(curves: list[TrimCurve], original, pmap: ParamMap, size: float):
+    """(curves end to end, across the seam; the closing gap (2,) if it goes once round a period, else None)."""
+    periods = _periods(pmap)
+    umin, umax, vmin, vmax = pmap.bounds
+    scale = float(np.hypot(umax - umin, vmax - vmin))
+    snap = 1e-6 * scale
+    meet = _MEET * size
+    out = [curves[0]]
+    left = list(curves[1:])
+    ordered = True
+    while left:
+        end = out[-1].ends()[1]
+        if ordered:
+            c = left.pop(0)
+            start = c.ends()[0]
+            c = shifted(c, _nearest_shift(start, end, periods))
+            if np.hypot(*(c.ends()[0] - end)) > snap and _space_gap(original, c.ends()[0], end) > meet:
+                ordered = False  # not in order along the wire: chain the rest greedily
+                left.insert(0, c)
+                continue
+        else:
+            c = _greedy_next(end, left, periods)
+        start = c.ends()[0]
+        if np.hypot(*(start - end)) > snap:
+            if _space_gap(original, start, end) > meet:
+                raise TrimError(f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} "
+                                f"apart")
+            out.append(segment(end, start))  # a degenerate edge left out (a pole, an apex)
+        out.append(c)
+    first, last = out[0].ends()[0], out[-1].ends()[1]
+    gap = first - last
+    back = _nearest_shift(last, first, periods)
+    if np.hypot(*(gap - back)) <= snap or _space_gap(original, first, last) <= meet:
+        if np.any(back) and np.hypot(*(gap - back)) <= snap:
+            return out, back  # ends one period from its start: round the surface
+        if np.hypot(*gap) > snap:
+            out.append(segment(last, first))
+        return out, None
+    raise TrimError(f"a wire does not close: its ends are {_space_gap(original, first, last):.3g} apart")
+
+
+def _greedy_next(end: np.ndarray, left: list[TrimCurve], periods: np.ndarray) -> TrimCurve:
+    """Pop the curve of ``left`` (reversed and moved by whole periods if that fits better) that starts nearest ``end``."""
+    best, k, flip, move = np.inf, 0, False, np.zeros(2)
+    for i, c in enumerate(left):
+        e = c.ends()
+        for f, p in ((False, e[0]), (True, e[1])):
+            s = _nearest_shift(p, end, periods)
+            d = np.hypot(*(p + s - end))
+            if d < best:
+                best, k, flip, move = d, i, f, s
+    c = left.pop(k)
+    return shifted(reversed_curve(c) if flip else c, move)
+
+
+def _box(chain: list[TrimCurve]) -> np.ndarray:
+    pts = np.concatenate([c.points for c in chain])
+    return np.array([pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()])
+
+
+def _placed(chain: list[TrimCurve], pmap: ParamMap) -> list[list[TrimCurve]]:
+    """A closed chain moved by whole periods into the face's bounds (and a copy a period over where it
+    straddles the end of a direction the face goes all the way round)."""
+    periods = _periods(pmap)
+    bounds = np.array(pmap.bounds)
+    box = _box(chain)
+    move = np.zeros(2)
+    for axis in (0, 1):
+        p = periods[axis]
+        if p > 0:
+            lo, hi = bounds[2 * axis], bounds[2 * axis + 1]
+            mid = 0.5 * (box[2 * axis] + box[2 * axis + 1])
+            move[axis] = p * np.round((0.5 * (lo + hi) - mid) / p)
+    chain = [shifted(c, move) for c in chain]
+    box = _box(chain)
+    copies = [chain]
+    for axis in (0, 1):
+        p = periods[axis]
+        lo, hi = bounds[2 * axis], bounds[2 * axis + 1]
+        if p > 0 and hi - lo >= p * (1 - 1e-9):
+            slack = 1e-9 * p
+            offset = np.zeros(2)
+            if box[2 * axis] < lo - slack:
+                offset[axis] = p
+            elif box[2 * axis + 1] > hi + slack:
+                offset[axis] = -p
+            if offset.any():
+                copies.append([shifted(c, offset) for c in chain])
+    return copies
+
+
+def _closed_around(around, pmap: ParamMap) -> list[list[TrimCurve]]:
+    """Chains that go once round a periodic direction, closed along the domain's edge (see the module doc)."""
+    umin, umax, vmin, vmax = pmap.bounds
+    loops = []
+    directions = []
+    axes = {int(np.flatnonzero(gap)[0]) if np.count_nonzero(gap) == 1 else -1 for _, gap in around}
+    if axes != {0} and axes != {1}:
+        raise TrimError("a wire goes round both periodic directions of the surface")
+    axis = axes.pop()
+    other = 1 - axis
+    top = (vmax, umax)[other]
+    for chain, gap in around:
+        # start inside the bounds along ``axis``
+        lo = (umin, vmin)[axis]
+        start = chain[0].ends()[0]
+        move = np.zeros(2)
+        p = abs(gap[axis])
+        move[axis] = -p * np.floor((start[axis] - lo) / p)
+        chain = [shifted(c, move) for c in chain]
+        a, b = chain[0].ends()[0], chain[-1].ends()[1]
+        corner_b, corner_a = b.copy(), a.copy()
+        corner_b[other] = top
+        corner_a[other] = top
+        closing = [segment(b, corner_b), segment(corner_b, corner_a), segment(corner_a, a)]
+        loop = chain + closing
+        directions.append((float(np.mean([c.points[:, other].mean() for c in chain])), float(np.sign(b[axis] - a[axis]))))
+        offset = np.zeros(2)
+        offset[axis] = -p
+        loops.append(loop)
+        loops.append([shifted(c, offset) for c in loop])
+    # the face lies left of its wires: above a chain running +u (axis 0), below one running -u; for
+    # chains round v (axis 1) left of +v is -u, so the sense flips
+    topmost = max(directions)[1]
+    above_is_face = topmost > 0 if axis == 0 else topmost < 0
+    if (len(around) % 2 == 1) != above_is_face:
+        corners = np.array([[umin, vmin], [umax, vmin], [umax, vmax], [umin, vmax]])
+        loops.append([segment(corners[i], corners[(i + 1) % 4]) for i in range(4)])
+    return loops
+
+
+def _close(curves: list[TrimCurve], surface: BSplineSurface, size: float) -> list[TrimCurve]:
+    """Snap the ends of consecutive curves together and cut off their excursions out of the domain."""
+    n = len(curves)
+    ends = [c.ends() for c in curves]
+    (a0, a1), (b0, b1) = surface.domain_u, surface.domain_v
+    pts = [c.points.copy() for c in curves]
+    for i in range(n):
+        j = (i + 1) % n
+        mid = 0.5 * (ends[i][1] + ends[j][0])
+        pts[i][-1] = mid
+        pts[j][0] = mid
+    inside = [_inside_domain(make_trim_curve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1))
+              for c, p in zip(curves, pts)]
+    return _off_the_edges(inside, (a0, a1, b0, b1))
+
+
+def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
+    """The curves that run along an edge of the domain (a seam, the side of a face that fills its
+    bounds) moved just outside it, their neighbours' ends with them.
+
+    On the loop itself the even-odd test may go either way, and a hit on a
+    seam lies on the domain's edge, where its (u, v) is clamped: a loop a
+    rounding error inside would leave a crack one ray wide. Outside the
+    domain there is no surface, so the loop may run there.
+    """
+    a0, a1, b0, b1 = domain
+    span = np.array([a1 - a0, b1 - b0])
+    near = 1e-9 * span
+    push = 1e-9 * span
+    pts = [c.points.copy() for c in curves]
+    moved = []
+    for p in pts:
+        along = False
+        for axis, (lo, hi) in enumerate(((a0, a1), (b0, b1))):
+            x = p[:, axis]
+            if np.all(np.abs(x - lo) <= near[axis]):
+                p[:, axis], along = lo - push[axis], True
+            elif np.all(np.abs(x - hi) <= near[axis]):
+                p[:, axis], along = hi + push[axis], True
+        moved.append(along)
+    if not any(moved):
+        return curves
+    n = len(pts)
+    for i in range(n):  # a moved curve's ends carry its neighbours' ends along
+        j = (i + 1) % n
+        if moved[i] and not moved[j]:
+            pts[j][0] = pts[i][-1]
+        elif moved[j] and not moved[i]:
+            pts[i][-1] = pts[j][0]
+        elif moved[i] and moved[j]:  # two edges meeting at a corner: both ends at the pushed corner
+            corner = _outer(pts[i][-1], pts[j][0], domain)
+            pts[i][-1] = corner
+            pts[j][0] = corner
+    return [make_trim_curve(c.degree, c.knots, p, c.weights) for c, p in zip(curves, pts)]
+
+
+def _outer(a: np.ndarray, b: np.ndarray, domain) -> np.ndarray:
+    """Of two nearly equal points near a corner of the domain, coordinate by coordinate the one farther out."""
+    a0, a1, b0, b1 = domain
+    mid = np.array([0.5 * (a0 + a1), 0.5 * (b0 + b1)])
+    return np.where(np.abs(a - mid) >= np.abs(b - mid), a, b)
+
+
+def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
+    """The curve with its excursions out of the surface's domain moved onto the domain's edge.
+
+    Only the part inside the domain matters (the surface has nothing
+    outside it), so each excursion is cut off exactly (its ends found by
+    bisection, the curve split there by knot insertion) and its control
+    points clipped onto the domain's edge; the rest of the curve is unchanged.
+    """
+    a0, a1, b0, b1 = domain
+    eps = 1e-12 * np.hypot(a1 - a0, b1 - b0)  # a curve along the edge is inside, rounding aside
+    p_all = curve.points
+    if (p_all[:, 0].min() >= a0 - eps and p_all[:, 0].max() <= a1 + eps and p_all[:, 1].min() >= b0 - eps
+            and p_all[:, 1].max() <= b1 + eps):
+        return curve  # the control points are inside: so is the curve (convex hull)
+    lo, hi = curve.domain
+    t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
+
+    def inside(x):
+        uv = curve.evaluate(np.atleast_1d(x))
+        return (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
+
+    state = inside(t)
+    k = np.flatnonzero(state[:-1] != state[1:])
+    a, b, sa = t[k], t[k + 1], state[k]
+    for _ in range(60):  # all the crossings at once
+        m = 0.5 * (a + b)
+        same = inside(m) == sa
+        a, b = np.where(same, m, a), np.where(same, b, m)
+    cuts = 0.5 * (a + b)
+    p = curve.degree
+    knots, ctrl = curve.knots, curve.homogeneous()
+    for x in cuts:
+        for _ in range(p - int(np.count_nonzero(knots == x))):
+            knots, ctrl = insert_knot(knots, ctrl, p, x)
+    points = ctrl[:, :2] / ctrl[:, 2:3]
+    weights = ctrl[:, 2]
+    bounds = np.concatenate([[lo], cuts, [hi]])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if not inside(0.5 * (a + b))[0]:  # an excursion: its control points onto the edge
+            first = int(np.searchsorted(knots, a, side="right")) - 1 - p
+            last = int(np.searchsorted(knots, b, side="left"))
+            piece = points[max(first, 0): last]
+            piece[:, 0] = np.clip(piece[:, 0], a0, a1)
+            piece[:, 1] = np.clip(piece[:, 1], b0, b1)
+    return make_trim_curve(p, knots, points, None if curve.weights is None else weights)
