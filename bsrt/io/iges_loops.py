@@ -39,6 +39,7 @@ from ..trim import TrimLoop, make_trim_curve
 from .iges_bspline import Curve, clamp, ends, evaluate, line_curve, reverse
 from .iges_curves import CURVE_TYPES, Unsupported, pieces
 from .iges_invert import SurfaceInverse, invert_curve, map_curve
+from .iges_seams import Open, close_once_round
 from .iges_surfaces import SurfaceDef
 
 GAP = 1e-4  # largest loop gap closed, as a fraction of the domain's diagonal
@@ -58,6 +59,10 @@ class Piece:
 
 
 BRIDGE = "bridge"  # a vertex edge without a parameter-space curve
+
+
+class OpenLoop(InputError):
+    """A trim loop that does not close (the message names the entity and says why)."""
 
 
 class Unbounded(Exception):
@@ -139,6 +144,7 @@ class LoopBuilder:
         if any(sd.periodic):
             for r in raw:
                 self._align(r)
+            raw = self._seams(raw)
         box = None if outer_is_domain else self._box(raw)  # the outer boundary is the natural one
         try:
             s, mu, mv = sd.place(box)
@@ -189,7 +195,7 @@ class LoopBuilder:
         idx = [i for i, x in enumerate(r.items) if isinstance(x, Piece)]
         if len(idx) < 2 or any(r.items[i].space != "iges" for i in idx):
             return
-        per = np.array([2 * math.pi if p else 0.0 for p in self.sd.periodic])
+        per = np.array(self.sd.period, float)
 
         def wrapped(d):
             return np.where(per > 0, d - per * np.round(d / np.where(per > 0, per, 1)), d)
@@ -215,6 +221,28 @@ class LoopBuilder:
                 curves[k] = replace(curves[k], points=curves[k].points + shift)
         for i, c in zip(idx, curves):
             r.items[i] = replace(r.items[i], curve=c)
+
+    def _seams(self, raw: list[RawLoop]) -> list[RawLoop]:
+        """Loops that go once round a periodic surface joined or closed along the domain's
+        edges, and all shifted into one window of each period (``iges_seams``)."""
+        if any(isinstance(x, Piece) and x.space != "iges" for r in raw for x in r.items):
+            return raw
+        loops = [[x.curve if isinstance(x, Piece) else x for x in r.items] for r in raw]
+        sources = [[x.source for x in r.items if isinstance(x, Piece)] for r in raw]
+        try:
+            loops, labels = close_once_round(loops, [r.label for r in raw], self.sd.period, self.sd.natural,
+                                             self.sd.poles)
+        except Open as e:
+            raise self.open(str(e)) from None
+        by_label = {r.label: s for r, s in zip(raw, sources)}
+        out = []
+        for loop, label in zip(loops, labels):
+            src = iter(by_label[label] * 2)
+            out.append(RawLoop([x if x is BRIDGE else Piece(x, "iges", next(src, -1)) for x in loop], label))
+        return out
+
+    def open(self, message: str):
+        return OpenLoop(str(self.fail(message)))
 
     def _box(self, raw: list[RawLoop]):
         """(u0, u1, v0, v1) the loops use, in the entity's parameters (None: natural)."""
@@ -288,7 +316,7 @@ class LoopBuilder:
                     bridges[j] = line_curve(end, start)
                     continue
                 src_i, src_j = (f"DE {curves[n][1]}" if curves[n][1] > 0 else "a vertex" for n in (i, j))
-                raise self.fail(
+                raise self.open(
                     f"{label} is open: the curve from {src_i} ends at ({end[0]:.9g}, {end[1]:.9g}) but the "
                     f"curve from {src_j} starts at ({start[0]:.9g}, {start[1]:.9g}), {g:.3g} apart "
                     f"(more than {GAP:g} x the domain's size), {np.linalg.norm(p - q):.3g} apart in model "
