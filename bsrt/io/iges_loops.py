@@ -173,13 +173,15 @@ class LoopBuilder:
         """Angles of 190-198 faces written in degrees (a span over 2 pi) become radians."""
         if not any(self.sd.angular):
             return
-        file_pieces = [x for r in raw for x in r.items if isinstance(x, Piece) and not x.inverted]
-        if not file_pieces:
-            return
-        pts = np.concatenate([p.curve.points for p in file_pieces])
         axes = [k for k in range(2) if self.sd.angular[k]]
-        if not any(np.ptp(pts[:, k]) > 2 * math.pi * (1 + 1e-6) or np.abs(pts[:, k]).max() > 4 * math.pi
-                   for k in axes):
+        degrees = False
+        for r in raw:  # loop by loop: loops may lie in different turns
+            file_pieces = [x for x in r.items if isinstance(x, Piece) and not x.inverted]
+            if file_pieces:
+                pts = np.concatenate([p.curve.points for p in file_pieces])
+                degrees |= any(np.ptp(pts[:, k]) > 2 * math.pi * (1 + 1e-6) or np.abs(pts[:, k]).max() > 4 * math.pi
+                               for k in axes)
+        if not degrees:
             return
         scale = np.ones(2)
         scale[axes] = math.pi / 180

@@ -149,8 +149,8 @@ def close_once_round(loops: list[list[Curve]], labels: list[str], period, natura
             if turns[x][k] < 0:
                 first, second = second, first
             # first: a -> a + P; second: a + P -> a (shifted by P where it starts at a)
-            if abs(ends(second[0])[0][k] - a) < 0.5 * period:
-                second = [_shift(c, k, period) for c in second]
+            if abs(ends(second[0])[0][k] - a) < 0.5 * period[k]:
+                second = [_shift(c, k, period[k]) for c in second]
             e1, s2 = ends(first[-1])[1], ends(second[0])[0]
             e2, s1 = ends(second[-1])[1], ends(first[0])[0]
             loop = first + [line_curve(e1, s2)] + second + [line_curve(e2, s1)]
