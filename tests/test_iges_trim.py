@@ -639,3 +639,17 @@ def test_once_round_loop_with_nothing_to_close_it_is_a_warning(tmp_path):
     assert len(model.surfaces) == 1
     (msg,) = model.warnings
     assert msg.startswith("entity 144 (DE ") and "goes once round the surface and nothing bounds" in msg
+
+
+def test_invert_recovers_parameters_from_nearby_starts():
+    """iges_invert.invert (the closest-point inverter the OpenCASCADE import can share):
+    points S(u, v) on a rational surface are carried back to (u, v) from starts 0.05 off."""
+    from bsrt.io.iges_invert import invert
+
+    s = load_model(HERE / "closed_128_seam_144.igs").surfaces[0]
+    rng = np.random.default_rng(3)
+    u = rng.uniform(3.6, 7.4, 200)
+    v = rng.uniform(0.1, 1.9, 200)
+    pts = evaluate(s, u, v)[0]
+    x, y = invert(s, pts, u + 0.05, v - 0.05, 2.0)
+    assert np.abs(x - u).max() < 1e-12 and np.abs(y - v).max() < 1e-12
