@@ -208,14 +208,25 @@ class LoopBuilder:
         curves = [clamp(r.items[i].curve) for i in idx]
         bridged = [False] + [any(x is BRIDGE for x in r.items[i + 1 : j]) for i, j in zip(idx[:-1], idx[1:])]
         (a0, b0), (a1, b1) = ends(curves[0]), ends(curves[1])
-        if not bridged[1] and min(gap(a0, a1), gap(a0, b1)) < min(gap(b0, a1), gap(b0, b1)):
+        # a curve closed across the seam (a full circle) meets its neighbour at both ends
+        # modulo the period: then the nearer end as written (unwrapped) decides
+        tie = 1e-9 * float(per.max())
+
+        def nearer(d_first, d_second, u_first, u_second):  # is the second end the one that meets?
+            if abs(d_first - d_second) <= tie:
+                return u_second < u_first
+            return d_second < d_first
+
+        raw_gap = lambda p, q: float(np.hypot(*(p - q)))  # noqa: E731
+        if not bridged[1] and nearer(min(gap(b0, a1), gap(b0, b1)), min(gap(a0, a1), gap(a0, b1)),
+                                     min(raw_gap(b0, a1), raw_gap(b0, b1)), min(raw_gap(a0, a1), raw_gap(a0, b1))):
             curves[0] = reverse(curves[0])
         for k in range(1, len(curves)):
             if bridged[k]:  # a pole or apex lies between: the chain joins them as they are
                 continue
             prev = ends(curves[k - 1])[1]
             a, b = ends(curves[k])
-            if gap(prev, b) < gap(prev, a):
+            if nearer(gap(prev, a), gap(prev, b), raw_gap(prev, a), raw_gap(prev, b)):
                 curves[k] = reverse(curves[k])
                 a = b
             shift = (prev - a) - wrapped(prev - a)
