@@ -20,7 +20,8 @@ Loops, in this order:
    closure check; bearing.iges needs 7e-7, hammer.iges 2.5e-6). A wider gap
    whose ends meet in model space, within the file's resolution (Global
    parameter 19) -- a collapsed edge, a pole -- is crossed by a straight
-   segment; any other is an open loop, an error. Curves that stray out of the
+   segment; any other is an open loop (``OpenLoop``: the surface is left out with one
+   warning naming the entity). Periodic surfaces: see ``iges_seams``. Curves that stray out of the
    domain by up to ``OVERSHOOT`` x its diagonal are pulled back (their outside
    control points clamped to the domain; hammer.iges needs 6.4e-5); further,
    an error.
