@@ -499,12 +499,16 @@ def assert_one_error(path: Path, capsys, pattern: str) -> str:
     return msg
 
 
-def test_open_loop(tmp_path, capsys):
+def test_open_loop_is_one_warning_and_the_surface_is_left_out(tmp_path):
+    """A loop that truly does not close is named once (entity, DE, where and how far
+    apart) and its surface left out: never drawn with a wrong boundary."""
     entities = gen.plane_circle_144()
     three_quarters = gen.arc("outer", 0.0, (0.5, 0.5), (0.9, 0.5), (0.5, 0.1))
-    msg = assert_one_error(write(tmp_path, replaced(entities, "outer", three_quarters)), capsys,
-                           r"its outer boundary \(DE \d+\) is open")
-    assert "entity 144 (DE 13)" in msg
+    model = load_model(write(tmp_path, replaced(entities, "outer", three_quarters)))
+    assert len(model.surfaces) == 1  # the second plane only
+    (msg,) = model.warnings
+    assert msg.startswith("entity 144 (DE 13): its outer boundary (DE ") and " is open: " in msg
+    assert msg.endswith("the surface is left out")
 
 
 def test_curve_outside_the_domain(tmp_path, capsys):
@@ -523,4 +527,129 @@ def test_144_pointing_to_a_missing_entity(tmp_path, capsys):
 def test_508_loop_that_does_not_close(tmp_path, capsys):
     entities = replaced(gen.cylinder_brep(), "p1", gen.line("p1", (2 * math.pi, 0.5), (2 * math.pi, 2.0)))
     msg = assert_one_error(write(tmp_path, entities), capsys, r"its loop 1 \(508 at DE \d+\) is open")
-    assert msg.split(": ")[1].startswith("entity 510 (DE")
+    assert msg.split(": ")[1].startswith("entity 510 (DE")  # the only surface: its error is the file's
+
+
+# ---------------------------------------------------------------------------
+# Periodic surfaces: seams, loops once round, poles
+
+
+def _kept_against(s, inside, boundary, n: int = 241) -> None:
+    """Over an n x n grid of s's domain: kept by the trims exactly where the closed form
+    says inside (points within 1e-6 of the region's boundary, by ``boundary``, excepted)."""
+    from bsrt.trim import kept
+
+    mid = (np.arange(n) + 0.5) / n  # cell centres: not on the domain's edges (a seam lies there)
+    (u0, u1), (v0, v1) = s.domain_u, s.domain_v
+    u, v = np.meshgrid(u0 + (u1 - u0) * mid, v0 + (v1 - v0) * mid, indexing="ij")
+    u, v = u.ravel(), v.ravel()
+    xyz = evaluate(s, u, v)[0]
+    keep = kept(s, u, v)
+    clear = boundary(xyz) > 1e-6
+    assert clear.sum() > 0.9 * len(u)
+    assert np.array_equal(keep[clear], inside(xyz)[clear])
+
+
+def _angle(xyz, start):
+    """Angles about z, counterclockwise from ``start`` radians, in [0, 2 pi)."""
+    return (np.arctan2(xyz[:, 1], xyz[:, 0]) - start) % (2 * math.pi)
+
+
+def test_120_loop_across_the_seam_is_closed_and_trims_the_right_region():
+    """The issue's case: pieces written in [0, 2 pi] meet only across the seam (2 pi apart in
+    (u, v), 0 apart in model space): the loop is closed in one window of the turn."""
+    model = load_model(HERE / "revolution_seam_144.igs")
+    assert model.warnings == [] and model.untrimmed == 0
+    (s,) = model.surfaces
+    assert s.domain_v == pytest.approx((5.5, 0.7 + 2 * math.pi))  # one window, across the seam
+    (loop,) = s.trims
+    assert_closed(loop, domain_size(s))
+    span = 0.7 + 2 * math.pi - 5.5
+
+    def inside(xyz):
+        return (_angle(xyz, 5.5) < span) & (xyz[:, 2] > 0.6) & (xyz[:, 2] < 2.4)
+
+    def boundary(xyz):
+        a = _angle(xyz, 5.5)
+        return np.minimum.reduce([np.minimum(a, 2 * math.pi - a) * 2, abs(a - span) * 2, abs(xyz[:, 2] - 0.6),
+                                  abs(xyz[:, 2] - 2.4)])
+
+    assert np.allclose(np.hypot(*surface_grid(s)[:, :2].T), 2.0, atol=1e-12)
+    _kept_against(s, inside, boundary)
+
+
+def test_closed_128_loop_across_the_seam_splits_the_surface_there():
+    model = load_model(HERE / "closed_128_seam_144.igs")
+    assert model.warnings == []
+    (s,) = model.surfaces
+    assert s.domain_u == (3.5, 7.5)  # the seam moved to the loop's start: u = 3.5 (and 7.5)
+    (loop,) = s.trims
+    assert_closed(loop, domain_size(s))
+    # the same cylinder: radius 1, and u = 4.5 (0.5 past the old seam) is 45 degrees
+    grid = surface_grid(s)
+    assert np.abs(np.hypot(grid[:, 0], grid[:, 1]) - 1).max() < 1e-12
+    p = evaluate(s, np.array([4.5, 3.5]), np.array([1.0, 1.0]))[0]
+    assert np.allclose(p, [[math.sqrt(0.5), math.sqrt(0.5), 1.0], [math.sqrt(0.5), -math.sqrt(0.5), 1.0]], atol=1e-14)
+    q = math.pi / 4
+
+    def inside(xyz):
+        return (_angle(xyz, -q) < 2 * q) & (xyz[:, 2] > 0.5) & (xyz[:, 2] < 1.5)
+
+    def boundary(xyz):
+        a = _angle(xyz, -q)
+        return np.minimum.reduce([np.minimum(a, 2 * math.pi - a), abs(a - 2 * q), abs(xyz[:, 2] - 0.5),
+                                  abs(xyz[:, 2] - 1.5)])
+
+    _kept_against(s, inside, boundary)
+
+
+def test_two_loops_once_round_a_cylinder_become_one_band():
+    """A 510 with two circles and no seam edge: joined along the domain's edges (the first
+    circle's start, 1 radian, is the seam; the second circle is split there)."""
+    model = load_model(HERE / "cylinder_band_brep.igs")
+    assert model.warnings == []
+    (s,) = model.surfaces
+    assert s.domain_u == pytest.approx((1.0, 1.0 + 2 * math.pi)) and s.domain_v == (0.0, 2.0)
+    (loop,) = s.trims
+    assert_closed(loop, domain_size(s))
+    _kept_against(s, lambda xyz: (xyz[:, 2] > 0) & (xyz[:, 2] < 2),
+                  lambda xyz: np.minimum(abs(xyz[:, 2]), abs(xyz[:, 2] - 2)))
+
+
+def test_one_loop_once_round_closes_at_a_pole_or_an_apex():
+    """A latitude on a sphere going east: the cap to the north pole; a circle on a cone going
+    west: the cone down to its apex (the domain's edge on the loop's left)."""
+    model = load_model(HERE / "once_round_144.igs")
+    assert model.warnings == []
+    sphere, cone = model.surfaces
+    assert sphere.domain_v == pytest.approx((0.5, math.pi / 2))
+    assert cone.domain_v == pytest.approx((-math.sqrt(3), 1.0))
+    for s in (sphere, cone):
+        (loop,) = s.trims
+        assert_closed(loop, domain_size(s))
+    z0 = math.sin(0.5)
+    _kept_against(sphere, lambda xyz: xyz[:, 2] > z0, lambda xyz: abs(xyz[:, 2] - z0))
+    _kept_against(cone, lambda xyz: xyz[:, 2] < 1.0, lambda xyz: abs(xyz[:, 2] - 1.0))
+
+
+def test_once_round_loop_with_nothing_to_close_it_is_a_warning(tmp_path):
+    """The cone's circle going east: its left is the open end of the cone: not closable."""
+    entities = replaced(gen.once_round_144(), "ring", gen.line("ring", (0.0, 1.0), (2 * math.pi, 1.0)))
+    model = load_model(write(tmp_path, entities))
+    assert len(model.surfaces) == 1
+    (msg,) = model.warnings
+    assert msg.startswith("entity 144 (DE ") and "goes once round the surface and nothing bounds" in msg
+
+
+def test_invert_recovers_parameters_from_nearby_starts():
+    """iges_invert.invert (the closest-point inverter the OpenCASCADE import can share):
+    points S(u, v) on a rational surface are carried back to (u, v) from starts 0.05 off."""
+    from bsrt.io.iges_invert import invert
+
+    s = load_model(HERE / "closed_128_seam_144.igs").surfaces[0]
+    rng = np.random.default_rng(3)
+    u = rng.uniform(3.6, 7.4, 200)
+    v = rng.uniform(0.1, 1.9, 200)
+    pts = evaluate(s, u, v)[0]
+    x, y = invert(s, pts, u + 0.05, v - 0.05, 2.0)
+    assert np.abs(x - u).max() < 1e-12 and np.abs(y - v).max() < 1e-12

@@ -367,6 +367,7 @@ class IgesFile:
         self._matrices: dict[int, np.ndarray] = {}
         self.used: set[int] = set()
         self.cache: dict = {}
+        self.open_loops: list = []  # InputErrors of the trimmed surfaces left out for open loops
 
     def params(self, entity: _Entity) -> _Params:
         """A fresh reader of the entity's parameters (tokenised once)."""
@@ -459,6 +460,8 @@ def read(path: str) -> Model:
             key = entity_name(entity.type)
             skipped[key] = skipped.get(key, 0) + 1
     if not surfaces:
+        if f.open_loops:  # every surface left out for loops that do not close: the first one says why
+            raise f.open_loops[0]
         found = ", ".join(f"{n} x {k}" for k, n in skipped.items()) or "no entities"
         raise fail(path, None, f"the file holds no surfaces bsrt can draw, only {found}")
     return Model(path, surfaces, names, skipped, warnings, untrimmed=untrimmed)

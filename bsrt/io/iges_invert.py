@@ -94,8 +94,52 @@ def _off_segment(p, a, b) -> np.ndarray:
     return np.hypot(*(p - a - t[:, None] * d).T)
 
 
+def invert(surface: BSplineSurface, points, u, v, size: float, iterations: int = 60):
+    """Closest-point inversion onto a B-spline surface, from given starts: (u, v).
+
+    surface: any BSplineSurface (trims ignored). points: (N, 3) float64, model
+    space. u, v: (N,) float64 starts (clamped into the knot domain). size: the
+    model's size (e.g. its diagonal), the scale of the stopping test.
+    Returns (u, v): two new (N,) float64 arrays in the domain, each a local
+    minimum of |S(u, v) - P|^2 reached by Gauss-Newton steps (regularised by
+    1e-14 of the metric's trace, so at a pole or other degenerate point the
+    free parameter stays near its start), clamped to the domain after each
+    step; a point stops when its step is below 1e-14 of the domain's largest
+    coordinate (at least 1) or its residual below 1e-14 x size; at most
+    ``iterations`` steps. Vectorised over the points; the starts decide which
+    minimum (use a grid, ``SurfaceInverse``, or a neighbour's answer).
+    """
+    (a0, a1), (b0, b1) = surface.domain_u, surface.domain_v
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    x = np.clip(np.array(u, dtype=np.float64).reshape(-1), a0, a1)
+    y = np.clip(np.array(v, dtype=np.float64).reshape(-1), b0, b1)
+    scale = max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
+    active = np.arange(len(pts))
+    for _ in range(iterations):
+        if not len(active):
+            break
+        p, su, sv = surface_eval(surface, x[active], y[active])
+        r = pts[active] - p
+        a = np.einsum("nk,nk->n", su, su)
+        b = np.einsum("nk,nk->n", su, sv)
+        c = np.einsum("nk,nk->n", sv, sv)
+        g0, g1 = np.einsum("nk,nk->n", su, r), np.einsum("nk,nk->n", sv, r)
+        reg = 1e-14 * (a + c) + 1e-300
+        a, c = a + reg, c + reg
+        det = a * c - b * b
+        det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+        nx = np.clip(x[active] + (c * g0 - b * g1) / det, a0, a1)
+        ny = np.clip(y[active] + (a * g1 - b * g0) / det, b0, b1)
+        step = np.hypot(nx - x[active], ny - y[active])
+        x[active], y[active] = nx, ny
+        done = (step <= 1e-14 * scale) | (np.linalg.norm(r, axis=1) <= 1e-14 * size)
+        active = active[~done]
+    return x, y
+
+
 class SurfaceInverse:
-    """Closest-point inversion onto a B-spline surface: points (N, 3) -> (u, v) (N, 2)."""
+    """Closest-point inversion onto a B-spline surface: points (N, 3) -> (u, v) (N, 2),
+    from the nearest point of a grid over the surface (or a hint), by :func:`invert`."""
 
     def __init__(self, s: BSplineSurface):
         self.s = s
@@ -119,27 +163,8 @@ class SurfaceInverse:
         return out
 
     def _newton(self, pts, uv):
-        """Gauss-Newton on |S(u, v) - P|^2, clamped to the domain, each point until its step is negligible."""
-        uv = uv.copy()
-        active = np.arange(len(pts))
-        still = 1e-14 * np.abs(self.hi - self.lo).max()
-        for _ in range(30):
-            if not len(active):
-                break
-            p, su, sv = surface_eval(self.s, uv[active, 0], uv[active, 1])
-            r = p - pts[active]
-            a = np.einsum("nk,nk->n", su, su)
-            b = np.einsum("nk,nk->n", su, sv)
-            c = np.einsum("nk,nk->n", sv, sv)
-            gu, gv = np.einsum("nk,nk->n", su, r), np.einsum("nk,nk->n", sv, r)
-            reg = 1e-14 * (a + c) + 1e-300
-            det = (a + reg) * (c + reg) - b * b
-            step = np.stack([(c + reg) * gu - b * gv, (a + reg) * gv - b * gu], 1) / det[:, None]
-            new = np.clip(uv[active] - step, self.lo, self.hi)
-            moved = np.abs(new - uv[active]).max(axis=1)
-            uv[active] = new
-            active = active[moved > still]
-        return uv
+        u, v = invert(self.s, pts, uv[:, 0], uv[:, 1], self.size)
+        return np.stack([u, v], 1)
 
     def __call__(self, pts, hint=None):
         """(u, v) of the points' closest points, from the nearest grid point or from ``hint``;

@@ -20,7 +20,8 @@ Loops, in this order:
    closure check; bearing.iges needs 7e-7, hammer.iges 2.5e-6). A wider gap
    whose ends meet in model space, within the file's resolution (Global
    parameter 19) -- a collapsed edge, a pole -- is crossed by a straight
-   segment; any other is an open loop, an error. Curves that stray out of the
+   segment; any other is an open loop (``OpenLoop``: the surface is left out with one
+   warning naming the entity). Periodic surfaces: see ``iges_seams``. Curves that stray out of the
    domain by up to ``OVERSHOOT`` x its diagonal are pulled back (their outside
    control points clamped to the domain; hammer.iges needs 6.4e-5); further,
    an error.
@@ -39,6 +40,7 @@ from ..trim import TrimLoop, make_trim_curve
 from .iges_bspline import Curve, clamp, ends, evaluate, line_curve, reverse
 from .iges_curves import CURVE_TYPES, Unsupported, pieces
 from .iges_invert import SurfaceInverse, invert_curve, map_curve
+from .iges_seams import Open, close_once_round
 from .iges_surfaces import SurfaceDef
 
 GAP = 1e-4  # largest loop gap closed, as a fraction of the domain's diagonal
@@ -58,6 +60,10 @@ class Piece:
 
 
 BRIDGE = "bridge"  # a vertex edge without a parameter-space curve
+
+
+class OpenLoop(InputError):
+    """A trim loop that does not close (the message names the entity and says why)."""
 
 
 class Unbounded(Exception):
@@ -139,6 +145,7 @@ class LoopBuilder:
         if any(sd.periodic):
             for r in raw:
                 self._align(r)
+            raw = self._seams(raw)
         box = None if outer_is_domain else self._box(raw)  # the outer boundary is the natural one
         try:
             s, mu, mv = sd.place(box)
@@ -167,13 +174,15 @@ class LoopBuilder:
         """Angles of 190-198 faces written in degrees (a span over 2 pi) become radians."""
         if not any(self.sd.angular):
             return
-        file_pieces = [x for r in raw for x in r.items if isinstance(x, Piece) and not x.inverted]
-        if not file_pieces:
-            return
-        pts = np.concatenate([p.curve.points for p in file_pieces])
         axes = [k for k in range(2) if self.sd.angular[k]]
-        if not any(np.ptp(pts[:, k]) > 2 * math.pi * (1 + 1e-6) or np.abs(pts[:, k]).max() > 4 * math.pi
-                   for k in axes):
+        degrees = False
+        for r in raw:  # loop by loop: loops may lie in different turns
+            file_pieces = [x for x in r.items if isinstance(x, Piece) and not x.inverted]
+            if file_pieces:
+                pts = np.concatenate([p.curve.points for p in file_pieces])
+                degrees |= any(np.ptp(pts[:, k]) > 2 * math.pi * (1 + 1e-6) or np.abs(pts[:, k]).max() > 4 * math.pi
+                               for k in axes)
+        if not degrees:
             return
         scale = np.ones(2)
         scale[axes] = math.pi / 180
@@ -189,7 +198,7 @@ class LoopBuilder:
         idx = [i for i, x in enumerate(r.items) if isinstance(x, Piece)]
         if len(idx) < 2 or any(r.items[i].space != "iges" for i in idx):
             return
-        per = np.array([2 * math.pi if p else 0.0 for p in self.sd.periodic])
+        per = np.array(self.sd.period, float)
 
         def wrapped(d):
             return np.where(per > 0, d - per * np.round(d / np.where(per > 0, per, 1)), d)
@@ -200,14 +209,25 @@ class LoopBuilder:
         curves = [clamp(r.items[i].curve) for i in idx]
         bridged = [False] + [any(x is BRIDGE for x in r.items[i + 1 : j]) for i, j in zip(idx[:-1], idx[1:])]
         (a0, b0), (a1, b1) = ends(curves[0]), ends(curves[1])
-        if not bridged[1] and min(gap(a0, a1), gap(a0, b1)) < min(gap(b0, a1), gap(b0, b1)):
+        # a curve closed across the seam (a full circle) meets its neighbour at both ends
+        # modulo the period: then the nearer end as written (unwrapped) decides
+        tie = 1e-9 * float(per.max())
+
+        def nearer(d_first, d_second, u_first, u_second):  # is the second end the one that meets?
+            if abs(d_first - d_second) <= tie:
+                return u_second < u_first
+            return d_second < d_first
+
+        raw_gap = lambda p, q: float(np.hypot(*(p - q)))  # noqa: E731
+        if not bridged[1] and nearer(min(gap(b0, a1), gap(b0, b1)), min(gap(a0, a1), gap(a0, b1)),
+                                     min(raw_gap(b0, a1), raw_gap(b0, b1)), min(raw_gap(a0, a1), raw_gap(a0, b1))):
             curves[0] = reverse(curves[0])
         for k in range(1, len(curves)):
             if bridged[k]:  # a pole or apex lies between: the chain joins them as they are
                 continue
             prev = ends(curves[k - 1])[1]
             a, b = ends(curves[k])
-            if gap(prev, b) < gap(prev, a):
+            if nearer(gap(prev, a), gap(prev, b), raw_gap(prev, a), raw_gap(prev, b)):
                 curves[k] = reverse(curves[k])
                 a = b
             shift = (prev - a) - wrapped(prev - a)
@@ -215,6 +235,28 @@ class LoopBuilder:
                 curves[k] = replace(curves[k], points=curves[k].points + shift)
         for i, c in zip(idx, curves):
             r.items[i] = replace(r.items[i], curve=c)
+
+    def _seams(self, raw: list[RawLoop]) -> list[RawLoop]:
+        """Loops that go once round a periodic surface joined or closed along the domain's
+        edges, and all shifted into one window of each period (``iges_seams``)."""
+        if any(isinstance(x, Piece) and x.space != "iges" for r in raw for x in r.items):
+            return raw
+        loops = [[x.curve if isinstance(x, Piece) else x for x in r.items] for r in raw]
+        sources = [[x.source for x in r.items if isinstance(x, Piece)] for r in raw]
+        try:
+            loops, labels = close_once_round(loops, [r.label for r in raw], self.sd.period, self.sd.natural,
+                                             self.sd.poles)
+        except Open as e:
+            raise self.open(str(e)) from None
+        by_label = {r.label: s for r, s in zip(raw, sources)}
+        out = []
+        for loop, label in zip(loops, labels):
+            src = iter(by_label[label] * 2)
+            out.append(RawLoop([x if x is BRIDGE else Piece(x, "iges", next(src, -1)) for x in loop], label))
+        return out
+
+    def open(self, message: str):
+        return OpenLoop(str(self.fail(message)))
 
     def _box(self, raw: list[RawLoop]):
         """(u0, u1, v0, v1) the loops use, in the entity's parameters (None: natural)."""
@@ -288,7 +330,7 @@ class LoopBuilder:
                     bridges[j] = line_curve(end, start)
                     continue
                 src_i, src_j = (f"DE {curves[n][1]}" if curves[n][1] > 0 else "a vertex" for n in (i, j))
-                raise self.fail(
+                raise self.open(
                     f"{label} is open: the curve from {src_i} ends at ({end[0]:.9g}, {end[1]:.9g}) but the "
                     f"curve from {src_j} starts at ({start[0]:.9g}, {start[1]:.9g}), {g:.3g} apart "
                     f"(more than {GAP:g} x the domain's size), {np.linalg.norm(p - q):.3g} apart in model "

@@ -53,6 +53,7 @@ import numpy as np
 
 from . import analytic
 from .iges_bspline import ParamMap, affine, ends, reverse
+from .iges_bspline import ends as ends_of
 from .iges_curves import CURVE_TYPES, Unsupported, curve, direction, point
 
 SURFACE_TYPES = frozenset({108, 114, 118, 120, 122, 128, 190, 192, 194, 196, 198})
@@ -67,6 +68,14 @@ class SurfaceDef:
       (u0, u1, v0, v1) in the entity's own parameters (None: its natural range).
     natural: (u0, u1, v0, v1), None entries where the surface is unbounded.
     angular: which of u, v are angles that a file may write in degrees (190-198).
+    period: per parameter, the period of a closed (periodic) direction, 0.0 where
+      it is not (2 pi for the angles of 192-198 and of a full 120; a 128's knot
+      range where its first and last rows of control points coincide): loops
+      may be shifted by whole periods there, and ``place`` accepts any window
+      of one period (a 128 is split at the seam and put back together).
+    poles: (axis, value) pairs of parameter values where the surface collapses to
+      a point or an apex (a cone's apex): a loop that goes once round can close
+      along them.
     plane: (origin, eu, ev) when model points map to (u, v) affinely (planes).
     invert: closed-form model points (N, 3) -> (u, v) (N, 2), for analytic surfaces.
     fixed: the B-spline does not depend on the box (its trims are checked against
@@ -77,11 +86,16 @@ class SurfaceDef:
     place: Callable
     natural: tuple
     angular: tuple = (False, False)
-    periodic: tuple = (False, False)
+    period: tuple = (0.0, 0.0)
+    poles: tuple = ()
     plane: tuple | None = None
     invert: Callable | None = None
     fixed: bool = True
     whole: object = None  # a 128's uncut surface
+
+    @property
+    def periodic(self) -> tuple:
+        return tuple(p > 0 for p in self.period)
 
     @property
     def bounded(self) -> bool:
@@ -144,17 +158,72 @@ def _bspline(f, entity, params, m) -> SurfaceDef:
     natural = (*part.domain_u, *part.domain_v)
     full = (*whole.domain_u, *whole.domain_v)
 
+    period = _closed(whole)
+    size = math.hypot(full[1] - full[0], full[3] - full[2])
+    tol = 1e-7 * size
+
     def place(box):
         s = part
         if box is not None:
-            size = math.hypot(full[1] - full[0], full[3] - full[2])
-            tol = 1e-7 * size
             if box[0] < natural[0] - tol or box[1] > natural[1] + tol or box[2] < natural[2] - tol \
                     or box[3] > natural[3] + tol:
                 s = whole
+                for k in range(2):  # a loop across the seam of a closed direction: the seam moved
+                    lo, hi = full[2 * k], full[2 * k + 1]
+                    if period[k] and (box[2 * k] < lo - tol or box[2 * k + 1] > hi + tol) \
+                            and box[2 * k + 1] - box[2 * k] <= period[k] + tol:
+                        s = rotated(s, k, box[2 * k])
         return s, ParamMap.identity(*s.domain_u), ParamMap.identity(*s.domain_v)
 
-    return SurfaceDef(entity, place, natural, whole=whole)
+    return SurfaceDef(entity, place, natural, whole=whole, period=period)
+
+
+def _closed(s) -> tuple:
+    """(period_u, period_v) of a clamped B-spline surface: the knot range of a direction
+    whose first and last rows of control points coincide (weights in a constant ratio),
+    else 0.0."""
+    out = []
+    h = s.homogeneous()
+    size = float(np.linalg.norm(np.ptp(s.points.reshape(-1, 3), axis=0)))
+    for k, (knots, p) in enumerate(((s.knots_u, s.degree[0]), (s.knots_v, s.degree[1]))):
+        rows = np.moveaxis(h, k, 0)
+        first, last = rows[0], rows[-1]
+        clamped = np.all(knots[: p + 1] == knots[0]) and np.all(knots[-(p + 1):] == knots[-1])
+        ratio = last[:, 3] / first[:, 3]
+        same = np.abs(last[:, :3] / last[:, 3:] - first[:, :3] / first[:, 3:]).max() <= 1e-12 * size
+        out.append(float(knots[-1] - knots[0]) if clamped and same and np.ptp(ratio) <= 1e-12 * ratio.max()
+                   else 0.0)
+    return tuple(out)
+
+
+def rotated(s, axis: int, a: float):
+    """The closed B-spline surface s (``_closed``) over the window [a, a + period] along
+    ``axis``: split at a (knot inserted up to the degree) and the part before a moved,
+    shifted by the period, after the rest. The same points at parameters equal modulo the
+    period; C0 at the old seam."""
+    from ..bspline import insert_knot, make_surface
+
+    knots = (s.knots_u, s.knots_v)[axis]
+    p = s.degree[axis]
+    lo, hi = float(knots[0]), float(knots[-1])
+    period = hi - lo
+    a = lo + (a - lo) % period
+    if a - lo <= 1e-14 * period or hi - a <= 1e-14 * period:
+        return s
+    h = np.moveaxis(s.homogeneous(), axis, 0)
+    k = knots.copy()
+    while np.count_nonzero(k == a) < p:
+        k, h = insert_knot(k, h, p, a)
+    n = h.shape[0]
+    r = int(np.searchsorted(k, a, side="left"))  # a occupies k[r : r + p]
+    left, right = h[1:r], h[r - 1 :]
+    left = left * (right[-1, :, 3] / h[0, :, 3])[None, :, None]  # the same weights at the old seam
+    ctrl = np.concatenate([right, left])
+    new = np.concatenate([[a] * (p + 1), k[r + p : n], [hi] * p, k[p + 1 : r] + period, [a + period] * (p + 1)])
+    ctrl = np.moveaxis(ctrl, 0, axis)
+    w = ctrl[..., 3]
+    knots_u, knots_v = (new, s.knots_v) if axis == 0 else (s.knots_u, new)
+    return make_surface(s.degree, knots_u, knots_v, ctrl[..., :3] / w[..., None], None if not s.is_rational else w)
 
 
 def _spline_surface(f, entity, params, m) -> SurfaceDef:
@@ -205,8 +274,23 @@ def _revolution(f, entity, params, m) -> SurfaceDef:
     direction_ = ends[1] - ends[0]
     if not np.linalg.norm(direction_) > 0:
         raise f.fail(axis, "the axis line has no length")
-    s, mu, mv = analytic.revolve(gen, ends[0], direction_ / np.linalg.norm(direction_), sa, ta, angle_first=False)
-    return _fixed(entity, s, mu, mv)
+    axis_dir = direction_ / np.linalg.norm(direction_)
+    s, mu, mv = analytic.revolve(gen, ends[0], axis_dir, sa, ta, angle_first=False)
+    sd = _fixed(entity, s, mu, mv)
+    if ta - sa < TWO_PI * (1 - 1e-12):
+        return sd
+    # a full turn: periodic in v; any window of one turn is the same surface, turned
+    size = float(np.linalg.norm(np.ptp(s.points.reshape(-1, 3), axis=0)))
+    g0, g1 = ends_of(gen)
+    poles = tuple((0, float(x)) for x, q in zip(mu.x[[0, -1]], (g0, g1))
+                  if np.linalg.norm(np.cross(q - ends[0], axis_dir)) <= 1e-12 * size)
+
+    def place(box):
+        if box is None or box[3] - box[2] > TWO_PI * (1 + 1e-12):
+            return s, mu, mv
+        return analytic.revolve(gen, ends[0], axis_dir, box[2], box[3], angle_first=False)
+
+    return SurfaceDef(entity, place, sd.natural, period=(0.0, TWO_PI), poles=poles, fixed=False)
 
 
 def _tabulated(f, entity, params, m) -> SurfaceDef:
@@ -326,8 +410,10 @@ def _axis_surface(f, entity, params, m, kind: str) -> SurfaceDef:
         return inv(d @ x, d @ y, d @ z)
 
     angular = (True, kind in ("sphere", "torus"))
+    poles = ((1, -radius / tan),) if kind == "cone" else ()
     return SurfaceDef(entity, lambda box: build(box if box is not None else natural), natural,
-                      angular=angular, periodic=(True, kind == "torus"), invert=invert, fixed=False)
+                      angular=angular, period=(TWO_PI, TWO_PI if kind == "torus" else 0.0), poles=poles,
+                      invert=invert, fixed=False)
 
 
 _READERS = {

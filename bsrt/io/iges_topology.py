@@ -37,7 +37,7 @@ from dataclasses import replace
 from .iges import entity_name
 from .iges_bspline import reverse
 from .iges_curves import Unsupported, mark_used
-from .iges_loops import BRIDGE, INVERSION_TOL, Face, LoopBuilder, Piece, RawLoop, Unbounded
+from .iges_loops import BRIDGE, INVERSION_TOL, Face, LoopBuilder, OpenLoop, Piece, RawLoop, Unbounded
 from .iges_surfaces import SURFACE_TYPES, SurfaceDef, surface
 
 # ---------------------------------------------------------------------------
@@ -256,7 +256,7 @@ def draw(f):
                 p.int("TYPE")
             trimmed_targets.add(p.pointer("the surface pointer"))
     surfaces, names = [], []
-    untrimmed, unsupported, unbounded = [], {}, {}
+    untrimmed, unsupported, unbounded, open_loops = [], {}, {}, []
     inverted = 0
     for e in f.entities.values():
         if e.type in (186, 514):
@@ -264,6 +264,11 @@ def draw(f):
         elif e.type in _TRIMMERS:
             try:
                 face = _TRIMMERS[e.type](f, e)
+            except OpenLoop as err:  # named once, left out: never drawn with a wrong boundary
+                where = str(err).split(": ", 1)[1] if str(err).startswith(f.path) else str(err)
+                open_loops.append(f"{where}; the surface is left out")
+                f.open_loops.append(err)
+                continue
             except Unbounded:
                 target = _target(f, e)
                 unbounded[f.entities[target].type] = unbounded.get(f.entities[target].type, 0) + 1
@@ -297,7 +302,7 @@ def draw(f):
             surfaces.append(s)
             names.append(f.name(e))
             f.used.add(e.de)
-    warnings = []
+    warnings = list(open_loops)
     if inverted:
         warnings.append(
             f"{inverted} trim curve{'s were' if inverted != 1 else ' was'} given only in model space and "

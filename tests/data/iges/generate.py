@@ -487,6 +487,92 @@ def sphere_cap_brep() -> list[E]:
     ]
 
 
+# ---------------------------------------------------------------------------
+# Periodic surfaces: loops across the seam, loops once round
+
+
+def revolution_seam_144() -> list[E]:
+    """A 144 on a 120 turned a full turn (the line x = 2, y = 0, z = 3 u about the z axis:
+    a cylinder of radius 2, v the angle) whose outer boundary crosses the seam, written in
+    [0, 2 pi] as CAD systems do: u in [0.2, 0.8] (z in [0.6, 2.4]), angles from 5.5 round
+    through 2 pi to 0.7, six 110 lines (two pairs meet only across the seam)."""
+    tp = 2 * math.pi
+    corners = [((0.2, 5.5), (0.2, tp)), ((0.2, 0.0), (0.2, 0.7)), ((0.2, 0.7), (0.8, 0.7)),
+               ((0.8, 0.7), (0.8, 0.0)), ((0.8, tp), (0.8, 5.5)), ((0.8, 5.5), (0.2, 5.5))]
+    lines = [line(f"b{k}", a, b) for k, (a, b) in enumerate(corners)]
+    return [
+        line("axis", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+        line("gen", (2.0, 0.0, 0.0), (2.0, 0.0, 3.0)),
+        E(120, [R("axis"), R("gen"), 0.0, tp], name="S"),
+        *lines,
+        E(102, [len(lines)] + [R(x.name) for x in lines], name="B"),
+        E(142, [0, R("S"), R("B"), 0, 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T"),
+    ]
+
+
+def cylinder_band_brep() -> list[E]:
+    """A 510 face on a 192 cylinder (radius 1, axis z) with two 508 loops and no seam edge:
+    the circle z = 0 (pcurve from angle 1 to 1 + 2 pi) and the circle z = 2 (pcurve from
+    angle 3 back to 3 - 2 pi). The face is the whole band 0 <= z <= 2."""
+    tp = 2 * math.pi
+    return [
+        E(502, [2, math.cos(1.0), math.sin(1.0), 0.0, math.cos(3.0), math.sin(3.0), 2.0], form=1, name="V"),
+        arc("bottom", 0.0, (0.0, 0.0), (math.cos(1.0), math.sin(1.0)), (math.cos(1.0), math.sin(1.0))),
+        matrix("up", [[1, 0, 0], [0, 1, 0], [0, 0, 1]], [0.0, 0.0, 2.0]),
+        arc("top", 0.0, (0.0, 0.0), (math.cos(3.0), math.sin(3.0)), (math.cos(3.0), math.sin(3.0)), xform="up"),
+        E(504, [2, R("bottom"), R("V"), 1, R("V"), 1, R("top"), R("V"), 2, R("V"), 2], form=1, name="EL"),
+        line("p0", (1.0, 0.0), (1.0 + tp, 0.0)),
+        line("p1", (3.0 - tp, 2.0), (3.0, 2.0)),  # the edge's direction; used backwards
+        E(508, [1, 0, R("EL"), 1, 1, 1, 0, R("p0")], form=1, name="L0"),
+        E(508, [1, 0, R("EL"), 2, 0, 1, 0, R("p1")], form=1, name="L1"),
+        point("L", (0.0, 0.0, 0.0)), direction("A", (0.0, 0.0, 1.0)), direction("X", (1.0, 0.0, 0.0)),
+        E(192, [R("L"), R("A"), 1.0, R("X")], form=1, name="S"),
+        E(510, [R("S"), 2, 1, R("L0"), R("L1")], form=1, name="F"),
+    ]
+
+
+def once_round_144() -> list[E]:
+    """144s whose outer boundary is one circle once round, closed along the domain's edge
+    on its left: on a 196 sphere (radius 1 at the origin) the latitude 0.5 from longitude 0.3
+    eastwards (the cap above it, to the pole); on a 194 cone (radius 1 at z = 0, semi-angle
+    30 degrees, axis z) the circle z = 1 westwards (the cone from there down to its apex,
+    z = -sqrt(3))."""
+    tp = 2 * math.pi
+    return [
+        point("O", (0.0, 0.0, 0.0)), direction("Z", (0.0, 0.0, 1.0)), direction("X", (1.0, 0.0, 0.0)),
+        E(196, [R("O"), 1.0, R("Z"), R("X")], form=1, name="S"),
+        line("lat", (0.3, 0.5), (0.3 + tp, 0.5)),
+        E(142, [0, R("S"), R("lat"), 0, 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T"),
+        E(194, [R("O"), R("Z"), 1.0, 30.0, R("X")], form=1, name="K"),
+        line("ring", (tp, 1.0), (0.0, 1.0)),
+        E(142, [0, R("K"), R("ring"), 0, 1], name="C2"),
+        E(144, [R("K"), 1, 0, R("C2")], name="T2"),
+    ]
+
+
+def closed_128_seam_144() -> list[E]:
+    """A 144 on a closed 128: the whole cylinder of radius 1 about z, z = v in [0, 2], u in
+    [0, 4] a rational quadratic circle starting at (1, 0, z) (u = 0.5 is 45 degrees), whose
+    outer boundary crosses the seam u = 0 = 4: u in [3.5, 4] and [0, 0.5] (angles -45 to 45
+    degrees), v in [0.5, 1.5]."""
+    s = math.sqrt(0.5)
+    ring = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
+    pts = [[[x, y, z] for z in (0.0, 2.0)] for x, y in ring]
+    w = [[1.0 if k % 2 == 0 else s] * 2 for k in range(9)]
+    corners = [((3.5, 0.5), (4.0, 0.5)), ((0.0, 0.5), (0.5, 0.5)), ((0.5, 0.5), (0.5, 1.5)),
+               ((0.5, 1.5), (0.0, 1.5)), ((4.0, 1.5), (3.5, 1.5)), ((3.5, 1.5), (3.5, 0.5))]
+    lines = [line(f"b{k}", a, b) for k, (a, b) in enumerate(corners)]
+    return [
+        bspline_surface("S", (2, 1), [0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 4], [0, 0, 2, 2], pts, w),
+        *lines,
+        E(102, [len(lines)] + [R(x.name) for x in lines], name="B"),
+        E(142, [0, R("S"), R("B"), 0, 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T"),
+    ]
+
+
 FILES = {
     "plane_circle_144.igs": plane_circle_144,
     "plane_143.igs": plane_143,
@@ -500,6 +586,10 @@ FILES = {
     "cylinder_128_model_space.igs": cylinder_128_model_space,
     "sphere_cap_brep.igs": sphere_cap_brep,
     "curves.igs": curves,
+    "revolution_seam_144.igs": revolution_seam_144,
+    "cylinder_band_brep.igs": cylinder_band_brep,
+    "once_round_144.igs": once_round_144,
+    "closed_128_seam_144.igs": closed_128_seam_144,
 }
 
 
