@@ -221,7 +221,7 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
                                  f"({prev[0]:g}, {prev[1]:g})")
             pts = curve.points
             if not _all_within(pts, umin - slack, umax + slack, vmin - slack, vmax + slack):
-                pts = _curve_extent_points(curve)
+                pts = extent_points(curve)
                 out = (pts[:, 0] < umin - slack) | (pts[:, 0] > umax + slack) | (pts[:, 1] < vmin - slack) | (
                     pts[:, 1] > vmax + slack)
                 if np.any(out):
@@ -243,7 +243,7 @@ def _writable(a) -> np.ndarray:
     return np.array(a, dtype=np.float64, order="C")
 
 
-def _curve_extent_points(curve: TrimCurve) -> np.ndarray:
+def extent_points(curve: TrimCurve) -> np.ndarray:
     """(P, 2) points on the curve whose box is the curve's box: its monotone pieces' end points."""
     from .kernels.trim import bezier_spans, monotone_pieces
 

@@ -644,7 +644,7 @@ def test_once_round_loop_with_nothing_to_close_it_is_a_warning(tmp_path):
 def test_invert_recovers_parameters_from_nearby_starts():
     """iges_invert.invert (the closest-point inverter the OpenCASCADE import can share):
     points S(u, v) on a rational surface are carried back to (u, v) from starts 0.05 off."""
-    from bsrt.io.iges_invert import invert
+    from bsrt.io.invert import invert
 
     s = load_model(HERE / "closed_128_seam_144.igs").surfaces[0]
     rng = np.random.default_rng(3)

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..bspline import BSplineSurface, evaluate as surface_eval
+from .invert import invert
 from .iges_bspline import Curve, ParamMap, clamp, evaluate, from_bezier, line_curve, polyline_curve
 
 TWO_PI = 2 * np.pi
@@ -92,49 +93,6 @@ def _off_segment(p, a, b) -> np.ndarray:
     length2 = np.einsum("nk,nk->n", d, d)
     t = np.clip(np.einsum("nk,nk->n", p - a, d) / np.where(length2 > 0, length2, 1.0), 0.0, 1.0)
     return np.hypot(*(p - a - t[:, None] * d).T)
-
-
-def invert(surface: BSplineSurface, points, u, v, size: float, iterations: int = 60):
-    """Closest-point inversion onto a B-spline surface, from given starts: (u, v).
-
-    surface: any BSplineSurface (trims ignored). points: (N, 3) float64, model
-    space. u, v: (N,) float64 starts (clamped into the knot domain). size: the
-    model's size (e.g. its diagonal), the scale of the stopping test.
-    Returns (u, v): two new (N,) float64 arrays in the domain, each a local
-    minimum of |S(u, v) - P|^2 reached by Gauss-Newton steps (regularised by
-    1e-14 of the metric's trace, so at a pole or other degenerate point the
-    free parameter stays near its start), clamped to the domain after each
-    step; a point stops when its step is below 1e-14 of the domain's largest
-    coordinate (at least 1) or its residual below 1e-14 x size; at most
-    ``iterations`` steps. Vectorised over the points; the starts decide which
-    minimum (use a grid, ``SurfaceInverse``, or a neighbour's answer).
-    """
-    (a0, a1), (b0, b1) = surface.domain_u, surface.domain_v
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    x = np.clip(np.array(u, dtype=np.float64).reshape(-1), a0, a1)
-    y = np.clip(np.array(v, dtype=np.float64).reshape(-1), b0, b1)
-    scale = max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
-    active = np.arange(len(pts))
-    for _ in range(iterations):
-        if not len(active):
-            break
-        p, su, sv = surface_eval(surface, x[active], y[active])
-        r = pts[active] - p
-        a = np.einsum("nk,nk->n", su, su)
-        b = np.einsum("nk,nk->n", su, sv)
-        c = np.einsum("nk,nk->n", sv, sv)
-        g0, g1 = np.einsum("nk,nk->n", su, r), np.einsum("nk,nk->n", sv, r)
-        reg = 1e-14 * (a + c) + 1e-300
-        a, c = a + reg, c + reg
-        det = a * c - b * b
-        det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-        nx = np.clip(x[active] + (c * g0 - b * g1) / det, a0, a1)
-        ny = np.clip(y[active] + (a * g1 - b * g0) / det, b0, b1)
-        step = np.hypot(nx - x[active], ny - y[active])
-        x[active], y[active] = nx, ny
-        done = (step <= 1e-14 * scale) | (np.linalg.norm(r, axis=1) <= 1e-14 * size)
-        active = active[~done]
-    return x, y
 
 
 class SurfaceInverse:

@@ -106,7 +106,7 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
     local_size = diagonal / scale
     bounds = _face_bounds(face, original)
     local, pmap = convert_surface(original, bounds, local_size)
-    info = FaceInfo(pmap.deviation * scale, approximated=pmap.deviation > 0 and _approximated(original))
+    info = FaceInfo(pmap.deviation * scale, approximated=pmap.approximated)
     try:
         # a face bounded by its surface's own bounds (NaturalRestriction) is the whole converted surface
         loops = [] if BRep_Tool.NaturalRestriction_s(face) else face_loops(face, original, pmap, local, local_size)
@@ -115,15 +115,6 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
         info.untrimmed_reason = str(e)
         surface = local
     return surface.transformed(matrix(trsf)), info
-
-
-def _approximated(original) -> bool:
-    from OCP.Geom import Geom_OffsetSurface, Geom_RectangularTrimmedSurface
-
-    s = original
-    while isinstance(s, Geom_RectangularTrimmedSurface):
-        s = s.BasisSurface()
-    return isinstance(s, Geom_OffsetSurface) and s.Surface() is None
 
 
 def matrix(trsf) -> np.ndarray:

@@ -167,7 +167,9 @@ class ParamMap:
     vmax) in the original parameters. u_period, v_period: the original
     surface's periods (0 where not periodic). deviation: the largest distance
     (local units) between the original surface at (u, v) and the B-spline at
-    the mapped (x, y), on a grid over the bounds. identity: both maps are
+    the mapped (x, y), on a grid over the bounds (for an approximated offset,
+    at least the approximation's own error). approximated: the B-spline
+    approximates an offset of a free-form surface. identity: both maps are
     the identity (planes, B-splines): the pcurves are used as they are.
     """
 
@@ -177,6 +179,7 @@ class ParamMap:
     u_period: float
     v_period: float
     deviation: float = 0.0
+    approximated: bool = False
 
     @property
     def identity(self) -> bool:
@@ -202,20 +205,26 @@ def _breaks(knots: np.ndarray, degree: int, n: int) -> np.ndarray:
     return np.unique(k)
 
 
-def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other: float, size: float) -> str:
-    """"identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table"."""
+def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others: np.ndarray, size: float) -> str:
+    """"identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
+
+    Tested on the iso-lines of the other direction's knots (where its own
+    parameter is unchanged), all of them: one may be degenerate (a pole),
+    where any model fits.
+    """
     s = np.array([0.23, 0.71])
     x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
     h = np.repeat(breaks[1:] - breaks[:-1], s.size)
     m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
     ss = np.tile(s, breaks.size - 1)
     candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
-    y = np.full_like(x, other)
-    xy = (x, y) if axis == 0 else (y, x)
-    got = evaluate(whole, *xy)[0]
+    y = np.repeat(others, x.size)
+    x_all = np.tile(x, others.size)
+    got = evaluate(whole, *((x_all, y) if axis == 0 else (y, x_all)))[0]
     tol = EXACT_TOLERANCE * size
     for kind, t in candidates.items():
-        want = _points(original, t, y) if axis == 0 else _points(original, y, t)
+        t_all = np.tile(t, others.size)
+        want = _points(original, t_all, y) if axis == 0 else _points(original, y, t_all)
         if np.max(np.linalg.norm(want - got, axis=1)) <= tol:
             return kind
     return "table"
@@ -261,7 +270,8 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
     local units (the scale of the tolerances). Raises FaceError.
     """
     umin, umax, vmin, vmax = bounds
-    bs, approximated = _to_bspline(original, bounds, size)
+    bs, approx_error = _to_bspline(original, bounds, size)
+    approximated = approx_error is not None
     periodic = (bool(bs.IsUPeriodic()), bool(bs.IsVPeriodic()))
     whole = _extract(bs)
     periods = (original.UPeriod() if original.IsUPeriodic() else 0.0,
@@ -274,11 +284,8 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
         breaks = _breaks(knots, p, n)
         other_breaks = _breaks(*((whole.knots_v, whole.degree[1], whole.shape[1]) if axis == 0 else
                                  (whole.knots_u, whole.degree[0], whole.shape[0])))
-        other = float(other_breaks[0] if other_breaks.size < 3 else other_breaks[1])
-        if approximated:
-            kind = "identity"
-        else:
-            kind = _kind(original, whole, axis, breaks, other, size)
+        other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: the last but one at most
+        kind = "identity" if approximated else _kind(original, whole, axis, breaks, other_breaks, size)
         fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
         if kind == "table":
             fmap.table = _table(original, whole, axis, breaks, other, size)
@@ -293,8 +300,8 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
         if fmap.period > 0:
             local = _rotated(local, axis, a)
         local = _restricted(local, axis, a, b)
-    pmap = ParamMap(fu, fv, (umin, umax, vmin, vmax), *periods)
-    pmap.deviation = _deviation(original, local, pmap)
+    pmap = ParamMap(fu, fv, (umin, umax, vmin, vmax), *periods, approximated=approximated)
+    pmap.deviation = max(_deviation(original, local, pmap), approx_error or 0.0)
     if pmap.deviation > EXACT_TOLERANCE * size and not approximated:
         raise FaceError(f"the conversion of a {type(original).__name__} does not match it "
                         f"({pmap.deviation / size:.2g} of the model's size off)")
@@ -302,8 +309,9 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
 
 
 def _to_bspline(original, bounds, size: float):
-    """(Geom_BSplineSurface, approximated): OpenCASCADE's conversion over the bounds (a whole period
-    where the face goes all the way round); offsets of free-form surfaces approximated."""
+    """(Geom_BSplineSurface, error): OpenCASCADE's conversion over the bounds (a whole period where the
+    face goes all the way round), error None; for an offset of a free-form surface, its approximation
+    and the approximation's largest error as OpenCASCADE measured it (local units)."""
     from OCP.Geom import Geom_OffsetSurface, Geom_RectangularTrimmedSurface
     from OCP.GeomConvert import GeomConvert
 
@@ -314,7 +322,7 @@ def _to_bspline(original, bounds, size: float):
     if isinstance(surface, Geom_OffsetSurface):
         equivalent = surface.Surface()  # a plane's, cylinder's, ... offset is another such surface
         if equivalent is None or isinstance(equivalent, Geom_OffsetSurface):
-            return _approximated(surface, bounds, size), True
+            return _approximated(surface, bounds, size)
         surface = equivalent
     # A whole period is converted from the surface's own start: over any other full period OpenCASCADE
     # converts the natural one and cuts it in the B-spline's parameter, which is not the angle.
@@ -325,13 +333,14 @@ def _to_bspline(original, bounds, size: float):
         full = periodic and hi - lo >= period() * (1 - 1e-12)
         window += [start, start + period()] if full else [lo, hi]
     try:
-        return GeomConvert.SurfaceToBSplineSurface_s(Geom_RectangularTrimmedSurface(surface, *window)), False
+        return GeomConvert.SurfaceToBSplineSurface_s(Geom_RectangularTrimmedSurface(surface, *window)), None
     except Exception as e:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
         raise FaceError(f"OpenCASCADE cannot convert a {type(surface).__name__}: {e}") from None
 
 
 def _approximated(surface, bounds, size: float):
-    """A free-form offset surface approximated over the bounds (same parameters) to OFFSET_TOLERANCE."""
+    """(B-spline, its largest error): a free-form offset surface approximated over the bounds (in the same
+    parameters) to OFFSET_TOLERANCE of the model's size."""
     from OCP.Geom import Geom_RectangularTrimmedSurface
     from OCP.GeomAbs import GeomAbs_C2
     from OCP.GeomConvert import GeomConvert_ApproxSurface
@@ -343,7 +352,7 @@ def _approximated(surface, bounds, size: float):
         raise FaceError(f"OpenCASCADE cannot approximate an offset surface: {e}") from None
     if not approx.HasResult():
         raise FaceError("OpenCASCADE cannot approximate an offset surface")
-    return approx.Surface()
+    return approx.Surface(), float(approx.MaxError())
 
 
 def _shift(fmap: AxisMap, lo: float, hi: float, domain, period: float) -> float:

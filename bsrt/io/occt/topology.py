@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...bspline import BSplineSurface, insert_knot
-from ...trim import TrimCurve, TrimLoop, make_trim_curve
+from ...trim import TrimCurve, TrimLoop, extent_points, make_trim_curve
 from .curves import TrimError, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
 from .reading import cast
 from .surfaces import ParamMap
@@ -55,9 +55,10 @@ def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: floa
     explorer = TopExp_Explorer(face, TopAbs_WIRE)
     while explorer.More():
         wire = cast("Wire", explorer.Current())
-        curves = [c for c in (pcurve(e, face) for e in wire_edges(wire, face)) if c is not None]
+        edges = wire_edges(wire, face)
+        curves = [c for c in (pcurve(e, face) for e in edges) if c is not None]
         if curves:
-            chain, gap = _chained(curves, original, pmap, size)
+            chain, gap = _chained(curves, original, pmap, max(_MEET * size, 2.0 * _tolerance(edges)))
             (around if gap is not None else closed).append((chain, gap))
         explorer.Next()
     loops = []
@@ -95,6 +96,22 @@ def wire_edges(wire, face) -> list:
     return edges if len(edges) == len(stored) else stored  # the walker skips edges of odd wires: take them all
 
 
+def _tolerance(edges) -> float:
+    """The largest tolerance of the edges and their vertices (how far apart the file lets ends be)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_VERTEX
+    from OCP.TopExp import TopExp_Explorer
+
+    worst = 0.0
+    for edge in edges:
+        worst = max(worst, BRep_Tool.Tolerance_s(edge))
+        explorer = TopExp_Explorer(edge, TopAbs_VERTEX)
+        while explorer.More():
+            worst = max(worst, BRep_Tool.Tolerance_s(cast("Vertex", explorer.Current())))
+            explorer.Next()
+    return worst
+
+
 def _periods(pmap: ParamMap) -> np.ndarray:
     return np.array([pmap.u_period, pmap.v_period])
 
@@ -113,13 +130,15 @@ def _space_gap(original, a: np.ndarray, b: np.ndarray) -> float:
     return float(pa.Distance(pb))
 
 
-def _chained(curves: list[TrimCurve], original, pmap: ParamMap, size: float):
-    """(curves end to end, across the seam; the closing gap (2,) if it goes once round a period, else None)."""
+def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
+    """(curves end to end, across the seam; the closing gap (2,) if it goes once round a period, else None).
+
+    meet: how far apart (model units) two ends may be in space and still meet.
+    """
     periods = _periods(pmap)
     umin, umax, vmin, vmax = pmap.bounds
     scale = float(np.hypot(umax - umin, vmax - vmin))
     snap = 1e-6 * scale
-    meet = _MEET * size
     out = [curves[0]]
     left = list(curves[1:])
     ordered = True
@@ -313,7 +332,10 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     Only the part inside the domain matters (the surface has nothing
     outside it), so each excursion is cut off exactly (its ends found by
     bisection, the curve split there by knot insertion) and its control
-    points clipped onto the domain's edge; the rest of the curve is unchanged.
+    points clipped onto the domain's edge. If the curve still leaves the
+    domain (its exact box, :func:`~bsrt.trim.extent_points`), it weaves along
+    the edge between the samples, by about the file's tolerance: its
+    control points outside are clipped too.
     """
     a0, a1, b0, b1 = domain
     eps = 1e-12 * np.hypot(a1 - a0, b1 - b0)  # a curve along the edge is inside, rounding aside
@@ -351,4 +373,13 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
             piece = points[max(first, 0): last]
             piece[:, 0] = np.clip(piece[:, 0], a0, a1)
             piece[:, 1] = np.clip(piece[:, 1], b0, b1)
-    return make_trim_curve(p, knots, points, None if curve.weights is None else weights)
+    out = make_trim_curve(p, knots, points, None if curve.weights is None else weights)
+    box = extent_points(out)  # exact: the curve's box
+    if (box[:, 0].min() < a0 - eps or box[:, 0].max() > a1 + eps or box[:, 1].min() < b0 - eps
+            or box[:, 1].max() > b1 + eps):
+        # it weaves along the edge (within the file's tolerance of it) and pokes out between the samples:
+        # its control points outside go onto the edge, which moves it by less than it pokes out
+        points[:, 0] = np.clip(points[:, 0], a0, a1)
+        points[:, 1] = np.clip(points[:, 1], b0, b1)
+        out = make_trim_curve(p, knots, points, None if curve.weights is None else weights)
+    return out
