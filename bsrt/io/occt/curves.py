@@ -81,9 +81,12 @@ def shifted(curve: TrimCurve, offset) -> TrimCurve:
     return TrimCurve(curve.degree, curve.knots, curve.points + np.asarray(offset, dtype=np.float64), curve.weights)
 
 
+_UNIT_KNOTS = np.array([0.0, 0.0, 1.0, 1.0])
+
+
 def segment(a, b) -> TrimCurve:
     """The straight segment from a (2,) to b (2,)."""
-    return make_trim_curve(1, [0.0, 0.0, 1.0, 1.0], np.array([a, b], dtype=np.float64))
+    return TrimCurve(1, _UNIT_KNOTS, np.array([a, b], dtype=np.float64))
 
 
 def reversed_curve(c: TrimCurve) -> TrimCurve:
@@ -221,4 +224,4 @@ def _fit(curve: TrimCurve, pmap: ParamMap, breaks: np.ndarray, tolerance) -> Tri
     ctrl[1:, 0] = ctrl[:-1, -1]  # C0 at the breaks, bit for bit
     points = np.concatenate([ctrl[:1, 0], ctrl[:, 1:].reshape(-1, 2)])
     knots = np.concatenate([np.full(d + 1, a[0]), np.repeat(b[:-1], d), np.full(d + 1, b[-1])])
-    return make_trim_curve(d, knots, points)
+    return TrimCurve(d, knots, points)

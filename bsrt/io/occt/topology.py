@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...bspline import BSplineSurface, insert_knot
-from ...trim import TrimCurve, TrimLoop, extent_points, make_trim_curve
+from ...trim import TrimCurve, TrimLoop, point_outside
 from .curves import TrimError, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
 from .reading import cast
 from .surfaces import ParamMap
@@ -274,7 +274,7 @@ def _close(curves: list[TrimCurve], surface: BSplineSurface, size: float) -> lis
         mid = 0.5 * (ends[i][1] + ends[j][0])
         pts[i][-1] = mid
         pts[j][0] = mid
-    inside = [_inside_domain(make_trim_curve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1))
+    inside = [_inside_domain(TrimCurve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1))
               for c, p in zip(curves, pts)]
     return _off_the_edges(inside, (a0, a1, b0, b1))
 
@@ -316,7 +316,7 @@ def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
             corner = _outer(pts[i][-1], pts[j][0], domain)
             pts[i][-1] = corner
             pts[j][0] = corner
-    return [make_trim_curve(c.degree, c.knots, p, c.weights) for c, p in zip(curves, pts)]
+    return [TrimCurve(c.degree, c.knots, p, c.weights) for c, p in zip(curves, pts)]
 
 
 def _outer(a: np.ndarray, b: np.ndarray, domain) -> np.ndarray:
@@ -333,7 +333,7 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     outside it), so each excursion is cut off exactly (its ends found by
     bisection, the curve split there by knot insertion) and its control
     points clipped onto the domain's edge. If the curve still leaves the
-    domain (its exact box, :func:`~bsrt.trim.extent_points`), it weaves along
+    domain (:func:`~bsrt.trim.point_outside`, exact), it weaves along
     the edge between the samples, by about the file's tolerance: its
     control points outside are clipped too.
     """
@@ -373,13 +373,12 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
             piece = points[max(first, 0): last]
             piece[:, 0] = np.clip(piece[:, 0], a0, a1)
             piece[:, 1] = np.clip(piece[:, 1], b0, b1)
-    out = make_trim_curve(p, knots, points, None if curve.weights is None else weights)
-    box = extent_points(out)  # exact: the curve's box
-    if (box[:, 0].min() < a0 - eps or box[:, 0].max() > a1 + eps or box[:, 1].min() < b0 - eps
-            or box[:, 1].max() > b1 + eps):
+    out = TrimCurve(p, knots, points, None if curve.weights is None else weights)
+    if point_outside(out, (a0 - eps, a1 + eps, b0 - eps, b1 + eps)) is not None:
         # it weaves along the edge (within the file's tolerance of it) and pokes out between the samples:
         # its control points outside go onto the edge, which moves it by less than it pokes out
         points[:, 0] = np.clip(points[:, 0], a0, a1)
         points[:, 1] = np.clip(points[:, 1], b0, b1)
-        out = make_trim_curve(p, knots, points, None if curve.weights is None else weights)
+        out = TrimCurve(p, knots, points, None if curve.weights is None else weights)
     return out
+
