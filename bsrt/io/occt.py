@@ -120,7 +120,7 @@ def kind_of(path: str, format: str) -> str:
     )
 
 
-def read(path, format: str = "occt"):
+def read(path, format: str = "occt", progress=None):
     """Read a STEP, BREP or IGES file through OpenCASCADE into a :class:`~bsrt.io.Model`.
 
     (Long: the reader's steps (transfer, assembly walk, face conversion,
@@ -132,7 +132,8 @@ def read(path, format: str = "occt"):
     the part). ``Model.colors`` holds one linear RGB colour per surface (None
     where the file gives none) or is empty when the file has no colours.
     Raises InputError (one sentence naming the file) if OpenCASCADE is
-    missing or cannot read the file.
+    missing or cannot read the file. progress: None, or called as
+    ``progress(done, total)`` (faces) as the faces are converted.
     """
     from . import Model
 
@@ -156,6 +157,7 @@ def read(path, format: str = "occt"):
     free_edges = 0
     base = os.path.basename(path)
     converted: dict = {}  # a part placed several times is converted once, in its own frame
+    total_faces, done = sum(1 for leaf in leaves if leaf.visible for _ in _faces(leaf.shape)), 0
     for leaf in leaves:
         if not leaf.visible:
             skipped["parts the file marks invisible"] = skipped.get("parts the file marks invisible", 0) + 1
@@ -165,6 +167,9 @@ def read(path, format: str = "occt"):
         scale = abs(float(trsf.ScaleFactor())) or 1.0
         placed = not leaf.location.IsIdentity()
         for k, face in enumerate(_faces(leaf.shape)):
+            if progress is not None:
+                progress(done, total_faces)
+            done += 1
             key = _Key(face)
             if key not in converted:
                 try:
@@ -185,6 +190,8 @@ def read(path, format: str = "occt"):
             surfaces.append(surface.transformed(_matrix(trsf)) if placed else surface)
             names.append(f"{base}:{leaf.name}#{k}")
             colors.append(leaf.face_colors.get(key, leaf.color))
+    if progress is not None:
+        progress(done, total_faces)
     if not surfaces:
         raise InputError(f"{path}: OpenCASCADE read the file but found no faces to draw")
     if approximated:
