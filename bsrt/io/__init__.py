@@ -34,7 +34,7 @@ from .. import validate
 from ..errors import InputError
 from ..files import check_input_file
 
-__all__ = ["Model", "FORMATS", "LoadRecord", "load_model"]
+__all__ = ["FORMATS", "LoadRecord", "Model", "load_model"]
 
 
 @dataclass(frozen=True)

@@ -8,12 +8,16 @@ unpickles in milliseconds. :func:`load` wraps a reader call with the cache;
 - **Which formats**: :data:`CACHED_FORMATS` (OpenCASCADE's STEP, BREP and
   IGES, and bsrt's own IGES reader). The small text formats (bez, bpt, g2,
   nurbs, obj) read in about 10 ms, no faster from a cache, and skip it.
-- **Key**: SHA-256 of the file's bytes, the path as given (it is part of the
-  result: ``Model.path``, names, messages), the format name, bsrt's version,
+- **Key**: SHA-256 of the file's bytes, the file's name (surface names
+  start with it), the format name, bsrt's version,
   :data:`FORMAT_VERSION`, a fingerprint of the reader code (the source of
   ``bsrt/io`` and the geometry modules it builds on, so an edited reader in a
   development checkout never meets its old results) and, for the
   OpenCASCADE formats, the installed ``OCP`` (its path and time stamp).
+  Not the folder: a copy of the file elsewhere (a batch worker's unpacked
+  copy) is a hit, and the entry's ``Model.path`` is set to the path given.
+  So the readers of these formats name the folder nowhere but in
+  ``Model.path`` (tests/test_cache.py checks it).
 - **Where**: ``$BSRT_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/bsrt/models``
   (default ``~/.cache/bsrt/models``), created on demand (mode 0700). One file
   per entry, ``<key>.model``: :data:`MAGIC`, then the key (32 bytes), the
@@ -61,7 +65,7 @@ SUFFIX = ".model"
 DEFAULT_MAX_MB = 2048
 _STALE_TEMPORARY = 3600.0  # seconds: an older temporary file is a killed writer's
 
-_noted_unwritable = False  # one note per process about a folder that cannot be written
+_noted: set[str] = set()  # "read", "write": a folder that cannot be read or written is noted once per process
 _fingerprint: str | None = None
 
 
@@ -100,6 +104,7 @@ def load(path: str, format: str, read):
     entry = folder() / (key.hex() + SUFFIX)
     model = _fetch(entry, key)
     if model is not None:
+        model.path = path
         return model, True
     model = read()
     try:
@@ -117,7 +122,7 @@ def entry_key(digest: bytes, path: str, format: str) -> bytes:
     from .. import __version__
 
     h = hashlib.sha256()
-    for part in (f"bsrt-model-cache {FORMAT_VERSION}", __version__, format, path, _code_fingerprint(),
+    for part in (f"bsrt-model-cache {FORMAT_VERSION}", __version__, format, os.path.basename(path), _code_fingerprint(),
                  _occt_fingerprint() if format in OCCT_KINDS else ""):
         data = part.encode("utf-8", "surrogateescape")
         h.update(len(data).to_bytes(8, "big") + data)
@@ -160,10 +165,10 @@ def _fetch(entry: Path, key: bytes):
     """The Model in ``entry``, or None (no entry, or a damaged one: noted, to be rebuilt)."""
     try:
         fd = os.open(entry, os.O_RDONLY)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # no entry (or no folder: noted when writing)
         return None
     except OSError as exc:
-        _note(f"cannot read {entry} ({exc.strerror or exc}); reading the model file instead")
+        _note_once("read", f"cannot read {entry} ({exc.strerror or exc}); reading the model file instead")
         return None
     try:
         with os.fdopen(fd, "rb") as f:
@@ -172,7 +177,7 @@ def _fetch(entry: Path, key: bytes):
                 return None
             data = f.read()
     except OSError as exc:
-        _note(f"cannot read {entry} ({exc.strerror or exc}); reading the model file instead")
+        _note_once("read", f"cannot read {entry} ({exc.strerror or exc}); reading the model file instead")
         return None
     problem, model = _decode(data, key)
     if problem:
@@ -218,7 +223,6 @@ def encode(model, key: bytes) -> bytes:
 def _store(entry: Path, key: bytes, model) -> None:
     """Write the entry atomically (temporary file, fsync, rename); a folder that cannot be
     written is noted once and otherwise ignored."""
-    global _noted_unwritable
     where = entry.parent
     temporary = where / f".{entry.stem[:16]}-{os.getpid()}-{secrets.token_hex(4)}.tmp"
     try:
@@ -239,10 +243,8 @@ def _store(entry: Path, key: bytes, model) -> None:
             temporary.unlink(missing_ok=True)
             raise
     except OSError as exc:
-        if not _noted_unwritable:
-            _noted_unwritable = True
-            _note(f"cannot write to {where} ({exc.strerror or exc}); models are read without the cache "
-                  f"(set BSRT_CACHE_DIR to another folder, or use --no-cache)")
+        _note_once("write", f"cannot write to {where} ({exc.strerror or exc}); models are read without the cache "
+                   f"(set BSRT_CACHE_DIR to another folder, or use --no-cache)")
         return
     evict(where, max_bytes())
 
@@ -279,6 +281,12 @@ def _unlink(name: str) -> None:
         os.unlink(name)
     except OSError:
         pass
+
+
+def _note_once(kind: str, text: str) -> None:
+    if kind not in _noted:
+        _noted.add(kind)
+        _note(text)
 
 
 def _note(text: str) -> None:
