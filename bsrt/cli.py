@@ -126,8 +126,6 @@ def _load_input(args, progress=None):
     progress: the render's progress, shown the "load" stage."""
     from .loading import CameraOverrides, load_input
 
-    if progress:
-        progress("load", 0.0)
     scene = load_input(args.scene, args.format, width=args.width, height=args.height,
                        camera=CameraOverrides.from_args(args), cache=args.cache, progress=progress)
     if progress:

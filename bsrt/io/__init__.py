@@ -158,8 +158,9 @@ def _check_reader(path: str, format: str) -> None:
     if format in OCCT_FORMATS:
         from . import occt
 
+        kind = occt.kind_of(path, format)  # format "occt" with another extension: its own message first
         if not occt.available():
-            raise InputError(occt.needs_message(path, occt.kind_of(path, format)))
+            raise InputError(occt.needs_message(path, kind))
     _regular(path)
 
 

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import math
 import os
 import pickle
 import secrets
@@ -84,6 +85,8 @@ def max_bytes() -> int:
     try:
         mb = float(os.environ.get("BSRT_CACHE_MAX_MB", DEFAULT_MAX_MB))
     except ValueError:
+        mb = DEFAULT_MAX_MB
+    if not math.isfinite(mb):  # "inf", "nan": the default
         mb = DEFAULT_MAX_MB
     return int(max(0.0, mb) * 1024 * 1024)
 
