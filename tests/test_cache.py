@@ -378,3 +378,10 @@ def test_info_shows_the_load_time(folder, step, capsys):
     assert "  loaded in " in second and "(from the model cache)" in second
     assert main(["info", "--no-cache", str(MODELS / "bezier-teaset" / "qt3d" / "teapot.bez")]) == 0
     assert "(read)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", ["render", "map", "info", "preview", "batch", "animate"])
+def test_every_command_that_loads_models_has_no_cache(command, capsys):
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    assert "--no-cache" in capsys.readouterr().out
