@@ -208,6 +208,7 @@ class Scene(_scene.Scene):
         render: RenderSettings | Mapping | None = None,
         name: str = WHERE,
         folder: str | os.PathLike | None = None,
+        cache: bool = True,
     ) -> Scene:
         """A scene from parts made in Python.
 
@@ -221,13 +222,14 @@ class Scene(_scene.Scene):
         them). film, render: the ``[film]`` and ``[render]`` values
         (defaults: 512x512, black; the scene format's defaults). name: the
         label in error messages and ``Scene.path``. folder: where Import
-        files are looked up.
+        files are looked up. cache: False reads Import files without the
+        converted-model cache (README, "Model files").
 
         Raises InputError with the scene format's messages, e.g.
         ``<python>: surface[0].knots_u: expected 6 values (3 points + degree 2 + 1), got 5``.
         """
         data, order = _document(list(surfaces), camera, lights, materials, film, render)
-        scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order)
+        scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order, cache=cache)
         if camera is None or lights is None:
             scene = _automatic(scene, camera is None, lights is None)
         return _wrap(scene)
@@ -288,6 +290,8 @@ def load(
     camera_up: Vector3 | None = None,
     fov: float | None = None,
     format: str = "auto",
+    cache: bool = True,
+    progress: Callable[[str, float], None] | None = None,
 ) -> Scene:
     """Read a scene file (.toml) or a model file (.igs, .bez, .g2, ...).
 
@@ -299,6 +303,11 @@ def load(
     camera_eye, camera_look_at, camera_up ((3,) each), fov (degrees) and
     format (model files: "auto", by extension, or a format name). The
     overrides become part of the scene (``to_toml`` writes them).
+    cache: False reads model files (a scene's imports too) without the
+    converted-model cache, writing nothing to it; by default a second load
+    of an unchanged STEP, BREP or IGES file comes from the cache.
+    progress: called as ``progress("load", fraction)`` while OpenCASCADE
+    converts faces. ``Scene.loads`` tells how each model file was loaded.
 
     Raises InputError naming the file, table and key (or the override).
     """
@@ -307,7 +316,8 @@ def load(
     settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
                                  max_iterations=max_iterations, max_depth=max_depth)
     camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True)
-    scene = load_input(path, format, width=settings.get("width"), height=settings.get("height"), camera=camera)
+    scene = load_input(path, format, width=settings.get("width"), height=settings.get("height"), camera=camera,
+                       cache=cache, progress=progress)
     return _wrap(_with_settings(scene, settings))
 
 
@@ -357,6 +367,7 @@ def render(
     max_depth: int | None = None,
     camera: Camera | Mapping | None = None,
     progress: ProgressArg = None,
+    cache: bool = True,
 ) -> RenderResult:
     """Render a scene (or a scene or model file, loaded with :func:`load`).
 
@@ -366,8 +377,10 @@ def render(
     max_iterations, max_depth, camera (a :class:`Camera`). progress: a
     function called as ``progress(stage, fraction)`` (stage "map", "solve",
     "shade", "aov" or "done"; fraction 0..1 of the whole render; it may
-    raise to abandon the render), or True for a progress bar on stderr
+    raise to abandon the render; given a file, first "load" with the
+    fraction of its faces converted), or True for a progress bar on stderr
     (lines when stderr is not a terminal) ended by a one-line summary.
+    cache: given a file, False loads it without the converted-model cache.
 
     Returns a :class:`bsrt.pipeline.RenderResult`: ``pixels`` (H, W, 3) uint8
     sRGB, ``linear`` (H, W, 3) float64, ``aovs()`` (the per-pixel arrays of
@@ -378,15 +391,6 @@ def render(
     from .pipeline import render as pipeline
     from .settings import RenderOptions
 
-    if isinstance(scene, (str, os.PathLike)):
-        scene = load(scene)
-    if not isinstance(scene, _scene.Scene):
-        raise TypeError(f"render() needs a bsrt.Scene (bsrt.load or bsrt.Scene.build), got {type(scene).__name__}")
-    settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
-                                 max_iterations=max_iterations, max_depth=max_depth)
-    if camera is not None:
-        settings["camera"] = _checked_camera(camera)
-    options = RenderOptions.resolve(scene, **settings)
     bar = None
     if progress is True:
         from .progress import wanted
@@ -399,6 +403,16 @@ def render(
     else:
         raise TypeError(f"progress: expected a function progress(stage, fraction), True or None, got {progress!r}")
     try:
+        if isinstance(scene, (str, os.PathLike)):
+            scene = load(scene, cache=cache, progress=report)
+        if not isinstance(scene, _scene.Scene):
+            raise TypeError(f"render() needs a bsrt.Scene (bsrt.load or bsrt.Scene.build), got "
+                            f"{type(scene).__name__}")
+        settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map,
+                                     tolerance=tolerance, max_iterations=max_iterations, max_depth=max_depth)
+        if camera is not None:
+            settings["camera"] = _checked_camera(camera)
+        options = RenderOptions.resolve(scene, **settings)
         if bar is not None:
             bar("setup", 0.0)
         result = pipeline(scene, options, progress=report)

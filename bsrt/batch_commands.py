@@ -121,14 +121,15 @@ def _summary_path(path) -> Path | None:
 
 
 def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=False, workers=None,
-          scheduler=None, client=None, resume=False, summary=None, progress=None, report=None):
+          scheduler=None, client=None, resume=False, summary=None, progress=None, report=None, cache=True):
     """Render every scene or model file of ``inputs`` (files, folders, globs) to
     ``out/<name>.png`` (and ``<name>.npz`` with ``aov``) on Dask; returns the
     :class:`bsrt.batching.Summary` (``.items``, ``.exit_code``, ``.to_dict()``).
 
     client: a ``distributed.Client`` to use; else scheduler (an address); else a
     local cluster of ``workers`` processes. summary: also write the JSON there.
-    progress(stage, fraction), report(item): optional callbacks.
+    progress(stage, fraction), report(item): optional callbacks. cache: False
+    reads the model files without the converted-model cache.
     Raises InputError for bad usage (an input that does not exist, no Dask).
     """
     from . import batching
@@ -138,6 +139,7 @@ def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=Fa
     paths = batching.discover([inputs] if isinstance(inputs, (str, os.PathLike)) else inputs)
     options = {"width": width, "height": height, "spp": spp, "method": method}
     _check_options(options)
+    options["cache"] = bool(cache)
     summary_file = _summary_path(summary)
     out = _output_folder(out)
     work, notes = batching.plan(paths, out, options, aov)
@@ -152,12 +154,13 @@ def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=Fa
 
 def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, width=None, height=None, spp=None,
             method=None, workers=None, scheduler=None, client=None, resume=False, summary=None, progress=None,
-            report=None):
+            report=None, cache=True):
     """Render the frames of ``input`` (a scene or model file) to ``out/frame_0001.png``
     ... on Dask: an orbit of ``orbit`` degrees, else the scene's
     ``[[camera.keyframe]]`` path; ``animation`` "webp" or "apng" also writes
     ``out/<name>.webp`` / ``.png``. Returns the Summary (the animated file, if
-    any, is its last item)."""
+    any, is its last item). cache: False reads the model files without the
+    converted-model cache."""
     from . import batching, camera_path
     from .loading import CameraOverrides
 
@@ -168,6 +171,7 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wi
         raise InputError(f"animation: expected 'webp' or 'apng', got {animation!r}")
     options = {"width": width, "height": height, "spp": spp, "method": method}
     _check_options(options)
+    options["cache"] = bool(cache)
     path = Path(input)
     root, files = batching.pack(path)
     template = batching.Job(str(path), path.stem, files, root, options)
@@ -280,7 +284,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     return _run("batch", lambda progress, report: batch(
         paths, args.out, width=args.width, height=args.height, spp=args.spp, method=args.method, aov=args.aov,
         workers=args.workers, scheduler=args.scheduler, resume=args.resume, summary=args.summary,
-        progress=progress, report=report))
+        progress=progress, report=report, cache=args.cache))
 
 
 def cmd_animate(args: argparse.Namespace) -> int:
@@ -288,4 +292,5 @@ def cmd_animate(args: argparse.Namespace) -> int:
     return _run("animate", lambda progress, report: animate(
         args.input, args.out, frames=args.frames, orbit=args.orbit, fps=args.fps, animation=args.animation,
         width=args.width, height=args.height, spp=args.spp, method=args.method, workers=args.workers,
-        scheduler=args.scheduler, resume=args.resume, summary=args.summary, progress=progress, report=report))
+        scheduler=args.scheduler, resume=args.resume, summary=args.summary, progress=progress, report=report,
+        cache=args.cache))

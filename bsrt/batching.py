@@ -138,7 +138,8 @@ class Job:
       model files a scene imports by relative path. root: the client's folder
       the files are laid out from (a worker's messages name it, not its own
       temporary folder). options: width, height, spp, method (None: the
-      file's). camera: overrides (an animation's frame camera). aov: also
+      file's), cache (False: the worker reads model files without the
+      converted-model cache; default True). camera: overrides (an animation's frame camera). aov: also
       return the per-pixel arrays.
     """
 
@@ -224,7 +225,8 @@ def load_job(job: Job, path: Path):
     """The Scene of a job's input (already unpacked at ``path``)."""
     from .loading import load_input
 
-    return load_input(path, width=job.options.get("width"), height=job.options.get("height"), camera=job.camera)
+    return load_input(path, width=job.options.get("width"), height=job.options.get("height"), camera=job.camera,
+                      cache=job.options.get("cache", True))
 
 
 def render_job(job: Job) -> dict:

@@ -93,7 +93,14 @@ def _parser() -> argparse.ArgumentParser:
     from .batch_commands import add_commands as _batch_commands
 
     _batch_commands(sub, _positive_int)
+    for command in ("render", "map", "info", "preview", "batch", "animate"):  # every command that loads models
+        _cache_option(sub.choices[command])
     return parser
+
+
+def _cache_option(parser) -> None:
+    parser.add_argument("--no-cache", dest="cache", action="store_false",
+                        help="read model files without the converted-model cache (neither use nor write it)")
 
 
 def _vector(text: str):
@@ -114,12 +121,15 @@ def _camera_options(parser) -> None:
     parser.add_argument("--fov", type=float, help="vertical field of view in degrees, 0 < fov < 180")
 
 
-def _load_input(args):
-    """The Scene for ``args.scene`` (bsrt/loading.py), its import warnings on stderr once."""
+def _load_input(args, progress=None):
+    """The Scene for ``args.scene`` (bsrt/loading.py), its import warnings on stderr once.
+    progress: the render's progress, shown the "load" stage."""
     from .loading import CameraOverrides, load_input
 
     scene = load_input(args.scene, args.format, width=args.width, height=args.height,
-                       camera=CameraOverrides.from_args(args))
+                       camera=CameraOverrides.from_args(args), cache=args.cache, progress=progress)
+    if progress:
+        progress.clear()  # the warnings below get clean lines
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
     return scene
@@ -183,12 +193,17 @@ def _cmd_render(args) -> int:
 
     out = _check_output(args.output, ".png")
     aov = _check_output(args.aov, ".npz") if args.aov else None
-    scene = _load_input(args)
+    progress = _progress(args)
+    try:
+        scene = _load_input(args, progress)
+    except BaseException:
+        if progress:
+            progress.clear()
+        raise
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
     options = RenderOptions.resolve(scene, method=args.method, map=args.map_mode, width=args.width,
                                     height=args.height, spp=args.spp)
     _say_if_compiling()
-    progress = _progress(args)
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
@@ -237,7 +252,7 @@ def _cmd_info(args) -> int:
         if args.format != "auto":
             raise InputError(f"{path}: --format: only for model files; a .toml file is a scene")
 
-        scene = load_scene(path)
+        scene = load_scene(path, cache=args.cache)
         degrees = sorted({s.geometry.degree for s in scene.surfaces})
         rational = sum(s.geometry.is_rational for s in scene.surfaces)
         trimmed = sum(s.geometry.is_trimmed for s in scene.surfaces)
@@ -245,13 +260,17 @@ def _cmd_info(args) -> int:
         print(f"{path}: scene, {len(scene.surfaces)} surfaces ({trimmed} trimmed, {loops} loops), degrees {degrees}, "
               f"{rational} rational, "
               f"{len(scene.lights)} lights, {len(scene.materials)} materials, film {scene.film.width}x{scene.film.height}")
+        if scene.loads:
+            from .io.info import load_line
+
+            print(load_line(scene.loads))
         for note in scene.notes:
             print(f"  {note}")
         return 0
     from .io import load_model
     from .io.info import describe
 
-    print(describe(load_model(path, args.format)))
+    print(describe(load_model(path, args.format, cache=args.cache)))
     return 0
 
 

@@ -4,6 +4,8 @@ CLI's render and map, the preview and the batch commands.
 A ``.toml`` file is a scene; anything else is a model file read by
 ``bsrt.io.load_model`` (``format`` picks the reader, "auto" by extension) and
 framed by ``scene_for_model`` with the automatic camera and lights.
+Model files (a scene's imports too) go through the converted-model cache
+unless ``cache=False``; ``Scene.loads`` records how each load went.
 """
 
 from __future__ import annotations
@@ -76,16 +78,22 @@ def _vector(key: str, value) -> tuple:
 
 
 def load_input(path, format: str = "auto", *, width: int | None = None, height: int | None = None,
-               camera: CameraOverrides = CameraOverrides()):
+               camera: CameraOverrides = CameraOverrides(), cache: bool = True, progress=None):
     """A Scene from a scene file, or from a model file with an automatic camera.
+
+    cache: use the converted-model cache (``bsrt.io.load_model``). progress:
+    a render's ``progress(stage, fraction)``, told stage "load" with the
+    fraction of faces converted (bsrt/progress.py).
 
     ``width``/``height`` frame a model's automatic camera (default 512); a
     scene keeps its own film (the render options override it later). The
     caller reports ``scene.notes`` (import warnings) once. Every message
     names the settings as ``camera`` spells them (options or keywords).
     """
+    from .progress import load_reporter
     from .scene import load_scene, scene_for_model
 
+    faces = load_reporter(progress)
     camera = camera.checked()
     if not isinstance(format, str):
         raise InputError(f"{camera.label('format')}: expected a string, got {format!r}")
@@ -93,10 +101,10 @@ def load_input(path, format: str = "auto", *, width: int | None = None, height: 
     if path.suffix.lower() == ".toml":
         if format != "auto":
             raise InputError(f"{camera.label('format')}: only for model files; {path.name} is a scene file (.toml)")
-        return _override_camera(load_scene(path), camera)
+        return _override_camera(load_scene(path, cache=cache, progress=faces), camera)
     from .io import load_model
 
-    model = load_model(path, format)
+    model = load_model(path, format, cache=cache, progress=faces)
     try:
         return scene_for_model(model, width or 512, height or 512, camera.eye, camera.look_at, camera.fov,
                                camera.up or (0.0, 0.0, 1.0))

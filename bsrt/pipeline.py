@@ -162,6 +162,7 @@ def render(
     width, height, spp = opts.width, opts.height, opts.spp
     report = progress or (lambda stage, fraction=0.0: None)
     stats = Stats(method=opts.method, map=opts.map if opts.uses_map else None, width=width, height=height, spp=spp)
+    stats.loaded(getattr(scene, "loads", ()))  # the model files' load, which came before (bsrt/loading.py)
     with stats.timer("setup"):
         geometry = geometry or Geometry(scene)
         _ = geometry.bvh  # built here, not inside the first stage that needs it

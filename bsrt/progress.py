@@ -3,10 +3,15 @@
 ``Progress`` is the ``progress(stage, fraction)`` callback of
 :func:`bsrt.pipeline.render` (stage "map", "solve", "shade", "aov" or "done";
 fraction 0..1 of the whole render; its callers report "setup" at 0 before
-it starts, since loading the kernels can take a while). On a terminal it redraws one line in
-place, at most ten times a second::
+it starts, since loading the kernels can take a while). Before that, the
+model load reports stage "load" with its own fraction, the faces converted
+(:func:`load_reporter` adapts ``bsrt.io.load_model``'s ``progress(done,
+total)``); the render's stages then start again from 0, and the time left
+counts from there. On a terminal it redraws one line in place, at most ten
+times a second::
 
-    bsrt: [█████████░░░░░░░░░░░]  45% shade, 1.2 s, about 1.5 s left
+    bsrt: [████████░░░░░░░░░░░░]  41% load 65/160 faces, 0.8 s, about 1.1 s left
+    bsrt: [█████████░░░░░░░░░░░]  45% shade, 3.2 s, about 1.5 s left
 
 and :meth:`Progress.finish` replaces it with a summary (``bsrt: rendered
 out.png 512x512, 1 spp, newton, 2.7 s``) ending in a newline. Elsewhere
@@ -29,6 +34,7 @@ import time
 BAR_INTERVAL = 0.1  # seconds between redraws of the bar (at most 10 per second)
 LINE_INTERVAL = 1.0  # seconds between progress lines when not on a terminal
 BAR_CELLS = 20
+LOAD = "load"  # the stage of the model load, before the render's own
 
 _active: "Progress | None" = None
 
@@ -47,6 +53,17 @@ def wanted(stream, flag: bool | None) -> "Progress | None":
     return Progress(stream, lines=not tty) if flag else None
 
 
+def load_reporter(progress):
+    """A ``progress(done, total)`` callback for ``bsrt.io.load_model`` (faces converted) that
+    reports stage "load" to a render's ``progress(stage, fraction)``; None for None. A
+    :class:`Progress` also shows the counts ("load 65/160 faces")."""
+    if progress is None:
+        return None
+    if isinstance(progress, Progress):
+        return lambda done, total: progress(LOAD, done / total if total else 1.0, f"{done}/{total} faces")
+    return lambda done, total: progress(LOAD, done / total if total else 1.0)
+
+
 def clear_active() -> None:
     """Erase the bar being drawn, if any (before an error message is printed)."""
     if _active is not None:
@@ -63,8 +80,10 @@ class Progress:
     def __init__(self, stream, *, lines: bool = False, clock=time.monotonic):
         self.stream, self.lines, self.clock = stream, lines, clock
         self.start = clock()
+        self.phase_start = self.start  # the render's start (after the load): the time left counts from here
         self.fraction = 0.0
         self.stage = ""
+        self.detail = ""
         self._drawn_at: float | None = None  # when the line was last drawn
         self._width = 0  # characters of the bar currently on the terminal line
         self._last_line = ("", -1)
@@ -73,11 +92,14 @@ class Progress:
     def elapsed(self) -> float:
         return self.clock() - self.start
 
-    def __call__(self, stage: str, fraction: float = 0.0) -> None:
+    def __call__(self, stage: str, fraction: float = 0.0, detail: str = "") -> None:
+        """Stage ``stage`` is ``fraction`` done; detail: shown after the stage's name."""
         global _active
-        self.fraction = max(self.fraction, min(1.0, max(0.0, float(fraction))))  # never backwards
-        self.stage = stage
         now = self.clock()
+        if self.stage == LOAD and stage != LOAD:  # the load is over: the render starts from 0
+            self.fraction, self.phase_start = 0.0, now
+        self.fraction = max(self.fraction, min(1.0, max(0.0, float(fraction))))  # never backwards
+        self.stage, self.detail = stage, detail
         first_of_stage = stage not in self._stages  # a stage change is always shown (a handful per render)
         if self.lines:
             percent = int(self.fraction * 100)
@@ -111,10 +133,11 @@ class Progress:
     # -- drawing
 
     def _status(self, now: float) -> str:
-        elapsed = now - self.start
-        text = f"{self.fraction * 100:3.0f}% {self.stage}, {_duration(elapsed)}"
+        elapsed, phase = now - self.start, now - self.phase_start
+        detail = f" {self.detail}" if self.detail else ""
+        text = f"{self.fraction * 100:3.0f}% {self.stage}{detail}, {_duration(elapsed)}"
         if self.fraction > 0.0 and self.fraction < 1.0:
-            text += f", about {_duration(elapsed / self.fraction * (1.0 - self.fraction))} left"
+            text += f", about {_duration(phase / self.fraction * (1.0 - self.fraction))} left"
         return text
 
     def _bar(self) -> str:

@@ -89,6 +89,8 @@ class Scene:
     notes: tuple[str, ...] = field(default=())  # warnings from imports
     inputs: tuple[str, ...] = field(default=())  # the files read: the scene file, then its imports
     keyframes: tuple = field(default=())  # [[camera.keyframe]] for bsrt animate (bsrt/camera_path.py)
+    # how each model file was loaded (bsrt.io.LoadRecord: time, cache): --stats' "load"; not part of equality
+    loads: tuple = field(default=(), compare=False)
 
 
 DEFAULT_MATERIAL = Material("default")
@@ -183,8 +185,11 @@ def _show(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file (see the README for the format)."""
+def load_scene(path: str | Path, *, cache: bool = True, progress=None) -> Scene:
+    """Read and validate a scene file (see the README for the format).
+
+    cache, progress: for the model files of its [[import]] tables, as in
+    :func:`bsrt.io.load_model` (progress(done, total): faces converted)."""
     path = check_input_file(path, "scene file")
     where = path.name
     try:
@@ -204,11 +209,12 @@ def load_scene(path: str | Path) -> Scene:
     except RecursionError:
         raise InputError(f"{where}: invalid TOML: arrays or tables nested too deeply") from None
     order = re.findall(r"(?m)^[ \t]*\[\[[ \t]*(surface|import)[ \t]*\]\]", text)
-    scene = parse_scene(data, where, path.parent, order)
+    scene = parse_scene(data, where, path.parent, order, cache=cache, progress=progress)
     return replace(scene, inputs=(str(path),) + scene.inputs)
 
 
-def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, order=None) -> Scene:
+def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, order=None, *, cache: bool = True,
+                progress=None) -> Scene:
     """Validate an already-parsed TOML document.
 
     (Long: it walks the tables in the format's order, each a short block, and
@@ -217,6 +223,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     folder resolves [[import]] files; order: the kinds ("surface" or
     "import") of the surface-producing tables as they appear in the text,
     which tomllib does not keep (None: surfaces first, then imports).
+    cache, progress: for the imported model files (:func:`bsrt.io.load_model`).
     """
     known = {"film", "camera", "render", "material", "light", "surface", "import"}
     for key in data:
@@ -297,12 +304,13 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         t.finish()
         lights.append(light)
 
-    surfaces, notes, inputs = [], [], []
+    surfaces, notes, inputs, loads = [], [], [], []
     for kind, i, raw in _surface_entries(where, data, order):
         if kind == "import":
             t = _Table(where, raw, f"import[{i}]")
-            model = _load_import(t, folder)
+            model = _load_import(t, folder, cache, progress)
             inputs.append(str(model.path))
+            loads.append(model.load)
             material = _material_for(t, materials, by_name)
             colored = None if t.has("material") or t.has("color") else _colour_materials(
                 model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
@@ -332,7 +340,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
     return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes),
-                 tuple(inputs), tuple(keyframes))
+                 tuple(inputs), tuple(keyframes), tuple(loads))
 
 
 def _surface_arrays(t: _Table) -> tuple:
@@ -387,7 +395,7 @@ def _trimmed(t: _Table, geometry):
         raise InputError(f"{t.where}: {t.name}.{exc}") from None
 
 
-def _load_import(t: _Table, folder: Path | None):
+def _load_import(t: _Table, folder: Path | None, cache: bool = True, progress=None):
     from .io import FORMATS, load_model
 
     file = t.string("file", required=True)
@@ -403,7 +411,7 @@ def _load_import(t: _Table, folder: Path | None):
         check_input_file(path, "model file")
     except InputError as exc:
         t.fail("file", str(exc))
-    return load_model(path, fmt)
+    return load_model(path, fmt, cache=cache, progress=progress)
 
 
 def _colour_materials(model, materials: list, base: Material, prefix: str) -> list | None:
@@ -588,4 +596,5 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
         str(model.path),
         notes,
         (str(model.path),),
+        loads=(model.load,) if getattr(model, "load", None) is not None else (),
     )

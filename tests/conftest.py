@@ -5,13 +5,28 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import os
 import re
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bsrt import gl
+
+# The converted-model cache (bsrt/io/cache.py) of this test session: a fresh
+# temporary folder, never the user's ~/.cache. Set at import, so the CLI's
+# child processes inherit it; removed when the session ends.
+_CACHE_DIR = tempfile.mkdtemp(prefix="bsrt-test-model-cache-")
+os.environ["BSRT_CACHE_DIR"] = _CACHE_DIR
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _model_cache_folder():
+    yield _CACHE_DIR
+    shutil.rmtree(_CACHE_DIR, ignore_errors=True)
 
 MODELS = Path(__file__).resolve().parent / "data" / "models"
 """Third-party model files (IGES, STEP, .bez, .g2, .nurbs) kept in the repository

@@ -9,6 +9,8 @@ for any malformed input, with one sentence of the form
 Supported formats (extension -> name): see :data:`FORMATS`. STEP and BREP
 (and IGES with format "occt") are read through OpenCASCADE, the optional
 extra ``bsrt[cad]`` (:mod:`bsrt.io.occt`); without it they give one message.
+The slow formats go through the converted-model cache (:mod:`bsrt.io.cache`):
+a second load of an unchanged file unpickles the first one's Model.
 
 This module also holds the small helpers the readers share: decoding the file
 (:func:`read_text`), strict number parsing, error formatting, building a
@@ -21,6 +23,8 @@ from __future__ import annotations
 import importlib
 import os
 import re
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +34,24 @@ from .. import validate
 from ..errors import InputError
 from ..files import check_input_file
 
-__all__ = ["Model", "FORMATS", "load_model"]
+__all__ = ["FORMATS", "LoadRecord", "Model", "load_model"]
+
+
+@dataclass(frozen=True)
+class LoadRecord:
+    """How one model file was loaded (``--stats``' ``load`` entry, ``bsrt info``).
+
+    seconds: the whole :func:`load_model` call. cached: whether the model came
+    from the converted-model cache. faces: (converted, total) as the reader
+    last reported them through its progress callback, or None (a reader that
+    does not report, or a cached load).
+    """
+
+    path: str
+    format: str
+    seconds: float
+    cached: bool
+    faces: tuple[int, int] | None = None
 
 
 @dataclass
@@ -45,6 +66,8 @@ class Model:
     untrimmed: how many of the surfaces are trimmed in the file but drawn whole.
     colors: empty (the file gives no colours), or one per surface: a linear RGB
       colour (r, g, b), each in 0..1, or None where the file gives none.
+    load: how this load went (time, cache), set by :func:`load_model`; not
+      part of the cached value nor of equality.
     """
 
     path: str
@@ -54,6 +77,7 @@ class Model:
     warnings: list[str] = field(default_factory=list)
     untrimmed: int = 0
     colors: list[tuple[float, float, float] | None] = field(default_factory=list)
+    load: LoadRecord | None = field(default=None, compare=False, repr=False)
 
 
 #: extension (lower case, with dot) -> format name
@@ -76,33 +100,78 @@ FORMATS: dict[str, str] = {
 OCCT_FORMATS = ("step", "brep", "occt")
 
 
-def load_model(path, format: str = "auto") -> Model:
+def load_model(path, format: str = "auto", *, cache: bool = True,
+               progress: Callable[[int, int], None] | None = None) -> Model:
     """Read a model file.
 
     format: "auto" (by extension, case-insensitive) or one of the names in
     :data:`FORMATS` ("bez", "bpt", "brep", "g2", "iges", "obj", "nurbs",
     "step"), or "occt" (STEP, BREP or IGES through OpenCASCADE, by extension).
+    cache: use the converted-model cache (:mod:`bsrt.io.cache`) for the
+    formats it holds (STEP, BREP, IGES); False reads the file and writes
+    nothing. progress: called as ``progress(done, total)`` while the
+    OpenCASCADE reader converts faces (not on a cached load, nor by the
+    other readers). ``Model.load`` tells how long it took and whether the
+    cache served it.
     """
+    start = time.perf_counter()
     path = os.fspath(path)
+    format = _resolve_format(path, format)
+    faces: list[tuple[int, int]] = []
+
+    def count(done: int, total: int) -> None:
+        faces[:] = [(int(done), int(total))]
+        if progress is not None:
+            progress(done, total)
+
+    from . import cache as model_cache
+
+    if cache and format in model_cache.CACHED_FORMATS:
+        _check_reader(path, format)  # a missing extra or a FIFO: the same message as without the cache
+        model, cached = model_cache.load(path, format, lambda: _read(path, format, count))
+    else:
+        model, cached = _read(path, format, count), False
+    model.load = LoadRecord(path, format, time.perf_counter() - start, cached, faces[0] if faces else None)
+    return model
+
+
+def _resolve_format(path: str, format: str) -> str:
+    """The format name for ``format`` ("auto": by the extension); InputError for an unknown one."""
     format = format.lower()
     names = sorted(set(FORMATS.values()) | set(OCCT_FORMATS))
     if format == "auto":
         ext = os.path.splitext(path)[1].lower()
         if ext in FORMATS:
-            format = FORMATS[ext]
-        else:
-            exts = ", ".join(FORMATS)
-            raise InputError(
-                f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}"
-            )
+            return FORMATS[ext]
+        exts = ", ".join(FORMATS)
+        raise InputError(
+            f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}"
+        )
+    if format not in names:
+        raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
+    return format
+
+
+def _check_reader(path: str, format: str) -> None:
+    """InputError if the reader cannot run (the OpenCASCADE extra missing) or the path is not a
+    regular file: checked before the cache is asked, so its answer never hides them."""
+    if format in OCCT_FORMATS:
+        from . import occt
+
+        kind = occt.kind_of(path, format)  # format "occt" with another extension: its own message first
+        if not occt.available():
+            raise InputError(occt.needs_message(path, kind))
+    _regular(path)
+
+
+def _read(path: str, format: str, progress) -> Model:
+    """The model, read by its reader (no cache); the new model's ``load`` is None."""
     if format in OCCT_FORMATS:
         from . import occt
 
         if not occt.available():
             raise InputError(occt.needs_message(path, occt.kind_of(path, format)))
-        return checked(occt.read(path, format))
-    if format not in names:
-        raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
+        return checked(occt.read(path, format, progress=progress))
     reader = importlib.import_module(f".{format}", __name__)
     return checked(reader.read(_regular(path)))
 

@@ -12,7 +12,8 @@ from . import Model
 def describe(model: Model) -> str:
     """Multi-line summary: surface count (with trimmed surfaces and their loops, e.g.
     "213 surfaces (213 trimmed, 427 loops)"), degrees, rational and trimmed counts,
-    skipped entities, the bounding box of all control points, and warnings."""
+    skipped entities, the bounding box of all control points, the load (time, from the
+    model cache or read), and warnings."""
     surfaces = model.surfaces
     trimmed = [s for s in surfaces if s.is_trimmed]
     loops = sum(len(s.trims) for s in trimmed)
@@ -31,6 +32,8 @@ def describe(model: Model) -> str:
         lines.append("  trim loops:    " + ", ".join(f"{k} loop{'s' if k != 1 else ''} x {n}"
                                                    for k, n in sorted(per.items())))
     lines.append(f"  rendered untrimmed although trimmed in the file: {model.untrimmed}")
+    if model.load is not None:
+        lines.append(load_line([model.load]))
     pts = np.concatenate([s.points.reshape(-1, 3) for s in surfaces]) if surfaces else np.zeros((1, 3))
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     lines.append(f"  bounding box of the control points: min ({_xyz(lo)}), max ({_xyz(hi)}), "
@@ -44,6 +47,22 @@ def describe(model: Model) -> str:
         lines.append("  warnings:")
         lines.extend(f"    {w}" for w in model.warnings)
     return "\n".join(lines)
+
+
+def load_line(loads) -> str:
+    """One line about how the model files were loaded (bsrt.io.LoadRecord), e.g.
+    ``  loaded in 0.021 s (from the model cache)`` or ``  loaded in 1.67 s (read: 160 of 160
+    faces converted)``."""
+    seconds = sum(r.seconds for r in loads)
+    cached = sum(r.cached for r in loads)
+    if len(loads) > 1:
+        return f"  {len(loads)} model files loaded in {seconds:.3g} s ({cached} from the model cache)"
+    record = loads[0]
+    if record.cached:
+        how = "from the model cache"
+    else:
+        how = "read" + (f": {record.faces[0]} of {record.faces[1]} faces converted" if record.faces else "")
+    return f"  loaded in {seconds:.3g} s ({how})"
 
 
 def _xyz(v: np.ndarray) -> str:

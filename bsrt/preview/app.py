@@ -445,7 +445,7 @@ def main(args) -> int:
 
     commands = _check_args(args)
     scene = load_input(args.scene, getattr(args, "format", "auto"), width=args.width, height=args.height,
-                       camera=CameraOverrides.from_args(args))
+                       camera=CameraOverrides.from_args(args), cache=getattr(args, "cache", True))
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
     preview = Preview(scene, Path(args.scene), args, commands)

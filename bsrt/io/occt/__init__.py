@@ -188,6 +188,8 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
     base = os.path.basename(path)
     converted: dict = {}  # a part placed several times is converted once, in its own frame
     done = 0
+    if progress is not None:
+        progress(0, total)
     for leaf, leaf_faces in placed:
         free_edges += count_free_edges(leaf.shape)
         trsf = leaf.location.Transformation()
