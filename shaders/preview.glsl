@@ -6,6 +6,9 @@
 //   scene's own Blinn-Phong lights and materials, the formulas of
 //   bsrt/shade.py (normals turned to the eye, inverse-square point lights),
 //   sRGB-encoded, so it looks like the exact image while the camera moves;
+//   each fragment carries its (u, v) and surface, and the trim test
+//   (trim.glsl, the CPU kernels' even-odd test on the same table) discards
+//   the fragments outside the surface's trim loops;
 // - the image pass (image_pass true): a full-screen quad (4 vertices of a
 //   triangle strip, no attributes) showing an sRGB image texture: the exact
 //   image of a refinement level, or the preliminary map's picture.
@@ -26,9 +29,13 @@ in vec3 position;                        // local position (float32)
 in vec3 normal;                          // unit surface normal (either side)
 in vec3 albedo;                          // linear RGB
 in vec2 gloss;                           // (specular, shininess)
+in vec2 param;                           // (u, v) in the surface's knot domain
+in float surface;                        // surface index (as in the scene), a whole number
 
 out vec3 frag_color;                     // sRGB
 out vec2 frag_uv;
+out vec2 frag_param;
+flat out int frag_surface;
 
 vec3 srgb_encode(vec3 c) {
     c = clamp(c, 0.0, 1.0);
@@ -75,25 +82,37 @@ void main() {
         vec2 corner = vec2(float(gl_VertexID & 1), float((gl_VertexID >> 1) & 1));
         frag_uv = corner;
         frag_color = vec3(0.0);
+        frag_param = vec2(0.0);
+        frag_surface = -1;
         gl_Position = vec4(2.0 * corner - 1.0, 0.0, 1.0);
         return;
     }
     frag_uv = vec2(0.0);
+    frag_param = param;
+    frag_surface = int(surface + 0.5);
     frag_color = srgb_encode(radiance(position, normalize(normal)));
     gl_Position = clip_from_local * vec4(position, 1.0);
 }
 
 #elif defined FRAGMENT_SHADER
 
+#include "trim.glsl"
+
 uniform bool image_pass;
+uniform bool trimmed;                    // any surface has trim loops (else the test is skipped)
 uniform sampler2D image;                 // sRGB image, row 0 at the bottom
 
 in vec3 frag_color;
 in vec2 frag_uv;
+in vec2 frag_param;
+flat in int frag_surface;
 
 out vec4 color;
 
 void main() {
+    if (!image_pass && trimmed && !trim_kept(frag_surface, frag_param.x, frag_param.y)) {
+        discard;
+    }
     color = vec4(image_pass ? texture(image, frag_uv).rgb : frag_color, 1.0);
 }
 

@@ -1,8 +1,10 @@
 """The preview's fast GL view and its textures: the preliminary map's
 tessellation shaded with the scene's lights (no shadows, no mirrors) while
-the camera moves, and the solver's images (or the map's picture) drawn as a
-full-window quad once they come. Owns every GL object it creates and
-releases them in :meth:`View.close`. shaders/preview.glsl.
+the camera moves, trimmed per fragment by the scene's trim table (the CPU
+kernels' even-odd test in shaders/trim.glsl), and the solver's images (or
+the map's picture) drawn as a full-window quad once they come. Owns every GL
+object it creates and releases them in :meth:`View.close`.
+shaders/preview.glsl.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 
 from .. import gl
 from ..camera import Camera, clip_from_eye
+from ..trim_gl import TrimTextures
 
 MAX_LIGHTS = 8
 # The fast view's mesh is the map's tessellation for a film this fraction of
@@ -24,9 +27,10 @@ FAST_VIEW_DETAIL = 0.5
 
 
 def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
-    """The shaded tessellation: (vertices (V, 11) float32 rows (x, y, z
-    relative to origin, normal, albedo, specular, shininess), indices (T, 3)
-    uint32, origin (3,) float64 the scene box centre).
+    """The shaded tessellation: (vertices (V, 14) float32 rows (x, y, z
+    relative to origin, normal, albedo, specular, shininess, u, v in the
+    surface's knot domain, surface index), indices (T, 3) uint32, origin (3,)
+    float64 the scene box centre).
 
     Vertices come from ``prelim.tessellate`` (the map's own grid, as dense as
     the map needs at this camera and size); normals are the exact S_u x S_v
@@ -43,6 +47,7 @@ def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
     d = patches.domain[surface]
     u = d[:, 0] + (d[:, 1] - d[:, 0]) * verts[:, 3].astype(np.float64)
     v = d[:, 2] + (d[:, 3] - d[:, 2]) * verts[:, 4].astype(np.float64)
+    param = np.stack([u, v], axis=1)
     u, v = patches.clamp(surface, u, v)
     _, su, sv = patches.evaluate(patches.locate(surface, u, v), u, v)
     normal = np.cross(su.T, sv.T)
@@ -62,12 +67,14 @@ def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
         normal[~good] = mesh[~good] / mesh_len[~good, None]
     material = geometry.material[surface]
     mats = scene.materials
-    out = np.empty((verts.shape[0], 11), dtype=np.float32)
+    out = np.empty((verts.shape[0], 14), dtype=np.float32)
     out[:, :3] = verts[:, :3]
     out[:, 3:6] = normal
     out[:, 6:9] = np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3)[material]
     out[:, 9] = np.array([m.specular for m in mats], dtype=np.float64)[material]
     out[:, 10] = np.array([m.shininess for m in mats], dtype=np.float64)[material]
+    out[:, 11:13] = param
+    out[:, 13] = surface
     return out, tris, origin
 
 
@@ -114,10 +121,13 @@ class View:
         self.vbo = self._own(ctx.buffer(verts.tobytes()))
         self.ibo = self._own(ctx.buffer(tris.astype(np.uint32).tobytes()))
         self.mesh_vao = self._own(ctx.vertex_array(
-            self.program, [(self.vbo, "3f 3f 3f 2f", "position", "normal", "albedo", "gloss")],
+            self.program, [(self.vbo, "3f 3f 3f 2f 2f 1f", "position", "normal", "albedo", "gloss", "param", "surface")],
             index_buffer=self.ibo, index_element_size=4,
         ))
         self.quad_vao = self._own(ctx.vertex_array(self.program, []))
+        self.trims = self._own(TrimTextures(ctx, geometry.patches.trims))  # units 1..7; the image is on 0
+        self.program["trimmed"].value = self.trims.any_trimmed
+        self.trims.use(self.program)  # samplers of different types must not share unit 0, even in the image pass
         count, kind, vector, strength = light_uniforms(scene.lights, self.origin)
         self.program["light_count"].value = count
         self.program["light_kind"].write(kind.tobytes())
@@ -168,6 +178,7 @@ class View:
         eye_from_local[:3, 3] = -local_eye
         clip_from_local = clip_from_eye(cam, *size, near, far) @ eye_from_local
         self.program["image_pass"].value = False
+        self.trims.use(self.program)
         self.program["clip_from_local"].write(clip_from_local.T.astype("f4").tobytes())
         self.program["eye"].value = tuple(float(x) for x in local_eye)
         ctx.enable(moderngl.DEPTH_TEST)
