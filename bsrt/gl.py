@@ -131,13 +131,15 @@ def shader_source(name: str) -> str:
     return expand(_shader_file(f"{name}.glsl"), 0)
 
 
-def load_program(ctx: moderngl.Context, name: str) -> moderngl.Program:
-    """Compile shaders/NAME.glsl: one file, stages split by #if defined X_SHADER."""
+def load_program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
+    """Compile shaders/NAME.glsl: one file, stages split by #if defined X_SHADER;
+    each of defines (names) is #defined too, for variants of one program."""
     source = shader_source(name)
     version, _, body = source.partition("\n")
+    extra = "".join(f"#define {d}\n" for d in defines)
 
     def stage(define: str) -> str:
-        return f"{version}\n#define {define}\n#line 2\n{body}"  # the compiler's line numbers: the file's
+        return f"{version}\n#define {define}\n{extra}#line 2\n{body}"  # the compiler's line numbers: the file's
 
     return ctx.program(vertex_shader=stage("VERTEX_SHADER"), fragment_shader=stage("FRAGMENT_SHADER"))
 

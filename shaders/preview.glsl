@@ -6,9 +6,13 @@
 //   scene's own Blinn-Phong lights and materials, the formulas of
 //   bsrt/shade.py (normals turned to the eye, inverse-square point lights),
 //   sRGB-encoded, so it looks like the exact image while the camera moves;
+//   in the TRIM_TEST variant (for the triangles that trim curves cross)
 //   each fragment carries its (u, v) and surface, and the trim test
 //   (trim.glsl, the CPU kernels' even-odd test on the same table) discards
-//   the fragments outside the surface's trim loops;
+//   the fragments outside the surface's trim loops, grown by trim_grow
+//   pixels (the tessellations of two faces meeting at a trimmed edge place
+//   it up to about a pixel apart: without the margin the background shows
+//   through the seam);
 // - the image pass (image_pass true): a full-screen quad (4 vertices of a
 //   triangle strip, no attributes) showing an sRGB image texture: the exact
 //   image of a refinement level, or the preliminary map's picture.
@@ -29,13 +33,15 @@ in vec3 position;                        // local position (float32)
 in vec3 normal;                          // unit surface normal (either side)
 in vec3 albedo;                          // linear RGB
 in vec2 gloss;                           // (specular, shininess)
+#if defined TRIM_TEST
 in vec2 param;                           // (u, v) in the surface's knot domain
 in float surface;                        // surface index (as in the scene), a whole number
+out vec2 frag_param;
+flat out int frag_surface;
+#endif
 
 out vec3 frag_color;                     // sRGB
 out vec2 frag_uv;
-out vec2 frag_param;
-flat out int frag_surface;
 
 vec3 srgb_encode(vec3 c) {
     c = clamp(c, 0.0, 1.0);
@@ -82,37 +88,49 @@ void main() {
         vec2 corner = vec2(float(gl_VertexID & 1), float((gl_VertexID >> 1) & 1));
         frag_uv = corner;
         frag_color = vec3(0.0);
-        frag_param = vec2(0.0);
-        frag_surface = -1;
         gl_Position = vec4(2.0 * corner - 1.0, 0.0, 1.0);
         return;
     }
     frag_uv = vec2(0.0);
+#if defined TRIM_TEST
     frag_param = param;
     frag_surface = int(surface + 0.5);
+#endif
     frag_color = srgb_encode(radiance(position, normalize(normal)));
     gl_Position = clip_from_local * vec4(position, 1.0);
 }
 
 #elif defined FRAGMENT_SHADER
 
-#include "trim.glsl"
-
 uniform bool image_pass;
-uniform bool trimmed;                    // any surface has trim loops (else the test is skipped)
+
+#if defined TRIM_TEST
+// The variant for the triangles that trim curves cross (view.py draws the
+// others, and the image pass, with the plain program: the test's code slows
+// llvmpipe down even where it does not run).
+#include "trim.glsl"
+uniform float trim_grow;                 // pixels: a fragment this near (along x or y) to a kept point is kept
+#endif
 uniform sampler2D image;                 // sRGB image, row 0 at the bottom
 
 in vec3 frag_color;
 in vec2 frag_uv;
+#if defined TRIM_TEST
 in vec2 frag_param;
 flat in int frag_surface;
+#endif
 
 out vec4 color;
 
 void main() {
-    if (!image_pass && trimmed && !trim_kept(frag_surface, frag_param.x, frag_param.y)) {
+#if defined TRIM_TEST
+    // kept: inside the trim loops, or within trim_grow pixels (along x and y) of a curve
+    vec2 reach = trim_grow * (abs(dFdx(frag_param)) + abs(dFdy(frag_param)));  // in uniform control flow
+    if (!trim_kept(frag_surface, frag_param.x, frag_param.y)
+        && !trim_near(frag_surface, frag_param.x, frag_param.y, reach.x, reach.y)) {
         discard;
     }
+#endif
     color = vec4(image_pass ? texture(image, frag_uv).rgb : frag_color, 1.0);
 }
 

@@ -117,6 +117,20 @@ bool trim_solve_right(int k, int d, vec4 e, float u, float v) {
     return gb;
 }
 
+// The index (for trim_band_start) of surface m's band holding v (the end bands reach to infinity);
+// surface = trim_fetch_i(trim_surface, m).
+int trim_band_of(int m, ivec4 surface, float v) {
+    vec4 band_map = trim_fetch_f(trim_band, m);
+    float x = (v - band_map.x) * band_map.y;
+    if (!(x > 0.0)) {
+        return surface.y;
+    }
+    if (x >= float(surface.z)) {
+        return surface.y + surface.z - 1;
+    }
+    return surface.y + int(x);
+}
+
 // Is (u, v) of surface m (0-based, as in the TrimTable) inside an odd number of its loops, or is
 // the surface untrimmed?
 bool trim_kept(int m, float u, float v) {
@@ -124,16 +138,7 @@ bool trim_kept(int m, float u, float v) {
     if (surface.x == 0) {
         return true;
     }
-    vec4 band_map = trim_fetch_f(trim_band, m);
-    float x = (v - band_map.x) * band_map.y;
-    int band = surface.y;
-    if (!(x > 0.0)) {
-        band = surface.y;
-    } else if (x >= float(surface.z)) {
-        band = surface.y + surface.z - 1;
-    } else {
-        band = surface.y + int(x);
-    }
+    int band = trim_band_of(m, surface, v);
     int first = trim_fetch_i(trim_band_start, band).x;
     int stop = trim_fetch_i(trim_band_start, band + 1).x;
     bool inside = false;
@@ -165,4 +170,65 @@ bool trim_kept(int m, float u, float v) {
         }
     }
     return inside;
+}
+
+// Does the segment from a to b meet the rectangle [c - r, c + r] (r >= 0)? Its box meets the
+// rectangle and the rectangle's corners do not all lie strictly on one side of its line.
+bool trim_segment_meets(vec2 a, vec2 b, vec2 c, vec2 r) {
+    if (any(greaterThan(min(a, b), c + r)) || any(lessThan(max(a, b), c - r))) {
+        return false;
+    }
+    vec2 d = b - a;
+    vec2 q = c - a;
+    float centre = d.x * q.y - d.y * q.x;  // the side of c, times |d|
+    float spread = abs(d.x) * r.y + abs(d.y) * r.x;  // how far the corners' sides reach from it
+    return abs(centre) <= spread;
+}
+
+const int TRIM_NEAR_CHORDS = 16;  // a curved piece is taken as this many chords in trim_near
+
+// Does a trim curve of surface m pass through the rectangle [u - du, u + du] x [v - dv, v + dv]
+// (du, dv >= 0)? Segments exactly; a curved piece by its chords at s = i / TRIM_NEAR_CHORDS (off
+// the curve by their sagitta: a heuristic). Not part of point_kept: the preview's fast view keeps
+// the fragments it says are near a curve, growing each face by about a pixel over the seams.
+bool trim_near(int m, float u, float v, float du, float dv) {
+    ivec4 surface = trim_fetch_i(trim_surface, m);
+    if (surface.x == 0) {
+        return false;
+    }
+    vec2 c = vec2(u, v);
+    vec2 r = vec2(du, dv);
+    int last = trim_band_of(m, surface, v + dv);
+    for (int band = trim_band_of(m, surface, v - dv); band <= last; ++band) {
+        int stop = trim_fetch_i(trim_band_start, band + 1).x;
+        for (int e = trim_fetch_i(trim_band_start, band).x; e < stop; ++e) {
+            vec4 box = trim_fetch_f(trim_entry_box, e);
+            if (box.y < u - du) {  // sorted by decreasing u_max
+                break;
+            }
+            if (!(box.x <= u + du && box.z <= v + dv && box.w >= v - dv)) {
+                continue;
+            }
+            ivec4 entry = trim_fetch_i(trim_entry, e);
+            vec4 ends = trim_fetch_f(trim_ends, entry.x);
+            if (entry.y == 1) {
+                if (trim_segment_meets(ends.xy, ends.zw, c, r)) {
+                    return true;
+                }
+                continue;
+            }
+            vec2 local = c - ends.xy;  // the piece's coefficients are relative to its start
+            vec2 a = vec2(0.0);
+            vec2 deriv;
+            for (int i = 1; i <= TRIM_NEAR_CHORDS; ++i) {
+                vec3 p = trim_eval(entry.x, entry.y, float(i) / float(TRIM_NEAR_CHORDS), deriv);
+                vec2 b = p.xy / p.z;
+                if (trim_segment_meets(a, b, local, r)) {
+                    return true;
+                }
+                a = b;
+            }
+        }
+    }
+    return false;
 }
