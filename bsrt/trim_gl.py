@@ -67,8 +67,8 @@ class TrimTextures:
     def __init__(self, ctx: moderngl.Context, table: TrimTable):
         self.stride = coef_stride(table)
         self.any_trimmed = bool(np.any(table.trimmed))
-        limit = gl.max_framebuffer_side(ctx)
-        row = min(ROW, int(ctx.info.get("GL_MAX_TEXTURE_SIZE") or ROW))
+        limit = int(ctx.info.get("GL_MAX_TEXTURE_SIZE") or 1024)  # OpenGL 3.3 promises 1024
+        row = min(ROW, limit)
         self.textures: dict[str, moderngl.Texture] = {}
         try:
             for name, a in texture_arrays(table).items():
