@@ -37,8 +37,9 @@ def texture_arrays(table: TrimTable) -> dict[str, np.ndarray]:
     band = np.zeros((m, 4), dtype=np.float32)
     band[:, 0] = table.band_v0
     band[:, 1] = table.band_scale
-    band_start = np.zeros((table.band_start.size, 4), dtype=np.int32)
-    band_start[:, 0] = table.band_start
+    band_start = np.zeros((table.band_start.size - 1, 4), dtype=np.int32)
+    band_start[:, 0] = table.band_start[:-1]
+    band_start[:, 1] = table.band_start[1:]
     entry = np.zeros((e, 4), dtype=np.int32)
     entry[:, 0] = table.entry_piece
     entry[:, 1] = table.degree[table.entry_piece]

@@ -17,6 +17,13 @@
 //   triangle strip, no attributes) showing an sRGB image texture: the exact
 //   image of a refinement level, or the preliminary map's picture.
 
+#if defined TRIM_TEST
+// The variant for the triangles that trim curves cross (view.py draws the
+// others, and the image pass, with the plain program: the test's code slows
+// llvmpipe down even where it does not run). Both stages read the textures.
+#include "trim.glsl"
+#endif
+
 #if defined VERTEX_SHADER
 
 #define MAX_LIGHTS 8
@@ -37,7 +44,8 @@ in vec2 gloss;                           // (specular, shininess)
 in vec2 param;                           // (u, v) in the surface's knot domain
 in float surface;                        // surface index (as in the scene), a whole number
 out vec2 frag_param;
-flat out int frag_surface;
+flat out ivec4 frag_trim_surface;        // the surface's trim texels, fetched per vertex, not per fragment
+flat out vec4 frag_trim_band;
 #endif
 
 out vec3 frag_color;                     // sRGB
@@ -94,7 +102,9 @@ void main() {
     frag_uv = vec2(0.0);
 #if defined TRIM_TEST
     frag_param = param;
-    frag_surface = int(surface + 0.5);
+    int m = int(surface + 0.5);
+    frag_trim_surface = trim_fetch_i(trim_surface, m);
+    frag_trim_band = trim_fetch_f(trim_band, m);
 #endif
     frag_color = srgb_encode(radiance(position, normalize(normal)));
     gl_Position = clip_from_local * vec4(position, 1.0);
@@ -105,10 +115,6 @@ void main() {
 uniform bool image_pass;
 
 #if defined TRIM_TEST
-// The variant for the triangles that trim curves cross (view.py draws the
-// others, and the image pass, with the plain program: the test's code slows
-// llvmpipe down even where it does not run).
-#include "trim.glsl"
 uniform float trim_grow;                 // pixels: a fragment this near (along x or y) to a kept point is kept
 #endif
 uniform sampler2D image;                 // sRGB image, row 0 at the bottom
@@ -117,7 +123,8 @@ in vec3 frag_color;
 in vec2 frag_uv;
 #if defined TRIM_TEST
 in vec2 frag_param;
-flat in int frag_surface;
+flat in ivec4 frag_trim_surface;
+flat in vec4 frag_trim_band;
 #endif
 
 out vec4 color;
@@ -126,8 +133,8 @@ void main() {
 #if defined TRIM_TEST
     // kept: inside the trim loops, or within trim_grow pixels (along x and y) of a curve
     vec2 reach = trim_grow * (abs(dFdx(frag_param)) + abs(dFdy(frag_param)));  // in uniform control flow
-    if (!trim_kept(frag_surface, frag_param.x, frag_param.y)
-        && !trim_near(frag_surface, frag_param.x, frag_param.y, reach.x, reach.y)) {
+    if (!trim_kept_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y)
+        && !trim_near_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y, reach.x, reach.y)) {
         discard;
     }
 #endif

@@ -23,7 +23,7 @@
 
 uniform isampler2D trim_surface;   // per surface m: (trimmed 0/1, band_first, band_count, 0)
 uniform sampler2D trim_band;       // per surface m: (band_v0, band_scale, 0, 0)
-uniform isampler2D trim_band_start;// per band b (and one more): band_start[b] (.x)
+uniform isampler2D trim_band_start;// per band b: (band_start[b], band_start[b + 1], 0, 0): its entries
 uniform isampler2D trim_entry;     // per band entry e: (entry_piece, that piece's degree, 0, 0)
 uniform sampler2D trim_entry_box;  // per band entry e: (u_min, u_max, v_lo, v_hi) of its piece
 uniform sampler2D trim_ends;       // per piece k: (u_a, v_a, u_b, v_b)
@@ -117,10 +117,11 @@ bool trim_solve_right(int k, int d, vec4 e, float u, float v) {
     return gb;
 }
 
-// The index (for trim_band_start) of surface m's band holding v (the end bands reach to infinity);
-// surface = trim_fetch_i(trim_surface, m).
-int trim_band_of(int m, ivec4 surface, float v) {
-    vec4 band_map = trim_fetch_f(trim_band, m);
+// A surface's two texels, fetched once (a caller may fetch them per vertex and pass them on):
+// surface = trim_fetch_i(trim_surface, m), band_map = trim_fetch_f(trim_band, m).
+
+// The index (for trim_band_start) of the surface's band holding v (the end bands reach to infinity).
+int trim_band_of(ivec4 surface, vec4 band_map, float v) {
     float x = (v - band_map.x) * band_map.y;
     if (!(x > 0.0)) {
         return surface.y;
@@ -131,18 +132,15 @@ int trim_band_of(int m, ivec4 surface, float v) {
     return surface.y + int(x);
 }
 
-// Is (u, v) of surface m (0-based, as in the TrimTable) inside an odd number of its loops, or is
+// Is (u, v) of the surface inside an odd number of its loops, or is
 // the surface untrimmed?
-bool trim_kept(int m, float u, float v) {
-    ivec4 surface = trim_fetch_i(trim_surface, m);
+bool trim_kept_at(ivec4 surface, vec4 band_map, float u, float v) {
     if (surface.x == 0) {
         return true;
     }
-    int band = trim_band_of(m, surface, v);
-    int first = trim_fetch_i(trim_band_start, band).x;
-    int stop = trim_fetch_i(trim_band_start, band + 1).x;
+    ivec2 entries = trim_fetch_i(trim_band_start, trim_band_of(surface, band_map, v)).xy;
     bool inside = false;
-    for (int e = first; e < stop; ++e) {
+    for (int e = entries.x; e < entries.y; ++e) {
         vec4 box = trim_fetch_f(trim_entry_box, e);
         if (!(box.y > u)) {  // sorted by decreasing u_max: every piece left is left of u
             break;
@@ -185,23 +183,22 @@ bool trim_segment_meets(vec2 a, vec2 b, vec2 c, vec2 r) {
     return abs(centre) <= spread;
 }
 
-const int TRIM_NEAR_CHORDS = 16;  // a curved piece is taken as this many chords in trim_near
+const int TRIM_NEAR_CHORDS = 8;   // a curved piece is taken as this many chords in trim_near
 
-// Does a trim curve of surface m pass through the rectangle [u - du, u + du] x [v - dv, v + dv]
+// Does a trim curve of the surface pass through the rectangle [u - du, u + du] x [v - dv, v + dv]
 // (du, dv >= 0)? Segments exactly; a curved piece by its chords at s = i / TRIM_NEAR_CHORDS (off
 // the curve by their sagitta: a heuristic). Not part of point_kept: the preview's fast view keeps
 // the fragments it says are near a curve, growing each face by about a pixel over the seams.
-bool trim_near(int m, float u, float v, float du, float dv) {
-    ivec4 surface = trim_fetch_i(trim_surface, m);
+bool trim_near_at(ivec4 surface, vec4 band_map, float u, float v, float du, float dv) {
     if (surface.x == 0) {
         return false;
     }
     vec2 c = vec2(u, v);
     vec2 r = vec2(du, dv);
-    int last = trim_band_of(m, surface, v + dv);
-    for (int band = trim_band_of(m, surface, v - dv); band <= last; ++band) {
-        int stop = trim_fetch_i(trim_band_start, band + 1).x;
-        for (int e = trim_fetch_i(trim_band_start, band).x; e < stop; ++e) {
+    int last = trim_band_of(surface, band_map, v + dv);
+    for (int band = trim_band_of(surface, band_map, v - dv); band <= last; ++band) {
+        ivec2 entries = trim_fetch_i(trim_band_start, band).xy;
+        for (int e = entries.x; e < entries.y; ++e) {
             vec4 box = trim_fetch_f(trim_entry_box, e);
             if (box.y < u - du) {  // sorted by decreasing u_max
                 break;
@@ -231,4 +228,9 @@ bool trim_near(int m, float u, float v, float du, float dv) {
         }
     }
     return false;
+}
+
+// trim_kept_at for surface m (0-based, as in the TrimTable).
+bool trim_kept(int m, float u, float v) {
+    return trim_kept_at(trim_fetch_i(trim_surface, m), trim_fetch_f(trim_band, m), u, v);
 }
