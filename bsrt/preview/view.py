@@ -147,26 +147,30 @@ class View:
         self.ctx, self.scene, self.geometry = ctx, scene, geometry
         self.owned: list = []  # GL objects created here, released at close
         self.program = self._own(gl.load_program(ctx, "preview"))
-        self.trim_program = self._own(gl.load_program(ctx, "preview", ("TRIM_TEST",)))  # crossed triangles
         verts, tris, self.origin, self.untested = fast_view_mesh(scene, geometry, camera, *fb_size)
         self.triangles = tris.shape[0]
+        programs = [self.program]
+        self.trim_program = self.trim_vao = self.trims = None  # only for triangles that trim curves cross
         self.vbo = self._own(ctx.buffer(verts.tobytes()))
         self.ibo = self._own(ctx.buffer(tris.astype(np.uint32).tobytes()))
         self.mesh_vao = self._own(ctx.vertex_array(
             self.program, [(self.vbo, "3f 3f 3f 2f 12x", "position", "normal", "albedo", "gloss")],
             index_buffer=self.ibo, index_element_size=4,
         ))
-        self.trim_vao = self._own(ctx.vertex_array(
-            self.trim_program,
-            [(self.vbo, "3f 3f 3f 2f 2f 1f", "position", "normal", "albedo", "gloss", "param", "surface")],
-            index_buffer=self.ibo, index_element_size=4,
-        ))
+        if self.untested < self.triangles:
+            self.trim_program = self._own(gl.load_program(ctx, "preview", ("TRIM_TEST",)))
+            self.trim_vao = self._own(ctx.vertex_array(
+                self.trim_program,
+                [(self.vbo, "3f 3f 3f 2f 2f 1f", "position", "normal", "albedo", "gloss", "param", "surface")],
+                index_buffer=self.ibo, index_element_size=4,
+            ))
+            self.trims = self._own(TrimTextures(ctx, geometry.patches.trims))  # units 1..7; the image is on 0
+            self.trim_program["trim_grow"].value = TRIM_GROW_PIXELS
+            self.trims.use(self.trim_program)
+            programs.append(self.trim_program)
         self.quad_vao = self._own(ctx.vertex_array(self.program, []))
-        self.trims = self._own(TrimTextures(ctx, geometry.patches.trims))  # units 1..7; the image is on 0
-        self.trim_program["trim_grow"].value = TRIM_GROW_PIXELS
-        self.trims.use(self.trim_program)
         count, kind, vector, strength = light_uniforms(scene.lights, self.origin)
-        for program in (self.program, self.trim_program):
+        for program in programs:
             program["image_pass"].value = False
             program["light_count"].value = count
             program["light_kind"].write(kind.tobytes())
