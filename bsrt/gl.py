@@ -10,6 +10,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+import re
 from importlib import resources
 from pathlib import Path
 
@@ -87,8 +88,8 @@ def create_headless_context() -> moderngl.Context:
     raise RenderError("no OpenGL context through EGL (" + "; ".join(errors) + "); " + FIX_HINT)
 
 
-def shader_source(name: str) -> str:
-    """The text of ``shaders/NAME.glsl``.
+def _shader_file(filename: str) -> str:
+    """The text of shaders/FILENAME.
 
     An installed wheel ships the top-level shaders/ as the package
     bsrt.shaders; running from a source checkout (bsrt/ imported from the
@@ -98,16 +99,47 @@ def shader_source(name: str) -> str:
         folder = resources.files("bsrt.shaders")
     except ModuleNotFoundError:
         folder = Path(__file__).resolve().parent.parent / "shaders"
-    return folder.joinpath(f"{name}.glsl").read_text(encoding="utf-8")
+    return folder.joinpath(filename).read_text(encoding="utf-8")
 
 
-def load_program(ctx: moderngl.Context, name: str) -> moderngl.Program:
-    """Compile shaders/NAME.glsl: one file, stages split by #if defined X_SHADER."""
+_INCLUDE = re.compile(r'^[ \t]*#[ \t]*include[ \t]+"([A-Za-z0-9_.-]+\.glsl)"[ \t]*$', re.MULTILINE)
+
+
+def shader_source(name: str) -> str:
+    """The text of ``shaders/NAME.glsl`` with its ``#include "FILE.glsl"``
+    lines replaced by shaders/FILE.glsl (an include file has no #version
+    line; each file is included once per program, nested includes allowed).
+    ``#line`` directives keep the compiler's line numbers those of each
+    file: source string 0 is NAME.glsl, string k the k-th included file."""
+    included: list[str] = []
+
+    def expand(text: str, string: int) -> str:
+        out, at = [], 0
+        for match in _INCLUDE.finditer(text):
+            filename = match.group(1)
+            out.append(text[at:match.start()])
+            at = match.end()
+            if filename in included:
+                continue
+            included.append(filename)
+            line_after = text.count("\n", 0, match.end()) + 2  # GLSL numbers lines from 1
+            out.append(f"#line 1 {len(included)}\n{expand(_shader_file(filename), len(included))}\n"
+                       f"#line {line_after - 1} {string}")
+        out.append(text[at:])
+        return "".join(out)
+
+    return expand(_shader_file(f"{name}.glsl"), 0)
+
+
+def load_program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
+    """Compile shaders/NAME.glsl: one file, stages split by #if defined X_SHADER;
+    each of defines (names) is #defined too, for variants of one program."""
     source = shader_source(name)
     version, _, body = source.partition("\n")
+    extra = "".join(f"#define {d}\n" for d in defines)
 
     def stage(define: str) -> str:
-        return f"{version}\n#define {define}\n{body}"
+        return f"{version}\n#define {define}\n{extra}#line 2\n{body}"  # the compiler's line numbers: the file's
 
     return ctx.program(vertex_shader=stage("VERTEX_SHADER"), fragment_shader=stage("FRAGMENT_SHADER"))
 

@@ -6,9 +6,23 @@
 //   scene's own Blinn-Phong lights and materials, the formulas of
 //   bsrt/shade.py (normals turned to the eye, inverse-square point lights),
 //   sRGB-encoded, so it looks like the exact image while the camera moves;
+//   in the TRIM_TEST variant (for the triangles that trim curves cross)
+//   each fragment carries its (u, v) and surface, and the trim test
+//   (trim.glsl, the CPU kernels' even-odd test on the same table) discards
+//   the fragments outside the surface's trim loops, grown by trim_grow
+//   pixels (the tessellations of two faces meeting at a trimmed edge place
+//   it up to about a pixel apart: without the margin the background shows
+//   through the seam);
 // - the image pass (image_pass true): a full-screen quad (4 vertices of a
 //   triangle strip, no attributes) showing an sRGB image texture: the exact
 //   image of a refinement level, or the preliminary map's picture.
+
+#if defined TRIM_TEST
+// The variant for the triangles that trim curves cross (view.py draws the
+// others, and the image pass, with the plain program: the test's code slows
+// llvmpipe down even where it does not run). Both stages read the textures.
+#include "trim.glsl"
+#endif
 
 #if defined VERTEX_SHADER
 
@@ -26,6 +40,13 @@ in vec3 position;                        // local position (float32)
 in vec3 normal;                          // unit surface normal (either side)
 in vec3 albedo;                          // linear RGB
 in vec2 gloss;                           // (specular, shininess)
+#if defined TRIM_TEST
+in vec2 param;                           // (u, v) in the surface's knot domain
+in float surface;                        // surface index (as in the scene), a whole number
+out vec2 frag_param;
+flat out ivec4 frag_trim_surface;        // the surface's trim texels, fetched per vertex, not per fragment
+flat out vec4 frag_trim_band;
+#endif
 
 out vec3 frag_color;                     // sRGB
 out vec2 frag_uv;
@@ -79,6 +100,12 @@ void main() {
         return;
     }
     frag_uv = vec2(0.0);
+#if defined TRIM_TEST
+    frag_param = param;
+    int m = int(surface + 0.5);
+    frag_trim_surface = trim_fetch_i(trim_surface, m);
+    frag_trim_band = trim_fetch_f(trim_band, m);
+#endif
     frag_color = srgb_encode(radiance(position, normalize(normal)));
     gl_Position = clip_from_local * vec4(position, 1.0);
 }
@@ -86,14 +113,31 @@ void main() {
 #elif defined FRAGMENT_SHADER
 
 uniform bool image_pass;
+
+#if defined TRIM_TEST
+uniform float trim_grow;                 // pixels: a fragment this near (along x or y) to a kept point is kept
+#endif
 uniform sampler2D image;                 // sRGB image, row 0 at the bottom
 
 in vec3 frag_color;
 in vec2 frag_uv;
+#if defined TRIM_TEST
+in vec2 frag_param;
+flat in ivec4 frag_trim_surface;
+flat in vec4 frag_trim_band;
+#endif
 
 out vec4 color;
 
 void main() {
+#if defined TRIM_TEST
+    // kept: inside the trim loops, or within trim_grow pixels (along x and y) of a curve
+    vec2 reach = trim_grow * (abs(dFdx(frag_param)) + abs(dFdy(frag_param)));  // in uniform control flow
+    if (!trim_kept_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y)
+        && !trim_near_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y, reach.x, reach.y)) {
+        discard;
+    }
+#endif
     color = vec4(image_pass ? texture(image, frag_uv).rgb : frag_color, 1.0);
 }
 

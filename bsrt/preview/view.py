@@ -1,8 +1,10 @@
 """The preview's fast GL view and its textures: the preliminary map's
 tessellation shaded with the scene's lights (no shadows, no mirrors) while
-the camera moves, and the solver's images (or the map's picture) drawn as a
-full-window quad once they come. Owns every GL object it creates and
-releases them in :meth:`View.close`. shaders/preview.glsl.
+the camera moves, trimmed per fragment by the scene's trim table (the CPU
+kernels' even-odd test in shaders/trim.glsl), and the solver's images (or
+the map's picture) drawn as a full-window quad once they come. Owns every GL
+object it creates and releases them in :meth:`View.close`.
+shaders/preview.glsl.
 """
 
 from __future__ import annotations
@@ -15,18 +17,29 @@ import numpy as np
 
 from .. import gl
 from ..camera import Camera, clip_from_eye
+from ..trim_gl import TrimTextures
 
 MAX_LIGHTS = 8
 # The fast view's mesh is the map's tessellation for a film this fraction of
 # the window (chord error <= 1 / (2 * FAST_VIEW_DETAIL) pixels): a quarter of
 # the triangles at 0.5, which llvmpipe needs for many frames a second.
 FAST_VIEW_DETAIL = 0.5
+# A trimmed surface's fragments within about this many pixels (along x and y)
+# of its trim curves are drawn too: the two faces on either side of a trimmed
+# edge are tessellated apart, so their trimmed edges miss each other by up to
+# about a pixel and the background would show through. On bearing.iges 0.5
+# closes nearly all of those pinholes, as 1.0 does; 1.0 shrinks holes visibly.
+TRIM_GROW_PIXELS = 0.5
 
 
 def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
-    """The shaded tessellation: (vertices (V, 11) float32 rows (x, y, z
-    relative to origin, normal, albedo, specular, shininess), indices (T, 3)
-    uint32, origin (3,) float64 the scene box centre).
+    """The shaded tessellation: (vertices (V, 14) float32 rows (x, y, z
+    relative to origin, normal, albedo, specular, shininess, u, v in the
+    surface's knot domain, surface index), indices (T, 3) uint32, origin (3,)
+    float64 the scene box centre, untested int: the first untested triangles
+    lie wholly inside their surface's trim loops (or on an untrimmed
+    surface; ``kernels.trim.rect_states`` of their (u, v) box is INSIDE), so
+    they are drawn without the per-fragment trim test, the rest with it).
 
     Vertices come from ``prelim.tessellate`` (the map's own grid, as dense as
     the map needs at this camera and size); normals are the exact S_u x S_v
@@ -43,6 +56,7 @@ def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
     d = patches.domain[surface]
     u = d[:, 0] + (d[:, 1] - d[:, 0]) * verts[:, 3].astype(np.float64)
     v = d[:, 2] + (d[:, 3] - d[:, 2]) * verts[:, 4].astype(np.float64)
+    param = np.stack([u, v], axis=1)
     u, v = patches.clamp(surface, u, v)
     _, su, sv = patches.evaluate(patches.locate(surface, u, v), u, v)
     normal = np.cross(su.T, sv.T)
@@ -62,13 +76,36 @@ def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
         normal[~good] = mesh[~good] / mesh_len[~good, None]
     material = geometry.material[surface]
     mats = scene.materials
-    out = np.empty((verts.shape[0], 11), dtype=np.float32)
+    out = np.empty((verts.shape[0], 14), dtype=np.float32)
     out[:, :3] = verts[:, :3]
     out[:, 3:6] = normal
     out[:, 6:9] = np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3)[material]
     out[:, 9] = np.array([m.specular for m in mats], dtype=np.float64)[material]
     out[:, 10] = np.array([m.shininess for m in mats], dtype=np.float64)[material]
-    return out, tris, origin
+    out[:, 11:13] = param
+    out[:, 13] = surface
+    if not patches.trimmed:
+        return out, tris, origin, int(tris.shape[0])
+    tris, untested = order_by_trims(param, tris, surface, patches.trims)
+    return out, tris, origin, untested
+
+
+def order_by_trims(param: np.ndarray, tris: np.ndarray, surface: np.ndarray, table) -> tuple[np.ndarray, int]:
+    """The triangles (T, 3) reordered: (tris, untested), the first untested
+    wholly inside their surface's trim loops (``kernels.trim.rect_states`` of
+    their (u, v) box is INSIDE), the rest crossed by a curve or near one.
+
+    param: (V, 2) float64 the vertices' (u, v); surface: (V,) int64 their
+    surface. (Cutting the crossed triangles smaller, so that the test would
+    run in a thinner band along the curves, made the frames slower on
+    llvmpipe: the triangles' count costs more than the test saves.)"""
+    from ..kernels.trim import INSIDE, rect_states
+
+    uv = param[tris]  # (T, 3, 2)
+    lo, hi = uv.min(axis=1), uv.max(axis=1)
+    tested = rect_states(table, surface[tris[:, 0]], lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1]) != INSIDE
+    order = np.argsort(tested, kind="stable")
+    return np.ascontiguousarray(tris[order]), int(tris.shape[0] - tested.sum())
 
 
 def light_uniforms(lights, origin: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
@@ -110,19 +147,35 @@ class View:
         self.ctx, self.scene, self.geometry = ctx, scene, geometry
         self.owned: list = []  # GL objects created here, released at close
         self.program = self._own(gl.load_program(ctx, "preview"))
-        verts, tris, self.origin = fast_view_mesh(scene, geometry, camera, *fb_size)
+        verts, tris, self.origin, self.untested = fast_view_mesh(scene, geometry, camera, *fb_size)
+        self.triangles = tris.shape[0]
+        programs = [self.program]
+        self.trim_program = self.trim_vao = self.trims = None  # only for triangles that trim curves cross
         self.vbo = self._own(ctx.buffer(verts.tobytes()))
         self.ibo = self._own(ctx.buffer(tris.astype(np.uint32).tobytes()))
         self.mesh_vao = self._own(ctx.vertex_array(
-            self.program, [(self.vbo, "3f 3f 3f 2f", "position", "normal", "albedo", "gloss")],
+            self.program, [(self.vbo, "3f 3f 3f 2f 12x", "position", "normal", "albedo", "gloss")],
             index_buffer=self.ibo, index_element_size=4,
         ))
+        if self.untested < self.triangles:
+            self.trim_program = self._own(gl.load_program(ctx, "preview", ("TRIM_TEST",)))
+            self.trim_vao = self._own(ctx.vertex_array(
+                self.trim_program,
+                [(self.vbo, "3f 3f 3f 2f 2f 1f", "position", "normal", "albedo", "gloss", "param", "surface")],
+                index_buffer=self.ibo, index_element_size=4,
+            ))
+            self.trims = self._own(TrimTextures(ctx, geometry.patches.trims))  # units 1..7; the image is on 0
+            self.trim_program["trim_grow"].value = TRIM_GROW_PIXELS
+            self.trims.use(self.trim_program)
+            programs.append(self.trim_program)
         self.quad_vao = self._own(ctx.vertex_array(self.program, []))
         count, kind, vector, strength = light_uniforms(scene.lights, self.origin)
-        self.program["light_count"].value = count
-        self.program["light_kind"].write(kind.tobytes())
-        self.program["light_vector"].write(vector.tobytes())
-        self.program["light_strength"].write(strength.tobytes())
+        for program in programs:
+            program["image_pass"].value = False
+            program["light_count"].value = count
+            program["light_kind"].write(kind.tobytes())
+            program["light_vector"].write(vector.tobytes())
+            program["light_strength"].write(strength.tobytes())
         self.program["image"].value = 0
         self.background = srgb_encode(np.asarray(scene.film.background, dtype=np.float64)) / 255.0
         gl.program(ctx, "prelim")  # compile the map's program now, not in the first map band
@@ -167,14 +220,23 @@ class View:
         eye_from_local = np.eye(4)
         eye_from_local[:3, 3] = -local_eye
         clip_from_local = clip_from_eye(cam, *size, near, far) @ eye_from_local
-        self.program["image_pass"].value = False
-        self.program["clip_from_local"].write(clip_from_local.T.astype("f4").tobytes())
-        self.program["eye"].value = tuple(float(x) for x in local_eye)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
         bg = self.background
         ctx.clear(float(bg[0]), float(bg[1]), float(bg[2]), 1.0, depth=1.0)
-        self.mesh_vao.render(moderngl.TRIANGLES)
+        # the triangles inside their trim loops (or untrimmed) with the plain program, then those
+        # that trim curves cross with the trim test
+        parts = [(self.program, self.mesh_vao, 0, self.untested),
+                 (self.trim_program, self.trim_vao, self.untested, self.triangles - self.untested)]
+        for program, vao, first, count in parts:
+            if count == 0:
+                continue
+            program["image_pass"].value = False
+            program["clip_from_local"].write(clip_from_local.T.astype("f4").tobytes())
+            program["eye"].value = tuple(float(x) for x in local_eye)
+            if program is self.trim_program:
+                self.trims.use(program)
+            vao.render(moderngl.TRIANGLES, vertices=3 * count, first=3 * first)
 
     def screenshot(self, size: tuple[int, int], image, camera: Camera) -> np.ndarray:
         """The frame draw() would show, drawn offscreen and read back: (H, W, 3)
