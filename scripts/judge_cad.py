@@ -1,7 +1,7 @@
 """Judge bsrt on real CAD parts against OpenCASCADE's exact ray intersector.
 
     python scripts/judge_cad.py FOLDER_OR_FILES... [--size 128] [--json out.json]
-                                [--timeout 300] [--max-decide 2000]
+                                [--timeout 300] [--max-decide 2000] [--format auto]
 
 For every STEP, IGES or BREP file (folders are searched recursively), in a
 fresh process of its own (so that a crash or a hang costs one part, and each
@@ -9,7 +9,8 @@ load starts cold; ``--timeout`` seconds per part):
 
 1. **bsrt** loads it the way users do, ``bsrt.io.load_model(path)`` (STEP and
    BREP through OpenCASCADE's XCAF reader, IGES through bsrt's own IGES
-   reader), timed; ``Model.warnings``, ``Model.untrimmed`` and
+   reader; ``--format occt`` reads IGES through OpenCASCADE too), timed;
+   ``Model.warnings``, ``Model.untrimmed`` and
    ``Model.skipped`` are reported.
 2. **OpenCASCADE** reads the same file as one shape (``STEPControl_Reader``,
    ``IGESControl_Reader`` or ``BRepTools``; whole shape, every root).
@@ -172,8 +173,9 @@ def header(path: Path) -> dict:
 # OpenCASCADE's side
 
 
-def occ_read(path: Path):
-    """(shape, seconds): the file as OpenCASCADE reads it, in bsrt's units (IGES scaled back to the file's)."""
+def occ_read(path: Path, keep_mm: bool = False):
+    """(shape, seconds): the file as OpenCASCADE reads it, in bsrt's units (IGES scaled back to the file's
+    unless keep_mm: bsrt reads IGES with format "occt" in OpenCASCADE's millimetres)."""
     from OCP.IFSelect import IFSelect_RetDone
 
     kind = kind_of(path)
@@ -200,7 +202,7 @@ def occ_read(path: Path):
     reader.TransferRoots()
     shape = reader.OneShape()
     seconds = time.perf_counter() - start
-    if kind == "iges":
+    if kind == "iges" and not keep_mm:
         factor = iges_mm_per_unit(iges_header(path))
         if factor != 1.0:
             from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
@@ -240,13 +242,15 @@ def face_census(faces) -> dict:
     return {"faces": len(faces), "periodic_faces": periodic, "surface_types": kinds}
 
 
-def tight_diagonal(shape) -> float:
+def tight_diagonal(faces) -> float:
+    """The diagonal of OpenCASCADE's tight box of the faces (free wireframe edges left out)."""
     import numpy as np
     from OCP.Bnd import Bnd_Box
     from OCP.BRepBndLib import BRepBndLib
 
     box = Bnd_Box()
-    BRepBndLib.AddOptimal_s(shape, box, False, False)
+    for face in faces:
+        BRepBndLib.AddOptimal_s(face, box, False, False)
     lo, hi = box.CornerMin(), box.CornerMax()
     return float(np.linalg.norm([hi.X() - lo.X(), hi.Y() - lo.Y(), hi.Z() - lo.Z()]))
 
@@ -345,7 +349,7 @@ def decide(kind, d_b, d_o, t_b, t_o, tol):
     return "undecided"
 
 
-def judge_one(path: Path, size: int, max_decide: int) -> dict:
+def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> dict:
     import numpy as np
 
     from bsrt.camera import pixel_rays
@@ -353,20 +357,21 @@ def judge_one(path: Path, size: int, max_decide: int) -> dict:
     from bsrt.pipeline import render
     from bsrt.scene import model_box, scene_for_model
 
-    out: dict = {"file": str(path), "bytes": path.stat().st_size, "kind": kind_of(path), "size": size}
+    out: dict = {"file": str(path), "bytes": path.stat().st_size, "kind": kind_of(path), "size": size,
+                 "format": format}
     out["header"] = header(path)
     start = time.perf_counter()
-    model = load_model(path)
+    model = load_model(path, format)
     out["load_s"] = time.perf_counter() - start
     out["surfaces"] = len(model.surfaces)
     out["untrimmed"] = int(model.untrimmed)
     out["skipped"] = dict(model.skipped)
     out["warnings"] = list(model.warnings)
-    shape, occ_s = occ_read(path)
+    shape, occ_s = occ_read(path, keep_mm=format == "occt")
     out["occ_read_s"] = occ_s
     faces = occ_faces(shape)
     out.update(face_census(faces))
-    diag = tight_diagonal(shape)
+    diag = tight_diagonal(faces)
     lo, hi = model_box(model.surfaces)
     ours = float(np.linalg.norm(hi - lo))
     out["diagonal"] = diag
@@ -449,9 +454,9 @@ def collect(args: list[str]) -> list[Path]:
     return files
 
 
-def run_child(path: Path, size: int, max_decide: int, timeout: float) -> dict:
+def run_child(path: Path, size: int, max_decide: int, timeout: float, format: str = "auto") -> dict:
     cmd = [sys.executable, os.path.abspath(__file__), "--one", str(path), "--size", str(size),
-           "--max-decide", str(max_decide)]
+           "--max-decide", str(max_decide), "--format", format]
     start = time.perf_counter()
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -497,10 +502,13 @@ def main(argv=None) -> int:
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per part (default 300)")
     parser.add_argument("--max-decide", type=int, default=2000,
                         help="disagreeing pixels measured per part; a seeded sample beyond (default 2000)")
+    parser.add_argument("--format", default="auto",
+                        help='load_model\'s format: "auto" (by extension, as users do) or "occt" (IGES too '
+                             'through OpenCASCADE)')
     parser.add_argument("--one", help=argparse.SUPPRESS)  # the child process: judge one file, print JSON
     args = parser.parse_args(argv)
     if args.one:
-        result = judge_one(Path(args.one), args.size, args.max_decide)
+        result = judge_one(Path(args.one), args.size, args.max_decide, args.format)
         print("JUDGE-RESULT " + json.dumps(result))
         return 0
     files = collect(args.paths)
@@ -511,7 +519,7 @@ def main(argv=None) -> int:
     print(HEAD, flush=True)
     results = []
     for path in files:
-        r = run_child(path, args.size, args.max_decide, args.timeout)
+        r = run_child(path, args.size, args.max_decide, args.timeout, args.format)
         results.append(r)
         print(row(r), flush=True)
     problems = [r for r in results if "error" not in r and (r["untrimmed"] or r["warnings"])]
