@@ -72,8 +72,8 @@ IGES_UNIT_NAMES = {"IN": 25.4, "INCH": 25.4, "MM": 1.0, "FT": 304.8, "MI": 16093
 def step_header(path: Path) -> dict:
     """FILE_NAME's preprocessor_version and originating_system (fields 5 and 6) of a STEP file."""
     text = path.read_bytes()[:20000].decode("latin-1")
-    text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
-    m = re.search(r"FILE_NAME\s*\((.*?)\)\s*;", text, flags=re.S)
+    text = re.sub(r"/\*.*?\*/", "", text, flags=re.DOTALL)
+    m = re.search(r"FILE_NAME\s*\((.*?)\)\s*;", text, flags=re.DOTALL)
     if not m:
         return {}
     fields, depth, cur, quoted = [], 0, "", False
@@ -219,7 +219,7 @@ def occ_faces(shape) -> list:
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    cast = getattr(TopoDS, "Face", None) or getattr(TopoDS, "Face_s")
+    cast = getattr(TopoDS, "Face", None) or TopoDS.Face_s
     out = []
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
     while explorer.More():
@@ -402,10 +402,10 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
 
     # who is right where they disagree
     bad = np.argwhere((cls != "miss") & (cls != "agree"))
-    out["disagreements"] = int(len(bad))
+    out["disagreements"] = len(bad)
     if len(bad) > max_decide:
         bad = bad[np.sort(np.random.default_rng(0).choice(len(bad), max_decide, replace=False))]
-    out["decided_sample"] = int(len(bad))
+    out["decided_sample"] = len(bad)
     distance = Distance(shape)
     eye = np.asarray(scene.camera.eye, dtype=np.float64)
     dirs = directions.reshape(size, size, 3)
@@ -459,7 +459,7 @@ def run_child(path: Path, size: int, max_decide: int, timeout: float, format: st
            "--max-decide", str(max_decide), "--format", format]
     start = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"file": str(path), "error": f"timed out after {timeout:g} s"}
     for line in reversed(proc.stdout.splitlines()):

@@ -97,8 +97,8 @@ def collect(args: list[str]) -> list[Path]:
 
 def child(code: str, args: list[str], timeout: float) -> dict:
     try:
-        proc = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True,
-                              timeout=timeout)
+        proc = subprocess.run([sys.executable, "-c", code, *args], check=False, capture_output=True,
+                              text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:g} s"}
     out = {}

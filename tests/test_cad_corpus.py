@@ -38,11 +38,11 @@ from __future__ import annotations
 
 import functools
 import math
-from pathlib import Path
 
 import numpy as np
 import OCP  # noqa: F401  -- the extra must be installed: fail, never skip
 import pytest
+from conftest import MODELS, model_files
 from OCP.Bnd import Bnd_Box
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
@@ -56,8 +56,6 @@ from bsrt.camera import pixel_rays
 from bsrt.io import load_model
 from bsrt.pipeline import render
 from bsrt.scene import scene_for_model
-
-from conftest import MODELS, model_files
 
 TOL = 1e-6  # of the model's diagonal: |dt|, and a hit's distance to the shape
 SIZE = 48
@@ -137,6 +135,13 @@ def _distance(shape, point) -> float:
     return float(tool.Value()) if tool.IsDone() else math.inf
 
 
+def _side(hit, t, shape, eye, direction, size) -> str:
+    """One side's hit for a failure message: its t and its distance to the shape (of the diagonal)."""
+    if not hit:
+        return "miss"
+    return f"t={t:.9g} (off the shape by {_distance(shape, eye + t * direction) / size:.2g})"
+
+
 @pytest.mark.parametrize("name", CORPUS)
 def test_corpus_part_loads_with_every_face_trimmed(name):
     model = _model(name)
@@ -168,13 +173,9 @@ def test_corpus_part_hits_agree_with_occt_away_from_edges(name):
         dirs = directions.reshape(SIZE, SIZE, 3)
         lines = []
         for i, j in bad[:6]:
-            d_ours = _distance(shape, eye + aovs["t"][i, j] * dirs[i, j]) / size if aovs["hit"][i, j] else None
-            d_occt = _distance(shape, eye + t[i, j] * dirs[i, j]) / size if hit[i, j] else None
-            lines.append(f"pixel {(int(i), int(j))}: bsrt {'t=%.9g' % aovs['t'][i, j] if aovs['hit'][i, j] else 'miss'}"
-                         f" ({model.names[aovs['surface'][i, j]] if aovs['hit'][i, j] else '-'}, "
-                         f"{'off the shape by %.2g' % d_ours if d_ours is not None else '-'}), "
-                         f"OpenCASCADE {'t=%.9g' % t[i, j] if hit[i, j] else 'miss'} "
-                         f"({'off the shape by %.2g' % d_occt if d_occt is not None else '-'})")
+            lines.append(f"pixel {(int(i), int(j))}: bsrt {_side(aovs['hit'][i, j], aovs['t'][i, j], shape, eye, dirs[i, j], size)}"
+                         f" on {model.names[aovs['surface'][i, j]] if aovs['hit'][i, j] else '-'}, "
+                         f"OpenCASCADE {_side(hit[i, j], t[i, j], shape, eye, dirs[i, j], size)}")
         extra = int((inside & aovs["hit"] & ~hit).sum())
         missed = int((inside & ~aovs["hit"] & hit).sum())
         raise AssertionError(
