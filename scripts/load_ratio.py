@@ -1,0 +1,175 @@
+"""How much longer bsrt takes to load a CAD file than OpenCASCADE takes to read it.
+
+    python scripts/load_ratio.py FILES_OR_FOLDERS... [--repeat 3] [--warm] [--timeout 600] [--json out.json]
+
+For each STEP, IGES or BREP file, ``--repeat`` times, two fresh processes
+back to back (``sys.executable -c ...``), each timing one call after its
+imports are done:
+
+* **occ**: OpenCASCADE's own read + transfer of the file, the whole shape:
+  ``STEPControl_Reader.ReadFile`` + ``TransferRoots`` + ``OneShape`` (IGES:
+  ``IGESControl_Reader``; BREP: ``BRepTools.Read``);
+* **bsrt**: ``bsrt.io.load_model(path)``, the call users make (STEP and BREP
+  through OpenCASCADE's XCAF reader plus bsrt's conversion of every face;
+  IGES through bsrt's own reader). If ``load_model`` takes a ``cache``
+  keyword (a converted-model cache), it is passed ``cache=False``. The
+  OpenCASCADE modules bsrt's reader uses are imported before the clock
+  starts; compiled kernels are loaded from numba's cache inside the call,
+  as they are for a user's first load. ``--warm`` also times a second call
+  in the same process.
+
+Prints the medians and the ratio bsrt / occ per file (the goal: at most 4),
+with the load average (``os.getloadavg()``) before and after: on a shared
+machine, compare ratios measured together, not seconds across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+EXTENSIONS = (".step", ".stp", ".p21", ".igs", ".iges", ".brep", ".brp")
+
+OCC_CHILD = textwrap.dedent("""
+    import sys, time
+    path = sys.argv[1]
+    ext = path.rsplit(".", 1)[-1].lower()
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPControl import STEPControl_Reader
+    from OCP.IGESControl import IGESControl_Reader
+    from OCP.BRepTools import BRepTools
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Shape
+    start = time.perf_counter()
+    if ext in ("brep", "brp"):
+        shape = TopoDS_Shape()
+        ok = BRepTools.Read_s(shape, path, BRep_Builder())
+    else:
+        reader = STEPControl_Reader() if ext in ("step", "stp", "p21") else IGESControl_Reader()
+        ok = reader.ReadFile(path) == IFSelect_RetDone
+        reader.TransferRoots()
+        shape = reader.OneShape()
+    seconds = time.perf_counter() - start
+    assert ok and not shape.IsNull(), "OpenCASCADE could not read the file"
+    print("LOAD-SECONDS", seconds)
+""")
+
+BSRT_CHILD = textwrap.dedent("""
+    import inspect, sys, time
+    path, warm = sys.argv[1], sys.argv[2] == "1"
+    import bsrt.io
+    from bsrt.io import load_model
+    try:
+        import bsrt.io.occt
+        import OCP.STEPCAFControl, OCP.IGESCAFControl, OCP.XCAFPrs, OCP.XCAFDoc, OCP.XCAFApp, OCP.TDocStd
+        import OCP.BRepTools, OCP.BRepAdaptor, OCP.GeomConvert, OCP.Geom2dConvert, OCP.BRep, OCP.TopExp
+        import OCP.BRepBndLib, OCP.Bnd, OCP.TDataStd, OCP.TDF, OCP.GeomAdaptor, OCP.Geom, OCP.Geom2d
+    except ImportError:
+        pass
+    kwargs = {"cache": False} if "cache" in inspect.signature(load_model).parameters else {}
+    start = time.perf_counter()
+    model = load_model(path, **kwargs)
+    print("LOAD-SECONDS", time.perf_counter() - start)
+    if warm:
+        start = time.perf_counter()
+        load_model(path, **kwargs)
+        print("WARM-SECONDS", time.perf_counter() - start)
+    print("SURFACES", len(model.surfaces), "UNTRIMMED", model.untrimmed, "CACHE-KEYWORD", bool(kwargs))
+""")
+
+
+def collect(args: list[str]) -> list[Path]:
+    files = []
+    for a in args:
+        p = Path(a)
+        if p.is_dir():
+            files += sorted(q for q in p.rglob("*") if q.is_file() and q.suffix.lower() in EXTENSIONS)
+        else:
+            files.append(p)
+    return files
+
+
+def child(code: str, args: list[str], timeout: float) -> dict:
+    try:
+        proc = subprocess.run([sys.executable, "-c", code, *args], check=False, capture_output=True,
+                              text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"error": f"timed out after {timeout:g} s"}
+    out = {}
+    for line in proc.stdout.splitlines():
+        words = line.split()
+        if words and words[0] == "LOAD-SECONDS":
+            out["seconds"] = float(words[1])
+        elif words and words[0] == "WARM-SECONDS":
+            out["warm"] = float(words[1])
+        elif words and words[0] == "SURFACES":
+            out["surfaces"], out["untrimmed"], out["cache_keyword"] = int(words[1]), int(words[3]), words[5]
+    if "seconds" not in out:
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-2:]
+        out["error"] = f"exit status {proc.returncode}: " + " | ".join(tail)
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("paths", nargs="+", help="STEP/IGES/BREP files or folders (searched recursively)")
+    parser.add_argument("--repeat", type=int, default=3, help="fresh-process pairs per file (default 3)")
+    parser.add_argument("--warm", action="store_true", help="also time a second load_model in the same process")
+    parser.add_argument("--timeout", type=float, default=600.0, help="seconds per process (default 600)")
+    parser.add_argument("--json", help="write the measurements to this JSON file")
+    args = parser.parse_args(argv)
+    files = collect(args.paths)
+    before = os.getloadavg()
+    print(f"load average before: {before[0]:.2f} {before[1]:.2f} {before[2]:.2f} ({os.cpu_count()} CPUs)")
+    print(f"{'file':40} {'occ s':>8} {'bsrt s':>8} {'ratio':>7}" + (f" {'warm s':>8}" if args.warm else "")
+          + "  surfaces")
+    results = []
+    for path in files:
+        occ, ours, warm, info, errors = [], [], [], {}, []
+        for _ in range(args.repeat):
+            a = child(OCC_CHILD, [str(path)], args.timeout)
+            b = child(BSRT_CHILD, [str(path), "1" if args.warm else "0"], args.timeout)
+            for r, into in ((a, occ), (b, ours)):
+                if "error" in r:
+                    errors.append(r["error"])
+                else:
+                    into.append(r["seconds"])
+            if "warm" in b:
+                warm.append(b["warm"])
+            info = {k: b[k] for k in ("surfaces", "untrimmed", "cache_keyword") if k in b} or info
+        r = {"file": str(path), "occ_s": occ, "bsrt_s": ours, "warm_s": warm, **info}
+        if errors:
+            r["errors"] = errors
+        name = path.name[:40]
+        if occ and ours:
+            r["occ_median"], r["bsrt_median"] = statistics.median(occ), statistics.median(ours)
+            r["ratio"] = r["bsrt_median"] / max(r["occ_median"], 1e-9)
+            line = f"{name:40} {r['occ_median']:8.3f} {r['bsrt_median']:8.3f} {r['ratio']:7.1f}"
+            if args.warm:
+                line += f" {statistics.median(warm):8.3f}" if warm else f" {'-':>8}"
+            print(line + f"  {info.get('surfaces', '?')}", flush=True)
+        else:
+            print(f"{name:40} ERROR {errors[0][:150] if errors else '?'}", flush=True)
+        results.append(r)
+    after = os.getloadavg()
+    print(f"load average after: {after[0]:.2f} {after[1]:.2f} {after[2]:.2f}")
+    ratios = [r["ratio"] for r in results if "ratio" in r]
+    if ratios:
+        over = [Path(r["file"]).name for r in results if r.get("ratio", 0) > 4]
+        print(f"ratio median {statistics.median(ratios):.1f}, max {max(ratios):.1f}; over 4x: "
+              f"{len(over)} of {len(ratios)}" + (f" ({', '.join(over)})" if over else ""))
+    if args.json:
+        Path(args.json).write_text(json.dumps({"load_average_before": before, "load_average_after": after,
+                                               "repeat": args.repeat, "files": results}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
