@@ -31,14 +31,8 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    piece's departure from a plane and the non-linearity of its
    parametrisation, which is what limits Newton's basin from the centre.
    A second, relative bound (curvature-based, like Martin's) also splits a
-   piece while its points' distance from the bilinear patch (dev without
-   the weights' spread, which shrinks only linearly with the piece: a
-   rational arc of 150 degrees needed 4096 leaves to meet it, and it
-   bends no normal) exceeds ``BEND * size`` or its corners' bilinear patch is
-   twisted by more than that (the part of ``(P00 - Pp0 - P0q + Ppq) / 4``
-   across the plane of the corners' diagonals: in that plane it only shears
-   the parametrisation, which dev measures, and a piece with a collapsed
-   edge at a pole or an apex is a flat triangle; size = its box
+   piece while ``dev > BEND * size`` or its corners' bilinear patch is
+   twisted by more than that (``|P00 - Pp0 - P0q + Ppq| / 4``; size = its box
    diagonal, BEND = 0.02): the piece is then within 2% of its size of a
    plane, its normals turn by only about 9 degrees, so a ray can cross a
    leaf twice only within about 9 degrees of its tangent plane, i.e. with

@@ -18,8 +18,7 @@ from numba import njit
 
 @njit(cache=True, no_cpython_wrapper=True)
 def measures(net, p, q):
-    """(dev, dev_u, dev_v, twist, size, shape) of one homogeneous net ([:p+1, :q+1, 4]); shape is dev
-    without the weights' spread (how far the piece's points are from the bilinear patch's)."""
+    """(dev, dev_u, dev_v, twist, size) of one homogeneous net ([:p+1, :q+1, 4])."""
     dev = dev_u = dev_v = 0.0
     lo0 = lo1 = lo2 = np.inf
     hi0 = hi1 = hi2 = -np.inf
@@ -50,32 +49,11 @@ def measures(net, p, q):
                 e_v += (x - col) ** 2
             dev, dev_u, dev_v = max(dev, np.sqrt(e)), max(dev_u, np.sqrt(e_u)), max(dev_v, np.sqrt(e_v))
     size = np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
-    shape = dev
-    # the twist: the part of the corners' twist vector P00 - Pp0 - P0q + Ppq across the plane of the
-    # diagonals (in that plane it only shears the parametrisation, which dev measures; a piece with a
-    # collapsed edge, at a pole or an apex, is a flat triangle however its corners lie)
-    t0 = t1 = t2 = 0.0
-    d = np.empty((2, 3))
+    twist = 0.0
     for k in range(3):
-        c00, cp0 = net[0, 0, k] / net[0, 0, 3], net[p, 0, k] / net[p, 0, 3]
-        c0q, cpq = net[0, q, k] / net[0, q, 3], net[p, q, k] / net[p, q, 3]
-        tk = c00 - cp0 - c0q + cpq
-        if k == 0:
-            t0 = tk
-        elif k == 1:
-            t1 = tk
-        else:
-            t2 = tk
-        d[0, k] = cpq - c00
-        d[1, k] = c0q - cp0
-    n0 = d[0, 1] * d[1, 2] - d[0, 2] * d[1, 1]
-    n1 = d[0, 2] * d[1, 0] - d[0, 0] * d[1, 2]
-    n2 = d[0, 0] * d[1, 1] - d[0, 1] * d[1, 0]
-    norm = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    if norm > 0.0:
-        twist = 0.25 * abs(t0 * n0 + t1 * n1 + t2 * n2) / norm
-    else:
-        twist = 0.25 * np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        twist += (net[0, 0, k] / net[0, 0, 3] - net[p, 0, k] / net[p, 0, 3] - net[0, q, k] / net[0, q, 3]
+                  + net[p, q, k] / net[p, q, 3]) ** 2
+    twist = 0.25 * np.sqrt(twist)
     if uneven:  # uneven weights bend the parametrisation even of a flat piece
         spread_u = spread_v = 0.0
         for j in range(q + 1):
@@ -91,7 +69,7 @@ def measures(net, p, q):
         dev_u += spread_u * size
         dev_v += spread_v * size
         dev += max(spread_u, spread_v) * size
-    return dev, dev_u, dev_v, twist, size, shape
+    return dev, dev_u, dev_v, twist, size
 
 
 # Explicit signatures: called with a literal axis (traverse) and a variable one (_cut), or a
@@ -145,8 +123,8 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
     top, count = 1, 0
     while top > 0:
         top -= 1
-        dev, dev_u, dev_v, twist, size, shape = measures(stack[top], p, q)
-        if not ((dev > eps or max(shape, twist) > bend * size) and depth[top] < max_depth):
+        dev, dev_u, dev_v, twist, size = measures(stack[top], p, q)
+        if not ((dev > eps or max(dev, twist) > bend * size) and depth[top] < max_depth):
             if fill:
                 for k in range(4):
                     out_rect[first + count, k] = rects[top, k]

@@ -219,6 +219,18 @@ def _leaves(doc, shape_tool) -> list[Leaf]:
                 leaves.append(Leaf(shape, node.Location, "/".join(path), _rgb(node.Style), face_colors,
                                     bool(node.Style.IsVisible())))
         explorer.Next()
+    return _unique_names(leaves)
+
+
+def _unique_names(leaves: list[Leaf]) -> list[Leaf]:
+    """The leaves with the second, third, ... of equal paths named ``PATH@2``, ``PATH@3`` (an
+    assembly may place an unnamed part twice under one parent: its faces need names of their own)."""
+    seen: dict[str, int] = {}
+    for leaf in leaves:
+        n = seen.get(leaf.name, 0) + 1
+        seen[leaf.name] = n
+        if n > 1:
+            leaf.name = f"{leaf.name}@{n}"
     return leaves
 
 
