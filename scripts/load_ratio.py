@@ -13,8 +13,10 @@ imports are done:
   through OpenCASCADE's XCAF reader plus bsrt's conversion of every face;
   IGES through bsrt's own reader). If ``load_model`` takes a ``cache``
   keyword (a converted-model cache), it is passed ``cache=False``. The
-  OpenCASCADE modules bsrt's reader uses are imported before the clock
-  starts; compiled kernels are loaded from numba's cache inside the call,
+  OpenCASCADE modules bsrt's reader uses, and bsrt's reader modules, are
+  imported before the clock starts (as OpenCASCADE's own are: with
+  PYTHONDONTWRITEBYTECODE set, as on the development machines, importing
+  bsrt's readers would otherwise compile their source on every run); compiled kernels are loaded from numba's cache inside the call,
   as they are for a user's first load. ``--warm`` also times a second call
   in the same process.
 
@@ -65,6 +67,7 @@ BSRT_CHILD = textwrap.dedent("""
     path, warm = sys.argv[1], sys.argv[2] == "1"
     import bsrt.io
     from bsrt.io import load_model
+    import bsrt.io.iges, bsrt.io.cache  # the readers' modules: imported, not timed (as OpenCASCADE's are)
     try:
         import bsrt.io.occt
         import OCP.STEPCAFControl, OCP.IGESCAFControl, OCP.XCAFPrs, OCP.XCAFDoc, OCP.XCAFApp, OCP.TDocStd

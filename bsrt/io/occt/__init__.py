@@ -1,8 +1,8 @@
 """STEP, BREP and IGES B-reps through OpenCASCADE (the optional extra ``bsrt[cad]``).
 
 This package is the only code that imports OpenCASCADE (the ``OCP``
-bindings of ``cadquery-ocp-novtk``), and it does so inside functions, so the
-rest of bsrt never needs it. ``read(path, format)`` turns every face of the
+bindings of ``cadquery-ocp-novtk``), and it does so inside functions (its
+modules import without it), so the rest of bsrt never needs it. ``read(path, format)`` turns every face of the
 file into one trimmed :class:`~bsrt.bspline.BSplineSurface`. One module per
 concern:
 
@@ -33,6 +33,10 @@ import numpy as np
 from ...bspline import BSplineSurface
 from ...errors import InputError
 from ...files import check_input_file
+from .curves import TrimError
+from .reading import ShapeKey, cast, count_free_edges, diagonal, faces, read_leaves
+from .surfaces import EXACT_TOLERANCE, FaceError, convert_surface
+from .topology import face_loops
 
 #: format name -> the extensions it reads (lower case, with the dot)
 EXTENSIONS = {
@@ -91,10 +95,6 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
     from OCP.TopAbs import TopAbs_FORWARD
     from OCP.TopLoc import TopLoc_Location
 
-    from .curves import TrimError
-    from .reading import cast
-    from .surfaces import FaceError, convert_surface
-    from .topology import face_loops
 
     face = cast("Face", face.Oriented(TopAbs_FORWARD))
     location = TopLoc_Location()
@@ -126,7 +126,6 @@ def _face_bounds(face, surface) -> tuple[float, float, float, float]:
     """The face's (u, v) bounds, clipped to the surface's own bounds (and to one period in a periodic direction)."""
     from OCP.BRepTools import BRepTools
 
-    from .surfaces import FaceError
 
     umin, umax, vmin, vmax = BRepTools.UVBounds_s(face)
     su0, su1, sv0, sv1 = surface.Bounds()
@@ -156,8 +155,6 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
     is missing or cannot read the file.
     """
     from .. import Model
-    from .reading import ShapeKey, count_free_edges, diagonal, faces, read_leaves
-    from .surfaces import EXACT_TOLERANCE, FaceError
 
     path = os.fspath(path)
     kind = kind_of(path, format)

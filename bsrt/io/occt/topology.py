@@ -343,6 +343,10 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     if (p_all[:, 0].min() >= a0 - eps and p_all[:, 0].max() <= a1 + eps and p_all[:, 1].min() >= b0 - eps
             and p_all[:, 1].max() <= b1 + eps):
         return curve  # the control points are inside: so is the curve (convex hull)
+    near = 1e-9 * np.hypot(a1 - a0, b1 - b0)
+    if (p_all[:, 0].min() >= a0 - near and p_all[:, 0].max() <= a1 + near and p_all[:, 1].min() >= b0 - near
+            and p_all[:, 1].max() <= b1 + near):  # out by rounding of the bounds: onto the edge, moved <= that
+        return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
 
@@ -350,14 +354,36 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         uv = curve.evaluate(np.atleast_1d(x))
         return (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
 
-    state = inside(t)
+    uv = curve.evaluate(t)
+    state = (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
     k = np.flatnonzero(state[:-1] != state[1:])
-    a, b, sa = t[k], t[k + 1], state[k]
-    for _ in range(60):  # all the crossings at once
-        m = 0.5 * (a + b)
-        same = inside(m) == sa
-        a, b = np.where(same, m, a), np.where(same, b, m)
-    cuts = 0.5 * (a + b)
+    # each crossing is of one edge line, the one the outside sample is past: solve coordinate = line there
+    outer = np.where(state[k], k + 1, k)
+    lines = np.array([a0 - eps, a1 + eps, b0 - eps, b1 + eps])
+    past = np.stack([uv[outer, 0] < lines[0], uv[outer, 0] > lines[1], uv[outer, 1] < lines[2],
+                     uv[outer, 1] > lines[3]], axis=1)
+    which = np.argmax(past, axis=1)
+    axis, line = which // 2, lines[which]
+    a, b = t[k], t[k + 1]
+    fa = uv[k, axis] - line
+    fb = uv[k + 1, axis] - line
+    scale = 1e-15 * max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
+    best = np.where(np.abs(fa) <= np.abs(fb), a, b)
+    best_f = np.minimum(np.abs(fa), np.abs(fb))
+    for _ in range(60):  # modified regula falsi (Illinois), all crossings at once, to rounding
+        if np.all((best_f <= scale) | (b - a <= 1e-15 * (hi - lo))):
+            break
+        with np.errstate(all="ignore"):
+            m = b - fb * (b - a) / (fb - fa)
+        m = np.where((m > a) & (m < b), m, 0.5 * (a + b))
+        fm = curve.evaluate(m)[np.arange(m.size), axis] - line
+        better = np.abs(fm) < best_f
+        best, best_f = np.where(better, m, best), np.where(better, np.abs(fm), best_f)
+        right = np.sign(fm) == np.sign(fa)  # the crossing is in [m, b]: b kept, its value halved
+        a, b, fa, fb = (np.where(right, m, a), np.where(right, b, m), np.where(right, fm, 0.5 * fa),
+                        np.where(right, 0.5 * fb, fm))
+    cuts = best
+
     p = curve.degree
     knots, ctrl = curve.knots, curve.homogeneous()
     for x in cuts:
