@@ -123,16 +123,17 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
     if fu.kind == "identity" and fv.kind == "identity":
         return shifted(curve, (fu.shift, fv.shift))
     t0, t1 = curve.domain
-    t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
-    uv = curve.evaluate(t)
     spans = np.array([pmap.bounds[1] - pmap.bounds[0], pmap.bounds[3] - pmap.bounds[2]])
     for axis in (0, 1):  # an iso-line (axis fixed): a straight segment, exactly
-        fixed, moving = uv[:, axis], uv[:, 1 - axis]
+        # read from the control points: a coordinate is constant exactly when all its control values are
+        # (positive weights), and a monotone control polygon makes a monotone curve (variation diminishing)
+        fixed, moving = curve.points[:, axis], curve.points[:, 1 - axis]
         if np.ptp(fixed) <= 1e-13 * spans[axis] and (np.all(np.diff(moving) >= 0) or np.all(np.diff(moving) <= 0)):
-            ends = np.empty((2, 2))
+            ends = curve.ends()
             ends[:, axis] = fixed.mean()
-            ends[:, 1 - axis] = moving[[0, -1]]
             return segment(*pmap.map(ends))
+    t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
+    uv = curve.evaluate(t)
     breaks = [np.array([t0, t1]), np.unique(curve.knots[(curve.knots > t0) & (curve.knots < t1)])]
     for axis, fmap in ((0, fu), (1, fv)):
         if fmap.kind == "identity":
