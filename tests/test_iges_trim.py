@@ -653,3 +653,32 @@ def test_invert_recovers_parameters_from_nearby_starts():
     pts = evaluate(s, u, v)[0]
     x, y = invert(s, pts, u + 0.05, v - 0.05, 2.0)
     assert np.abs(x - u).max() < 1e-12 and np.abs(y - v).max() < 1e-12
+
+
+def test_subfigure_instances_place_their_definitions_nested_scaled_moved_and_turned():
+    """subfigures.igs (generate.py): a 144 (the square [0.2, 0.8]^2 of the plane z = 0) in a 308,
+    placed by a 408 (scale 3, translation (0, 5, 0)) and, through a nested 308 whose 408 scales by
+    2 and lifts by 1, by a 408 translated by (10, 0, 0) and then turned 90 degrees about z by its
+    124 (IGES 5.3: an instance maps p to M (S p + T)). Worked by hand: (0.2, 0.2) -> 2 p + (0, 0, 1)
+    = (0.4, 0.4, 1) -> + (10, 0, 0) -> turned: (-0.4, 10.4, 1)."""
+    model = load_model(HERE / "subfigures.igs")
+    assert len(model.surfaces) == 2 and model.warnings == []
+    assert model.skipped == {"IGES entity 308 (subfigure definition)": 1}  # the definition nobody places
+    corners = {name.split(" in ")[1]: on_surface(s, np.array([[0.2, 0.2], [0.8, 0.8]]))
+               for s, name in zip(model.surfaces, model.names)}
+    des = sorted(corners)
+    assert np.allclose(corners[des[0]], [[-0.4, 10.4, 1.0], [-1.6, 11.6, 1.0]], rtol=0, atol=1e-14)
+    assert np.allclose(corners[des[1]], [[0.6, 5.6, 0.0], [2.4, 7.4, 0.0]], rtol=0, atol=1e-14)
+    for s in model.surfaces:  # the trim loops are the definition's, in (u, v)
+        (loop,) = s.trims
+        p = loop_points(loop)
+        assert p.min() == pytest.approx(0.2) and p.max() == pytest.approx(0.8)
+
+
+def test_subfigure_instances_that_contain_each_other_are_an_error(tmp_path, capsys):
+    entities = [e for e in gen.subfigures() if e.name not in ("A", "Bi", "D3")]
+    entities = replaced(entities, "D1", gen.E(308, [0, "plate", 2, gen.R("T"), gen.R("I2")], name="D1"))
+    entities.append(gen.E(408, [gen.R("D2"), 0.0, 0.0, 0.0, 1.0], name="I2"))
+    entities.append(gen.E(408, [gen.R("D1"), 0.0, 0.0, 0.0, 1.0], name="top"))
+    with pytest.raises(InputError, match="contain each other in a loop"):
+        load_model(write(tmp_path, entities))

@@ -38,7 +38,16 @@ What is drawn, in directory order: every trimmed surface (144), bounded
 surface (143) and B-rep face (510), with its trim loops; every surface entity
 no 144/143/510 refers to, whole (128, 114, 118, 120, 122, 196, 198; a 108
 only when bounded by a curve or given a display size); the solids (186) and
-shells (514) only gather faces, which are drawn as faces. Entities that take
+shells (514) only gather faces, which are drawn as faces. Subfigures: the
+members of a definition (308; DEPTH NAME N and N pointers) -- surfaces,
+trimmed surfaces, faces, and the faces of its solids and shells -- are drawn
+only where a singular subfigure instance (408; DE X Y Z S) that is no
+definition's member places them, nested instances within it: a definition
+point p is drawn at M (S p + (X, Y, Z)), M the 408's own matrix, after the
+308's own matrix (IGES 5.3: an entity's parameters are in its definition
+space; OpenCASCADE adds (X, Y, Z) after M instead, which differs only when
+both are there and M turns). A definition no instance places is not drawn
+(counted skipped; OpenCASCADE draws it in place). Entities that take
 part (curves, 124s, vertex and edge lists, ...) are used; every other one is
 counted in ``Model.skipped`` by type, unless it is blanked (blank status 01:
 hidden in the sending system). A trimmed surface whose boundary uses a curve
