@@ -682,3 +682,29 @@ def test_subfigure_instances_that_contain_each_other_are_an_error(tmp_path, caps
     entities.append(gen.E(408, [gen.R("D1"), 0.0, 0.0, 0.0, 1.0], name="top"))
     with pytest.raises(InputError, match="contain each other in a loop"):
         load_model(write(tmp_path, entities))
+
+
+def test_144_whose_parameter_space_loop_does_not_close_is_trimmed_by_its_model_space_loop():
+    """sphere_120_shifted_pcurve.igs (generate.py; the situation of OpenCASCADE's
+    bug22566_test_Bad.igs): the 142's parameter-space loop, in the writer's arc parameter (from 0
+    at the arc's start), does not close in IGES's; its model-space loop does and bounds the
+    quarter of the unit sphere with y <= 0 and z >= 0 (area pi), which is drawn, with a warning."""
+    from bsrt.trim import kept
+
+    model = load_model(HERE / "sphere_120_shifted_pcurve.igs")
+    (s,) = model.surfaces
+    assert model.warnings[0].startswith("entity 144 (DE ") and "model-space boundary does" in model.warnings[0]
+    (loop,) = s.trims
+    xyz = on_surface(s, loop_points(loop, 200))
+    assert np.abs(np.linalg.norm(xyz, axis=1) - 1).max() < 1e-12
+    on_boundary = np.minimum(np.abs(xyz[:, 1]), np.abs(xyz[:, 2]))  # the equator, the meridians in z = 0
+    assert on_boundary.max() < 1e-5
+    (a0, a1), (b0, b1) = s.domain_u, s.domain_v
+    u, v = (g.ravel() for g in np.meshgrid(np.linspace(a0, a1, 201), np.linspace(b0, b1, 201), indexing="ij"))
+    inside = kept(s, u, v)
+    p, su, sv = evaluate(s, u, v)
+    assert p[inside, 1].max() < 1e-5 and p[inside, 2].min() > -1e-5
+    area = np.linalg.norm(np.cross(su, sv), axis=1)[inside].sum() * (a1 - a0) * (b1 - b0) / 200**2
+    assert area == pytest.approx(math.pi, rel=0.03)
+    # the seam: the equator arc ending on it and the meridian lying on it are on the side the loop is
+    assert not (p[inside, 2] < -1e-3).any()

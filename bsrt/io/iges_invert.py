@@ -71,6 +71,9 @@ def invert_curve(c: Curve, to_uv, tol: float, angular=(False, False)) -> Curve |
             uv[:, k] = uv[good[np.clip(np.searchsorted(good, np.arange(len(uv))), 0, len(good) - 1)], k]
         if angular[k]:
             uv[:, k] = np.unwrap(uv[:, k])
+    seams = [(k, lo, hi) for k, (lo, hi, closed) in enumerate(getattr(to_uv, "seams", ())) if closed]
+    for k, lo, hi in seams:
+        _snap(uv[:, k], lo, hi)
     if callable(tol):
         tol = tol(uv)
     while len(t) < _MAX_POINTS:
@@ -78,6 +81,9 @@ def invert_curve(c: Curve, to_uv, tol: float, angular=(False, False)) -> Curve |
         chord = 0.5 * (uv[:-1] + uv[1:])
         mid = to_uv(evaluate(c, mid_t), chord)
         mid = _near(np.where(np.isnan(mid), chord, mid), chord, angular)
+        for k, lo, hi in seams:  # on the seam: the side of the chord
+            on = np.minimum(np.abs(mid[:, k] - lo), np.abs(mid[:, k] - hi)) <= 1e-12 * (hi - lo)
+            mid[on, k] = np.where(np.abs(chord[on, k] - lo) <= np.abs(chord[on, k] - hi), lo, hi)
         bad = _off_segment(mid, uv[:-1], uv[1:]) > tol
         bad &= (t[1:] - t[:-1]) > 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)
         if not bad.any():
@@ -85,6 +91,19 @@ def invert_curve(c: Curve, to_uv, tol: float, angular=(False, False)) -> Curve |
         t = np.insert(t, np.flatnonzero(bad) + 1, mid_t[bad])
         uv = np.insert(uv, np.flatnonzero(bad) + 1, mid[bad], axis=0)
     return polyline_curve(uv)
+
+
+def _snap(x: np.ndarray, lo: float, hi: float) -> None:
+    """Samples x (in order along a curve) on the seam of a closed direction (at lo or hi, the
+    same points of the surface) moved, in place, to the side of their nearest neighbour off
+    the seam (a curve wholly on the seam is left as it is: its loop decides)."""
+    on = np.minimum(np.abs(x - lo), np.abs(x - hi)) <= 1e-12 * (hi - lo)
+    if not on.any() or on.all():
+        return
+    off = np.flatnonzero(~on)
+    for i in np.flatnonzero(on):
+        j = off[np.argmin(np.abs(off - i))]
+        x[i] = lo if abs(x[j] - lo) <= abs(x[j] - hi) else hi
 
 
 def _off_segment(p, a, b) -> np.ndarray:
@@ -136,6 +155,10 @@ class SurfaceInverse:
         uu, vv = np.meshgrid(gu, gv, indexing="ij")
         self.grid_uv = np.stack([uu.ravel(), vv.ravel()], 1)
         self.grid = grid.reshape(-1, 3)
+        # closed directions (the surface's two edges across them coincide): their seam samples
+        # are put on the side their neighbours along a curve are on (``invert_curve``)
+        self.closed = tuple(bool(np.abs(np.take(grid, 0, axis=k) - np.take(grid, -1, axis=k)).max()
+                                 <= 1e-9 * self.size) for k in range(2))
         self.grid_t = np.ascontiguousarray(self.grid.T)
         self.grid_sq = 0.5 * np.einsum("gk,gk->g", self.grid, self.grid)
 
@@ -152,6 +175,11 @@ class SurfaceInverse:
         u, v = invert(self.s, pts, uv[:, 0], uv[:, 1], self.size)
         uv = np.stack([u, v], 1)
         return uv, np.linalg.norm(surface_eval(self.s, u, v)[0] - pts, axis=1)
+
+    @property
+    def seams(self):
+        """((u0, u1, closed in u), (v0, v1, closed in v)) for ``invert_curve``."""
+        return tuple((self.lo[k], self.hi[k], self.closed[k]) for k in range(2))
 
     def __call__(self, pts, hint=None):
         """(u, v) of the points' closest points, from ``hint`` or the nearest grid point;

@@ -7,7 +7,10 @@ Entities (IGES 5.3):
   that the even-odd rule keeps the surface minus the inner loops).
 * 142 curve on a surface: CRTN SPTR BPTR CPTR PREF. The parameter-space curve
   BPTR is used when there is one; otherwise the model-space curve CPTR is
-  carried into (u, v) (``iges_invert``).
+  carried into (u, v) (``iges_invert``). When a 144's parameter-space loops do
+  not close and each of its 142s also has a model-space curve, the model-space
+  curves trim it instead, with a warning (a writer's parameter-space curves in
+  another parametrization of the surface).
 * 143 bounded surface: TYPE SPTR N and N pointers to 141s; 141 boundary:
   TYPE PREF SPTR N, then per curve CRVPT SENSE K PSCPT(1..K). The K
   parameter-space curves are used (the group reversed when SENSE = 2), else
@@ -53,8 +56,9 @@ def _surface_of(f, params, what: str) -> SurfaceDef:
     return surface(f, target)
 
 
-def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]:
-    """The pieces of a 142 (its parameter-space curve, else its model-space curve)."""
+def _curve_on_surface(b: LoopBuilder, params, de: int, what: str, model: bool = False) -> list[Piece]:
+    """The pieces of a 142 (its parameter-space curve, else -- or with ``model`` -- its
+    model-space curve)."""
     f = b.f
     e142 = f.get(params, de, what, {142})
     p = f.params(e142)
@@ -65,6 +69,10 @@ def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]
                      f"trims surface DE {b.sd.entity.de}")
     bptr, cptr = p.pointer("the parameter-space curve BPTR"), p.pointer("the model-space curve CPTR")
     f.used.add(e142.de)
+    if model and cptr:
+        if bptr:
+            mark_used(f, p, bptr, "parameter-space curve BPTR")
+        return b.model_pieces(p, cptr, "model-space curve CPTR")
     if bptr:
         try:
             out = b.param_pieces(p, bptr, "parameter-space curve BPTR")
@@ -80,22 +88,52 @@ def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]
     return b.model_pieces(p, cptr, "model-space curve CPTR")
 
 
-def _trimmed_surface(f, entity) -> Face:
+def _trimmed_surface(f, entity, model: bool = False) -> Face:
+    """A 144's face. A boundary written in parameter space that does not close, where every
+    boundary also has a model-space curve, is drawn with the model-space curves (carried
+    into (u, v)) instead, with a note: a writer's parameter-space curves in another
+    parametrization of the surface than IGES's (bug22566_test_Bad.igs: a 120's arc
+    parameter counted from 0 at the arc's start, not from its start angle) close only
+    where the surface collapses in theirs."""
     params = f.params(entity)
     sd = _surface_of(f, params, "surface pointer PTS")
     b = LoopBuilder(f, entity, sd)
     n1 = params.int("N1", 0)
     n2 = params.int("N2", 0)
     pto = params.pointer("the outer boundary pointer PTO")
-    raw = []
+    raw, boundaries = [], []
     if n1:
-        items = _curve_on_surface(b, params, pto, "outer boundary PTO")
+        items = _curve_on_surface(b, params, pto, "outer boundary PTO", model)
         raw.append(RawLoop(items, f"its outer boundary (DE {pto})"))
+        boundaries.append(pto)
     for i in range(n2):
         de = params.pointer("an inner boundary pointer PTI")
-        items = _curve_on_surface(b, params, de, "inner boundary PTI")
+        items = _curve_on_surface(b, params, de, "inner boundary PTI", model)
         raw.append(RawLoop(items, f"its inner boundary {i + 1} (DE {de})"))
-    return b.build(raw, outer_is_domain=not n1 and bool(raw))
+        boundaries.append(de)
+    try:
+        return b.build(raw, outer_is_domain=not n1 and bool(raw))
+    except OpenLoop as first:
+        if model or not boundaries or not all(_has_both(f, de) for de in boundaries):
+            raise
+        try:
+            face = _trimmed_surface(f, entity, model=True)
+        except (OpenLoop, Unsupported):
+            raise first from None  # the parameter-space loop's own message
+        return replace(face, note=(
+            f"entity 144 (DE {entity.de}): its parameter-space boundary does not close on the surface, "
+            f"its model-space boundary does: the surface is trimmed by the model-space curves"))
+
+
+def _has_both(f, de: int) -> bool:
+    """Does the 142 at DE ``de`` have both a parameter-space and a model-space curve?"""
+    e = f.entities.get(de)
+    if e is None or e.type != 142:
+        return False
+    p = f.params(e)
+    p.int("CRTN")
+    p.pointer("SPTR")
+    return bool(p.pointer("BPTR")) and bool(p.pointer("CPTR"))
 
 
 def _bounded_surface(f, entity) -> Face:
@@ -313,6 +351,7 @@ class _Drawing:
                 self.trimmed_targets.add(p.pointer("the surface pointer"))
         self.untrimmed, self.unsupported, self.unbounded, self.open_loops = [], {}, {}, []
         self.inverted = 0
+        self.notes: list[str] = []  # faces drawn otherwise than written, one line each
         self.done: dict[int, object] = {}  # DE -> its surface (None: not drawn)
 
     def entity(self, e):
@@ -350,6 +389,8 @@ class _Drawing:
                 f.used.add(e.de)
                 return s
             self.inverted += face.inverted
+            if face.note:
+                self.notes.append(face.note)
             f.used.add(e.de)
             return face.surface
         if e.type in SURFACE_TYPES and e.de not in self.trimmed_targets:
@@ -441,7 +482,7 @@ def draw(f):
                 surfaces.append(s)
                 names.append(f.name(e))
     untrimmed, unsupported, unbounded = d.untrimmed, d.unsupported, d.unbounded
-    warnings = list(d.open_loops)
+    warnings = list(d.open_loops) + d.notes
     if d.inverted:
         inverted = d.inverted
         warnings.append(
