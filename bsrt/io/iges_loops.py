@@ -5,6 +5,10 @@ Loops, in this order:
 1. Parameter-space curves are taken as written (a composite's members one by
    one); model-space ones are carried into (u, v) (``iges_invert``: exactly for
    planes, polylines within ``INVERSION_TOL`` otherwise, one warning per file).
+   On a B-spline closed in a direction (its two edges across it coincide), a
+   carried curve's samples on the seam take the side of their neighbours, and a
+   carried curve lying wholly on the seam the side where the previous curve of
+   its loop ends.
 2. On 190-198 surfaces, loops whose angles span more than 2 pi (or pass 4 pi)
    are in degrees (OCCT writes them so) and become radians; curves along an
    angle are shifted by whole turns to continue the previous one.
