@@ -708,3 +708,32 @@ def test_144_whose_parameter_space_loop_does_not_close_is_trimmed_by_its_model_s
     assert area == pytest.approx(math.pi, rel=0.03)
     # the seam: the equator arc ending on it and the meridian lying on it are on the side the loop is
     assert not (p[inside, 2] < -1e-3).any()
+
+
+def test_invert_beyond_the_domain_edge_and_far_from_the_surface():
+    """bsrt.io.invert on the closed cylinder (radius 1 about z, z = v in [0, 2]): points 1 above
+    its top edge come back to that edge at their own angle (the closest point, with v held at
+    the edge: worked by hand), and no point ends further from its target than its start was
+    (points inside, near the axis, where the Gauss-Newton step overshoots)."""
+    from bsrt.io.invert import invert
+
+    s = load_model(HERE / "closed_128_seam_144.igs").surfaces[0]
+    rng = np.random.default_rng(5)
+    u = rng.uniform(3.6, 7.4, 100)
+    top = evaluate(s, u, np.full(100, 2.0))[0] + [0.0, 0.0, 1.0]
+    x, y = invert(s, top, u + 0.1, np.full(100, 1.5), 2.0)
+    assert np.abs(y - 2.0).max() == 0.0 and np.abs(x - u).max() < 1e-12
+    inside = np.column_stack([rng.uniform(-0.2, 0.2, (100, 2)), rng.uniform(0.2, 1.8, 100)])
+    u0, v0 = rng.uniform(*s.domain_u, 100), rng.uniform(*s.domain_v, 100)
+    x, y = invert(s, inside, u0, v0, 2.0)
+    start = np.linalg.norm(evaluate(s, u0, v0)[0] - inside, axis=1)
+    end = np.linalg.norm(evaluate(s, x, y)[0] - inside, axis=1)
+    assert np.all(end <= start * (1 + 1e-12))
+    # a sheared plane S(u, v) = (u + v, v, 0) on [0, 1]^2 (S_u . S_v != 0): (1.5, 1.5, 0) is
+    # nearest (0, 1.5) unconstrained, v beyond the edge; with v held at 1, u + 1 = 1.5
+    from bsrt.bspline import BSplineSurface
+
+    plane = BSplineSurface((1, 1), np.array([0.0, 0, 1, 1]), np.array([0.0, 0, 1, 1]),
+                           np.array([[[0.0, 0, 0], [1, 1, 0]], [[1, 0, 0], [2, 1, 0]]]))
+    x, y = invert(plane, np.array([[1.5, 1.5, 0.0]]), [0.9], [0.1], 3.0)
+    assert (x[0], y[0]) == pytest.approx((0.5, 1.0), abs=1e-14)
