@@ -1,6 +1,6 @@
 """Time bsrt's IGES reader against OpenCASCADE's on real files.
 
-    python scripts/iges_load_ratio.py [--repeat 3] FILES...
+    python scripts/iges_load_ratio.py [--repeat 3] [--variant NAME=PYTHONPATH ...] FILES...
 
 For each file, ``--repeat`` rounds of two fresh subprocesses back to back: one
 times ``bsrt.io.load_model(path)`` (bsrt's own reader, its modules imported
@@ -8,7 +8,10 @@ before the clock starts), the other OpenCASCADE's ``IGESControl_Reader``
 ``ReadFile`` + ``TransferRoots`` + ``OneShape`` (OCP imported before the clock
 starts). Prints the medians, their ratio (bsrt / OpenCASCADE; the issue asks
 for at most 4) and the load average before and after (the machine may be
-shared: compare ratios, not seconds).
+shared: compare ratios, not seconds). With ``--variant`` (repeatable), each
+round times every variant's bsrt (PYTHONPATH set to its checkout) next to
+the same OpenCASCADE run, interleaved, so that a before/after comparison
+sees the same load.
 """
 
 from __future__ import annotations
@@ -48,8 +51,11 @@ print(dt, n)
 """
 
 
-def _run(code: str, path: str) -> tuple[float, int]:
-    out = subprocess.run([sys.executable, "-c", code, path], capture_output=True, text=True, check=True)
+def _run(code: str, path: str, pythonpath: str | None = None) -> tuple[float, int]:
+    env = dict(os.environ)
+    if pythonpath is not None:
+        env["PYTHONPATH"] = pythonpath
+    out = subprocess.run([sys.executable, "-c", code, path], capture_output=True, text=True, check=True, env=env)
     seconds, faces = out.stdout.split()[-2:]
     return float(seconds), int(faces)
 
@@ -58,18 +64,27 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("files", nargs="+")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--variant", action="append", default=[], metavar="NAME=PYTHONPATH",
+                        help="a bsrt checkout to time (repeatable; default: the current environment's)")
     args = parser.parse_args(argv)
+    variants = [tuple(v.split("=", 1)) for v in args.variant] or [("bsrt", None)]
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    print(f"{'file':40s} {'bsrt s':>8s} {'OCC s':>8s} {'ratio':>6s} {'faces':>11s}")
+    print(f"{'file':32s} {'variant':8s} {'bsrt s':>8s} {'OCC s':>8s} {'ratio':>6s} {'faces':>11s}")
     for path in args.files:
-        ours, theirs = [], []
+        ours = {name: [] for name, _ in variants}
+        faces = {}
+        theirs = []
         for _ in range(args.repeat):
-            a, na = _run(_BSRT, path)
+            for name, pp in variants:
+                a, faces[name] = _run(_BSRT, path, pp)
+                ours[name].append(a)
             b, nb = _run(_OCC, path)
-            ours.append(a)
             theirs.append(b)
-        mo, mt = statistics.median(ours), statistics.median(theirs)
-        print(f"{os.path.basename(path):40s} {mo:8.3f} {mt:8.3f} {mo / mt:6.2f} {na:5d}/{nb:<5d}", flush=True)
+        mt = statistics.median(theirs)
+        for name, _ in variants:
+            mo = statistics.median(ours[name])
+            print(f"{os.path.basename(path):32s} {name:8s} {mo:8.3f} {mt:8.3f} {mo / mt:6.2f} "
+                  f"{faces[name]:5d}/{nb:<5d}", flush=True)
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

@@ -166,7 +166,9 @@ class SurfaceInverse:
         out = np.empty((len(pts), 2))
         step = max(1, 1_000_000 // len(self.grid))
         for a in range(0, len(pts), step):
-            d = pts[a : a + step] @ self.grid_t  # p.g - |g|^2 / 2: the nearest has the most
+            # p.g - |g|^2 / 2: the nearest has the most (einsum: no threaded BLAS, which a busy
+            # machine slows down many times over for this thin product)
+            d = np.einsum("nk,kg->ng", pts[a : a + step], self.grid_t)
             d -= self.grid_sq
             out[a : a + step] = self.grid_uv[np.argmax(d, axis=1)]
         return out
