@@ -21,6 +21,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 
 _BSRT = """
 import sys, time
@@ -28,7 +29,7 @@ import bsrt.io, bsrt.io.iges, bsrt.io.iges_topology, bsrt.io.iges_seams
 path = sys.argv[1]
 t = time.perf_counter()
 m = bsrt.io.load_model(path)
-print(time.perf_counter() - t, len(m.surfaces))
+print(bsrt.__file__, time.perf_counter() - t, len(m.surfaces))
 """
 
 _OCC = """
@@ -55,9 +56,11 @@ def _run(code: str, path: str, pythonpath: str | None = None) -> tuple[float, in
     env = dict(os.environ)
     if pythonpath is not None:
         env["PYTHONPATH"] = pythonpath
-    out = subprocess.run([sys.executable, "-c", code, path], capture_output=True, text=True, check=True, env=env)
+    # run outside any checkout: ``python -c`` puts the working directory first on sys.path
+    out = subprocess.run([sys.executable, "-c", code, os.path.abspath(path)], capture_output=True, text=True,
+                         check=True, env=env, cwd=tempfile.gettempdir())
     seconds, faces = out.stdout.split()[-2:]
-    return float(seconds), int(faces)
+    return float(seconds), int(faces), out.stdout.split()[-3]
 
 
 def main(argv=None) -> int:
@@ -72,19 +75,19 @@ def main(argv=None) -> int:
     print(f"{'file':32s} {'variant':8s} {'bsrt s':>8s} {'OCC s':>8s} {'ratio':>6s} {'faces':>11s}")
     for path in args.files:
         ours = {name: [] for name, _ in variants}
-        faces = {}
+        faces, where = {}, {}
         theirs = []
         for _ in range(args.repeat):
             for name, pp in variants:
-                a, faces[name] = _run(_BSRT, path, pp)
+                a, faces[name], where[name] = _run(_BSRT, path, pp)
                 ours[name].append(a)
-            b, nb = _run(_OCC, path)
+            b, nb, _ = _run(_OCC, path)
             theirs.append(b)
         mt = statistics.median(theirs)
         for name, _ in variants:
             mo = statistics.median(ours[name])
             print(f"{os.path.basename(path):32s} {name:8s} {mo:8.3f} {mt:8.3f} {mo / mt:6.2f} "
-                  f"{faces[name]:5d}/{nb:<5d}", flush=True)
+                  f"{faces[name]:5d}/{nb:<5d} {os.path.dirname(os.path.dirname(where[name]))}", flush=True)
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 
