@@ -174,9 +174,10 @@ class SurfaceInverse:
         return out
 
     def _newton(self, pts, uv):
+        """(uv (N, 2), S (N, 3), S_u, S_v there, distances (N,)) from starts uv."""
         u, v = invert(self.s, pts, uv[:, 0], uv[:, 1], self.size)
-        uv = np.stack([u, v], 1)
-        return uv, np.linalg.norm(surface_eval(self.s, u, v)[0] - pts, axis=1)
+        s, su, sv = surface_eval(self.s, u, v)
+        return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)
 
     @property
     def seams(self):
@@ -187,14 +188,13 @@ class SurfaceInverse:
         """(u, v) of the points' closest points, from ``hint`` or the nearest grid point;
         NaN in a parameter along which the surface does not move there (a collapsed edge)."""
         pts = np.asarray(pts, float)
-        uv, dist = self._newton(pts, self._nearest(pts) if hint is None else np.clip(hint, self.lo, self.hi))
+        uv, su, sv, dist = self._newton(pts, self._nearest(pts) if hint is None else np.clip(hint, self.lo, self.hi))
         if hint is not None and len(pts):  # far further than the rest: a wrong local minimum?
             far = np.flatnonzero(dist > 10 * np.median(dist) + 1e-9 * self.size)
             if far.size:
-                again, d2 = self._newton(pts[far], self._nearest(pts[far]))
+                again, su2, sv2, d2 = self._newton(pts[far], self._nearest(pts[far]))
                 better = d2 < dist[far]
-                uv[far[better]] = again[better]
-        _, su, sv = surface_eval(self.s, uv[:, 0], uv[:, 1])
+                uv[far[better]], su[far[better]], sv[far[better]] = again[better], su2[better], sv2[better]
         for k, d in enumerate((su, sv)):
             still = np.linalg.norm(d, axis=1) * (self.hi[k] - self.lo[k]) <= 1e-9 * self.size
             uv[still, k] = np.nan
