@@ -64,6 +64,7 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.ma  # noqa: F401 -- np.unique imports it on first use: ~20 ms of the first load otherwise
 
 from .. import validate
 from . import Model, fail, read_text, split_lines
