@@ -64,7 +64,7 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.ma  # noqa: F401 -- np.unique imports it on first use: ~20 ms of the first load otherwise
+import numpy.ma  # np.unique imports it on its first call: ~20 ms of the first load otherwise
 
 from .. import validate
 from . import Model, fail, read_text, split_lines
@@ -205,9 +205,10 @@ def _records_fast(lines: list[str]) -> dict[str, list[tuple[int, str]]] | None:
     for letter in _SECTIONS:
         end = len(letters) - len(letters[start:].lstrip(letter))
         seqs = [rec[73:80] for rec in recs[start:end]]
-        if seqs != [f"{k:7d}" for k in range(1, end - start + 1)]:  # not blank-padded: zero-padded?
-            if _SEQS.fullmatch("".join(seqs)) is None or list(map(int, seqs)) != list(range(1, end - start + 1)):
-                return None
+        if seqs != [f"{k:7d}" for k in range(1, end - start + 1)] and (  # not blank-padded: zero-padded?
+            _SEQS.fullmatch("".join(seqs)) is None or list(map(int, seqs)) != list(range(1, end - start + 1))
+        ):
+            return None
         sections[letter] = list(zip(range(start + 1, end + 1), recs[start:end]))
         start = end
     return sections
