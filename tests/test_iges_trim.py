@@ -653,3 +653,87 @@ def test_invert_recovers_parameters_from_nearby_starts():
     pts = evaluate(s, u, v)[0]
     x, y = invert(s, pts, u + 0.05, v - 0.05, 2.0)
     assert np.abs(x - u).max() < 1e-12 and np.abs(y - v).max() < 1e-12
+
+
+def test_subfigure_instances_place_their_definitions_nested_scaled_moved_and_turned():
+    """subfigures.igs (generate.py): a 144 (the square [0.2, 0.8]^2 of the plane z = 0) in a 308,
+    placed by a 408 (scale 3, translation (0, 5, 0)) and, through a nested 308 whose 408 scales by
+    2 and lifts by 1, by a 408 translated by (10, 0, 0) and then turned 90 degrees about z by its
+    124 (IGES 5.3: an instance maps p to M (S p + T)). Worked by hand: (0.2, 0.2) -> 2 p + (0, 0, 1)
+    = (0.4, 0.4, 1) -> + (10, 0, 0) -> turned: (-0.4, 10.4, 1)."""
+    model = load_model(HERE / "subfigures.igs")
+    assert len(model.surfaces) == 2 and model.warnings == []
+    assert model.skipped == {"IGES entity 308 (subfigure definition)": 1}  # the definition nobody places
+    corners = {name.split(" in ")[1]: on_surface(s, np.array([[0.2, 0.2], [0.8, 0.8]]))
+               for s, name in zip(model.surfaces, model.names)}
+    des = sorted(corners)
+    assert np.allclose(corners[des[0]], [[-0.4, 10.4, 1.0], [-1.6, 11.6, 1.0]], rtol=0, atol=1e-14)
+    assert np.allclose(corners[des[1]], [[0.6, 5.6, 0.0], [2.4, 7.4, 0.0]], rtol=0, atol=1e-14)
+    for s in model.surfaces:  # the trim loops are the definition's, in (u, v)
+        (loop,) = s.trims
+        p = loop_points(loop)
+        assert p.min() == pytest.approx(0.2) and p.max() == pytest.approx(0.8)
+
+
+def test_subfigure_instances_that_contain_each_other_are_an_error(tmp_path, capsys):
+    entities = [e for e in gen.subfigures() if e.name not in ("A", "Bi", "D3")]
+    entities = replaced(entities, "D1", gen.E(308, [0, "plate", 2, gen.R("T"), gen.R("I2")], name="D1"))
+    entities.append(gen.E(408, [gen.R("D2"), 0.0, 0.0, 0.0, 1.0], name="I2"))
+    entities.append(gen.E(408, [gen.R("D1"), 0.0, 0.0, 0.0, 1.0], name="top"))
+    with pytest.raises(InputError, match="contain each other in a loop"):
+        load_model(write(tmp_path, entities))
+
+
+def test_144_whose_parameter_space_loop_does_not_close_is_trimmed_by_its_model_space_loop():
+    """sphere_120_shifted_pcurve.igs (generate.py; the situation of OpenCASCADE's
+    bug22566_test_Bad.igs): the 142's parameter-space loop, in the writer's arc parameter (from 0
+    at the arc's start), does not close in IGES's; its model-space loop does and bounds the
+    quarter of the unit sphere with y <= 0 and z >= 0 (area pi), which is drawn, with a warning."""
+    from bsrt.trim import kept
+
+    model = load_model(HERE / "sphere_120_shifted_pcurve.igs")
+    (s,) = model.surfaces
+    assert model.warnings[0].startswith("entity 144 (DE ") and "model-space boundary does" in model.warnings[0]
+    (loop,) = s.trims
+    xyz = on_surface(s, loop_points(loop, 200))
+    assert np.abs(np.linalg.norm(xyz, axis=1) - 1).max() < 1e-12
+    on_boundary = np.minimum(np.abs(xyz[:, 1]), np.abs(xyz[:, 2]))  # the equator, the meridians in z = 0
+    assert on_boundary.max() < 1e-5
+    (a0, a1), (b0, b1) = s.domain_u, s.domain_v
+    u, v = (g.ravel() for g in np.meshgrid(np.linspace(a0, a1, 201), np.linspace(b0, b1, 201), indexing="ij"))
+    inside = kept(s, u, v)
+    p, su, sv = evaluate(s, u, v)
+    assert p[inside, 1].max() < 1e-5 and p[inside, 2].min() > -1e-5
+    area = np.linalg.norm(np.cross(su, sv), axis=1)[inside].sum() * (a1 - a0) * (b1 - b0) / 200**2
+    assert area == pytest.approx(math.pi, rel=0.03)
+    # the seam: the equator arc ending on it and the meridian lying on it are on the side the loop is
+    assert not (p[inside, 2] < -1e-3).any()
+
+
+def test_invert_beyond_the_domain_edge_and_far_from_the_surface():
+    """bsrt.io.invert on the closed cylinder (radius 1 about z, z = v in [0, 2]): points 1 above
+    its top edge come back to that edge at their own angle (the closest point, with v held at
+    the edge: worked by hand), and no point ends further from its target than its start was
+    (points inside, near the axis, where the Gauss-Newton step overshoots)."""
+    from bsrt.io.invert import invert
+
+    s = load_model(HERE / "closed_128_seam_144.igs").surfaces[0]
+    rng = np.random.default_rng(5)
+    u = rng.uniform(3.6, 7.4, 100)
+    top = evaluate(s, u, np.full(100, 2.0))[0] + [0.0, 0.0, 1.0]
+    x, y = invert(s, top, u + 0.1, np.full(100, 1.5), 2.0)
+    assert np.abs(y - 2.0).max() == 0.0 and np.abs(x - u).max() < 1e-12
+    inside = np.column_stack([rng.uniform(-0.2, 0.2, (100, 2)), rng.uniform(0.2, 1.8, 100)])
+    u0, v0 = rng.uniform(*s.domain_u, 100), rng.uniform(*s.domain_v, 100)
+    x, y = invert(s, inside, u0, v0, 2.0)
+    start = np.linalg.norm(evaluate(s, u0, v0)[0] - inside, axis=1)
+    end = np.linalg.norm(evaluate(s, x, y)[0] - inside, axis=1)
+    assert np.all(end <= start * (1 + 1e-12))
+    # a sheared plane S(u, v) = (u + v, v, 0) on [0, 1]^2 (S_u . S_v != 0): (1.5, 1.5, 0) is
+    # nearest (0, 1.5) unconstrained, v beyond the edge; with v held at 1, u + 1 = 1.5
+    from bsrt.bspline import BSplineSurface
+
+    plane = BSplineSurface((1, 1), np.array([0.0, 0, 1, 1]), np.array([0.0, 0, 1, 1]),
+                           np.array([[[0.0, 0, 0], [1, 1, 0]], [[1, 0, 0], [2, 1, 0]]]))
+    x, y = invert(plane, np.array([[1.5, 1.5, 0.0]]), [0.9], [0.1], 3.0)
+    assert (x[0], y[0]) == pytest.approx((0.5, 1.0), abs=1e-14)

@@ -38,7 +38,16 @@ What is drawn, in directory order: every trimmed surface (144), bounded
 surface (143) and B-rep face (510), with its trim loops; every surface entity
 no 144/143/510 refers to, whole (128, 114, 118, 120, 122, 196, 198; a 108
 only when bounded by a curve or given a display size); the solids (186) and
-shells (514) only gather faces, which are drawn as faces. Entities that take
+shells (514) only gather faces, which are drawn as faces. Subfigures: the
+members of a definition (308; DEPTH NAME N and N pointers) -- surfaces,
+trimmed surfaces, faces, and the faces of its solids and shells -- are drawn
+only where a singular subfigure instance (408; DE X Y Z S) that is no
+definition's member places them, nested instances within it: a definition
+point p is drawn at M (S p + (X, Y, Z)), M the 408's own matrix, after the
+308's own matrix (IGES 5.3: an entity's parameters are in its definition
+space; OpenCASCADE adds (X, Y, Z) after M instead, which differs only when
+both are there and M turns). A definition no instance places is not drawn
+(counted skipped; OpenCASCADE draws it in place). Entities that take
 part (curves, 124s, vertex and edge lists, ...) are used; every other one is
 counted in ``Model.skipped`` by type, unless it is blanked (blank status 01:
 hidden in the sending system). A trimmed surface whose boundary uses a curve
@@ -49,11 +58,13 @@ it is left out with a warning. Compressed (C) and binary IGES are refused.
 
 from __future__ import annotations
 
+import itertools
 import os
 import re
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.ma  # np.unique imports it on its first call: ~20 ms of the first load otherwise
 
 from .. import validate
 from . import Model, fail, read_text, split_lines
@@ -76,6 +87,8 @@ ENTITY_NAMES = {
 _SECTIONS = "SGDPT"
 _HOLLERITH = re.compile(r"\s*([0-9]+)H")
 _REAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?")
+_REALS = re.compile(r"(?:[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\n)*")  # newline-terminated
+_INT = re.compile(r"[+-]?[0-9]+")
 
 
 @dataclass
@@ -124,8 +137,11 @@ class _Params:
     def reals(self, count: int, what: str) -> np.ndarray:
         """(count,) float64; one by one (with the first bad one reported) only if the fast path fails."""
         chunk = self.tokens[self.pos : self.pos + count]
-        if len(chunk) == count and all(t and _REAL.fullmatch(t) for t, _ in chunk):
-            values = np.array([t.replace("D", "E").replace("d", "e") for t, _ in chunk], dtype=np.float64)
+        text = "".join([t + "\n" for t, _ in chunk])
+        if len(chunk) == count and _REALS.fullmatch(text):  # every token a number (none empty)
+            if "D" in text or "d" in text:
+                text = text.replace("D", "E").replace("d", "e")
+            values = np.array(text.split(), dtype=np.float64)
             if np.all(np.abs(values) <= validate.MAX_COORDINATE):
                 self.pos += count
                 return values
@@ -133,9 +149,11 @@ class _Params:
 
     def int(self, what: str, minimum: int | None = None) -> int:
         token, line = self._next(what)
-        if token == "":
+        if token.isdigit() and token.isascii():
+            value = int(token)
+        elif token == "":
             value = 0
-        elif re.fullmatch(r"[+-]?[0-9]+", token):
+        elif _INT.fullmatch(token):
             value = int(token)
         else:
             raise self.fail(f"expected {what} (a whole number), got {token!r}")
@@ -159,11 +177,47 @@ class _Params:
 
 def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
     """Section letter -> [(file line, 80-column record)], with order, sequence and T checks."""
-    sections: dict[str, list[tuple[int, str]]] = {s: [] for s in _SECTIONS}
-    current = 0
     lines = split_lines(text)
     if not lines:
         raise fail(path, 1, "the file is empty")
+    sections = _records_fast(lines)
+    if sections is None:  # something is wrong: the record by record checks say what
+        sections = _records_checked(path, lines)
+    return _terminate(path, lines, sections)
+
+
+_ORDER = re.compile("S*G*D*P*T*")
+_SEQS = re.compile("(?: *[0-9]+)*")  # sequence fields, run together (each 7 columns, not blank)
+
+
+def _records_fast(lines: list[str]) -> dict[str, list[tuple[int, str]]] | None:
+    """The sections of a well-formed file, checked in bulk (None at the first doubt)."""
+    if lines and not lines[-1].strip():
+        lines = lines[:-1]
+    if not lines or max(map(len, lines)) > 80:
+        return None
+    recs = [raw if len(raw) == 80 else raw.ljust(80) for raw in lines]
+    letters = "".join(rec[72] for rec in recs)
+    if letters[:1] == "C" or _ORDER.fullmatch(letters) is None:
+        return None
+    sections: dict[str, list[tuple[int, str]]] = {}
+    start = 0
+    for letter in _SECTIONS:
+        end = len(letters) - len(letters[start:].lstrip(letter))
+        seqs = [rec[73:80] for rec in recs[start:end]]
+        if seqs != [f"{k:7d}" for k in range(1, end - start + 1)] and (  # not blank-padded: zero-padded?
+            _SEQS.fullmatch("".join(seqs)) is None or list(map(int, seqs)) != list(range(1, end - start + 1))
+        ):
+            return None
+        sections[letter] = list(zip(range(start + 1, end + 1), recs[start:end]))
+        start = end
+    return sections
+
+
+def _records_checked(path: str, lines: list[str]) -> dict[str, list[tuple[int, str]]]:
+    """The record by record checks, raising InputError at the first bad record."""
+    sections: dict[str, list[tuple[int, str]]] = {s: [] for s in _SECTIONS}
+    current = 0
     for number, raw in enumerate(lines, start=1):
         if not raw.strip() and number == len(lines):
             continue
@@ -190,6 +244,11 @@ def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
         if not (seq.isascii() and seq.isdigit()) or int(seq) != expected:
             raise fail(path, number, f"expected sequence number {letter}{expected} in columns 74-80, got {seq!r}")
         sections[letter].append((number, rec))
+    return sections
+
+
+def _terminate(path: str, lines: list[str], sections) -> dict[str, list[tuple[int, str]]]:
+    """The sections, once the Terminate record's counts agree with them."""
     if not sections["T"]:
         raise fail(path, len(lines), "the file has no Terminate (T) record; it may be truncated")
     tline, trec = sections["T"][0]
@@ -264,7 +323,9 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
             s = rec[8 * i : 8 * i + 8].strip()
             if not s:
                 return 0
-            if not re.fullmatch(r"[+-]?[0-9]+", s):
+            if s.isdigit() and s.isascii():
+                return int(s)
+            if not _INT.fullmatch(s):
                 raise fail(
                     path, at,
                     f"directory entry {k + 1}: {what} (columns {8 * i + 1}-{8 * i + 8}) is {s!r}, not a whole number",
@@ -297,23 +358,27 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
 def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims: tuple[str, str]) -> _Params:
     """Tokenise an entity's P records up to the record delimiter (Hollerith strings kept whole)."""
     pdelim, rdelim = delims
-    chars, lines = [], []
-    for line, rec in precs[entity.pstart - 1 : entity.pstart - 1 + entity.pcount]:
+    chunk = precs[entity.pstart - 1 : entity.pstart - 1 + entity.pcount]
+    de8 = f"{entity.de:8d}"
+    for line, rec in chunk:
+        if rec[64:72] == de8:
+            continue
         back = rec[64:72].strip()
         if not (back.isascii() and back.isdigit()) or int(back) != entity.de:
             raise fail(
                 path, line,
                 f"this P line points back to DE {back!r}, but DE {entity.de} says its parameters are here",
             )
-        chars.append(rec[:64])
-        lines.append(line)
-    text = "".join(chars)
+    lines = [line for line, _ in chunk]
+    text = "".join([rec[:64] for _, rec in chunk])
     end = text.find(rdelim)
     if end >= 0 and "H" not in text[:end] and "h" not in text[:end]:  # no Hollerith string: split at once
-        tokens, i = [], 0
-        for t in text[:end].split(pdelim):
-            tokens.append((t.strip(), lines[i // 64]))
-            i += len(t) + 1
+        parts = text[:end].split(pdelim)
+        if len(lines) == 1:
+            tokens = [(t.strip(), lines[0]) for t in parts]
+        else:
+            starts = itertools.accumulate([len(t) + 1 for t in parts], initial=0)
+            tokens = [(t.strip(), lines[i // 64]) for t, i in zip(parts, starts)]
     else:
         tokens = _hollerith_tokens(path, entity, text, [x for x in lines for _ in range(64)], delims)
     if tokens[0][0] != str(entity.type):

@@ -20,6 +20,7 @@ surface's (angle, height) parameters be placed on its NURBS exactly.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, replace
 
@@ -113,7 +114,13 @@ class ParamMap:
 
     def affine_on(self, lo: float, hi: float, tol: float = 0.0):
         """(scale, offset) with s = scale x + offset on [lo, hi] if the map is affine there, else None."""
-        i, j = int(self._piece(np.array([lo + tol]))[0]), int(self._piece(np.array([hi - tol]))[0])
+        last = len(self.kinds) - 1
+        if last == 0:
+            i = j = 0
+        else:
+            xs = self.x.tolist()
+            i = min(max(bisect.bisect_right(xs, lo + tol) - 1, 0), last)
+            j = min(max(bisect.bisect_right(xs, hi - tol) - 1, 0), last)
         if i != j or self.kinds[i] != "linear":
             return None
         scale = (self.s[i + 1] - self.s[i]) / (self.x[i + 1] - self.x[i])

@@ -5,6 +5,10 @@ Loops, in this order:
 1. Parameter-space curves are taken as written (a composite's members one by
    one); model-space ones are carried into (u, v) (``iges_invert``: exactly for
    planes, polylines within ``INVERSION_TOL`` otherwise, one warning per file).
+   On a B-spline closed in a direction (its two edges across it coincide), a
+   carried curve's samples on the seam take the side of their neighbours, and a
+   carried curve lying wholly on the seam the side where the previous curve of
+   its loop ends.
 2. On 190-198 surfaces, loops whose angles span more than 2 pi (or pass 4 pi)
    are in degrees (OCCT writes them so) and become radians; curves along an
    angle are shifted by whole turns to continue the previous one.
@@ -83,6 +87,7 @@ class Face:
     surface: object  # BSplineSurface
     loops: int
     inverted: int  # curves carried into (u, v) by inversion
+    note: str | None = None  # how it was drawn otherwise than written (a warning), if it was
 
 
 class LoopBuilder:
@@ -287,13 +292,13 @@ class LoopBuilder:
         (u0, u1), (v0, v1) = s.domain_u, s.domain_v
         size = math.hypot(u1 - u0, v1 - v0)
         gap = GAP * size
-        seq = []  # [curve, source DE, a vertex edge (bridge) comes before it]
+        seq = []  # [curve, source DE, a vertex edge (bridge) comes before it, inverted from model space]
         pending = False
         for x in items:
             if x is BRIDGE:
                 pending = True
             else:
-                seq.append([clamp(x.curve), x.source, pending])
+                seq.append([clamp(x.curve), x.source, pending, x.inverted])
                 pending = False
         if pending:
             seq[0][2] = True
@@ -302,13 +307,16 @@ class LoopBuilder:
             (a0, b0), (a1, b1) = ends(seq[0][0]), ends(seq[1][0])
             if min(dist(a0, a1), dist(a0, b1)) < min(dist(b0, a1), dist(b0, b1)):
                 seq[0][0] = reverse(seq[0][0])
+        closed = [k for k in range(2) if _closed(s, k)]
         for k in range(1, len(seq)):
             prev = ends(seq[k - 1][0])[1]
+            if seq[k][3]:  # a model-space curve on the seam: its side was arbitrary
+                seq[k][0] = _seam_side(seq[k][0], prev, closed, s)
             a, b = ends(seq[k][0])
             if dist(prev, b) < dist(prev, a):
                 seq[k][0] = reverse(seq[k][0])
         curves: list[tuple[Curve, int]] = []
-        for k, (c, src, bridge) in enumerate(seq):
+        for k, (c, src, bridge, _) in enumerate(seq):
             if bridge:
                 prev, start = ends(seq[k - 1][0])[1], ends(c)[0]
                 if dist(prev, start) > 0:
@@ -363,6 +371,31 @@ class LoopBuilder:
             except InputError as e:
                 raise self.fail(f"{label}: the curve from DE {src}: {e}") from None
         return TrimLoop(tuple(trims))
+
+
+def _closed(s, k: int) -> bool:
+    """Do the surface's two edges across direction k (0: u, 1: v) coincide (a seam)?"""
+    pts = s.points
+    a, b = (pts[0], pts[-1]) if k == 0 else (pts[:, 0], pts[:, -1])
+    w = s.weights
+    same_w = w is None or np.allclose(w[0] if k == 0 else w[:, 0], w[-1] if k == 0 else w[:, -1], rtol=0, atol=0)
+    size = float(np.linalg.norm(np.ptp(pts.reshape(-1, 3), axis=0)))
+    return bool(same_w and np.abs(a - b).max() <= 1e-9 * size)
+
+
+def _seam_side(c: Curve, prev, closed: list, s) -> Curve:
+    """A curve lying wholly on the seam of a closed direction, moved to the seam's other
+    side when that is where the previous curve ends (prev: its end, (2,))."""
+    for k in closed:
+        lo, hi = (s.domain_u, s.domain_v)[k]
+        x = c.points[:, k]
+        for here, there in ((lo, hi), (hi, lo)):
+            if np.all(np.abs(x - here) <= 1e-12 * (hi - lo)) and abs(prev[k] - there) < abs(prev[k] - here):
+                pts = c.points.copy()
+                pts[:, k] = there
+                c = replace(c, points=pts)
+                break
+    return c
 
 
 def _set_end(c: Curve, point, last: bool) -> Curve:

@@ -7,7 +7,10 @@ Entities (IGES 5.3):
   that the even-odd rule keeps the surface minus the inner loops).
 * 142 curve on a surface: CRTN SPTR BPTR CPTR PREF. The parameter-space curve
   BPTR is used when there is one; otherwise the model-space curve CPTR is
-  carried into (u, v) (``iges_invert``).
+  carried into (u, v) (``iges_invert``). When a 144's parameter-space loops do
+  not close and each of its 142s also has a model-space curve, the model-space
+  curves trim it instead, with a warning (a writer's parameter-space curves in
+  another parametrization of the surface).
 * 143 bounded surface: TYPE SPTR N and N pointers to 141s; 141 boundary:
   TYPE PREF SPTR N, then per curve CRVPT SENSE K PSCPT(1..K). The K
   parameter-space curves are used (the group reversed when SENSE = 2), else
@@ -34,6 +37,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from .iges import entity_name
 from .iges_bspline import reverse
 from .iges_curves import Unsupported, mark_used
@@ -51,8 +56,9 @@ def _surface_of(f, params, what: str) -> SurfaceDef:
     return surface(f, target)
 
 
-def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]:
-    """The pieces of a 142 (its parameter-space curve, else its model-space curve)."""
+def _curve_on_surface(b: LoopBuilder, params, de: int, what: str, model: bool = False) -> list[Piece]:
+    """The pieces of a 142 (its parameter-space curve, else -- or with ``model`` -- its
+    model-space curve)."""
     f = b.f
     e142 = f.get(params, de, what, {142})
     p = f.params(e142)
@@ -63,6 +69,10 @@ def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]
                      f"trims surface DE {b.sd.entity.de}")
     bptr, cptr = p.pointer("the parameter-space curve BPTR"), p.pointer("the model-space curve CPTR")
     f.used.add(e142.de)
+    if model and cptr:
+        if bptr:
+            mark_used(f, p, bptr, "parameter-space curve BPTR")
+        return b.model_pieces(p, cptr, "model-space curve CPTR")
     if bptr:
         try:
             out = b.param_pieces(p, bptr, "parameter-space curve BPTR")
@@ -78,22 +88,52 @@ def _curve_on_surface(b: LoopBuilder, params, de: int, what: str) -> list[Piece]
     return b.model_pieces(p, cptr, "model-space curve CPTR")
 
 
-def _trimmed_surface(f, entity) -> Face:
+def _trimmed_surface(f, entity, model: bool = False) -> Face:
+    """A 144's face. A boundary written in parameter space that does not close, where every
+    boundary also has a model-space curve, is drawn with the model-space curves (carried
+    into (u, v)) instead, with a note: a writer's parameter-space curves in another
+    parametrization of the surface than IGES's (bug22566_test_Bad.igs: a 120's arc
+    parameter counted from 0 at the arc's start, not from its start angle) close only
+    where the surface collapses in theirs."""
     params = f.params(entity)
     sd = _surface_of(f, params, "surface pointer PTS")
     b = LoopBuilder(f, entity, sd)
     n1 = params.int("N1", 0)
     n2 = params.int("N2", 0)
     pto = params.pointer("the outer boundary pointer PTO")
-    raw = []
+    raw, boundaries = [], []
     if n1:
-        items = _curve_on_surface(b, params, pto, "outer boundary PTO")
+        items = _curve_on_surface(b, params, pto, "outer boundary PTO", model)
         raw.append(RawLoop(items, f"its outer boundary (DE {pto})"))
+        boundaries.append(pto)
     for i in range(n2):
         de = params.pointer("an inner boundary pointer PTI")
-        items = _curve_on_surface(b, params, de, "inner boundary PTI")
+        items = _curve_on_surface(b, params, de, "inner boundary PTI", model)
         raw.append(RawLoop(items, f"its inner boundary {i + 1} (DE {de})"))
-    return b.build(raw, outer_is_domain=not n1 and bool(raw))
+        boundaries.append(de)
+    try:
+        return b.build(raw, outer_is_domain=not n1 and bool(raw))
+    except OpenLoop as first:
+        if model or not boundaries or not all(_has_both(f, de) for de in boundaries):
+            raise
+        try:
+            face = _trimmed_surface(f, entity, model=True)
+        except (OpenLoop, Unsupported):
+            raise first from None  # the parameter-space loop's own message
+        return replace(face, note=(
+            f"entity 144 (DE {entity.de}): its parameter-space boundary does not close on the surface, "
+            f"its model-space boundary does: the surface is trimmed by the model-space curves"))
+
+
+def _has_both(f, de: int) -> bool:
+    """Does the 142 at DE ``de`` have both a parameter-space and a model-space curve?"""
+    e = f.entities.get(de)
+    if e is None or e.type != 142:
+        return False
+    p = f.params(e)
+    p.int("CRTN")
+    p.pointer("SPTR")
+    return bool(p.pointer("BPTR")) and bool(p.pointer("CPTR"))
 
 
 def _bounded_surface(f, entity) -> Face:
@@ -246,34 +286,96 @@ def _plane_alone(f, entity, sd):
 _TRIMMERS = {144: _trimmed_surface, 143: _bounded_surface, 510: _face}
 
 
-def draw(f):
-    """(surfaces, names, warnings, untrimmed count) of an IgesFile."""
-    trimmed_targets = set()
-    for e in f.entities.values():
+# ---------------------------------------------------------------------------
+# Subfigures (308 definitions, 408 instances)
+
+
+def _subfigure(f, entity):
+    """A 308's (matrix or None, member DEs): DEPTH NAME N and N member pointers."""
+    p = f.params(entity)
+    p.int("DEPTH")
+    p.skip(1, "NAME")
+    members = [f.get(p, p.pointer("a member pointer"), "member pointer").de for _ in range(p.int("the member count N", 0))]
+    return f.matrix(entity), members
+
+
+def _instance(f, entity):
+    """A 408's (definition DE, 4x4 placement model-from-definition): DE X Y Z S, where a
+    definition point p goes to M (S p + (X, Y, Z)), M the 408's own matrix (S defaults to 1)."""
+    p = f.params(entity)
+    definition = f.get(p, p.pointer("the subfigure definition pointer DE"), "subfigure definition pointer", {308})
+    place = np.eye(4)
+    given = len(p.tokens) - 1
+    place[:3, 3] = [p.real("a translation") if k < given else 0.0 for k in range(1, 4)]
+    scale = p.real("the scale S") if given >= 5 and p.tokens[5][0] != "" else 1.0
+    if not scale > 0:
+        raise p.fail(f"the scale S must be positive, got {scale:g}")
+    place[:3, :3] *= scale
+    m = f.matrix(entity)
+    return definition, place if m is None else m @ place
+
+
+def _faces_under(f, de: int, out: list) -> None:
+    """The DEs of what draws below a subfigure member (its faces, or the member itself), in order."""
+    e = f.entities[de]
+    if e.type in _TRIMMERS or e.type in SURFACE_TYPES:
+        out.append(de)
+    elif e.type in (186, 514):
+        p = f.params(e)
+        if e.type == 186:
+            shells = [p.pointer("the shell pointer")]
+            p.int("SOF")
+            for _ in range(p.int("the void count NVOID", 0)):
+                shells.append(p.pointer("a void shell pointer"))
+                p.int("VOF")
+            for s in shells:
+                _faces_under(f, s, out)
+        else:
+            for _ in range(p.int("the face count N", 0)):
+                out.append(p.pointer("a face pointer"))
+                p.int("OF")
+
+
+class _Drawing:
+    """What a file draws, entity by entity, with the warnings' tallies; a face drawn by several
+    subfigure instances is converted once."""
+
+    def __init__(self, f):
+        self.f = f
+        self.trimmed_targets = set()
+        for e in f.entities.values():
+            if e.type in _TRIMMERS:
+                p = f.params(e)
+                if e.type == 143:
+                    p.int("TYPE")
+                self.trimmed_targets.add(p.pointer("the surface pointer"))
+        self.untrimmed, self.unsupported, self.unbounded, self.open_loops = [], {}, {}, []
+        self.inverted = 0
+        self.notes: list[str] = []  # faces drawn otherwise than written, one line each
+        self.done: dict[int, object] = {}  # DE -> its surface (None: not drawn)
+
+    def entity(self, e):
+        """The surface an entity draws on its own (None if none), converted once."""
+        if e.de not in self.done:
+            self.done[e.de] = self._entity(e)
+        return self.done[e.de]
+
+    def _entity(self, e):
+        f = self.f
         if e.type in _TRIMMERS:
-            p = f.params(e)
-            if e.type == 143:
-                p.int("TYPE")
-            trimmed_targets.add(p.pointer("the surface pointer"))
-    surfaces, names = [], []
-    untrimmed, unsupported, unbounded, open_loops = [], {}, {}, []
-    inverted = 0
-    for e in f.entities.values():
-        if e.type in (186, 514):
-            _shells(f, e)
-        elif e.type in _TRIMMERS:
             try:
                 face = _TRIMMERS[e.type](f, e)
             except OpenLoop as err:  # named once, left out: never drawn with a wrong boundary
                 where = str(err).split(": ", 1)[1] if str(err).startswith(f.path) else str(err)
-                open_loops.append(f"{where}; the surface is left out")
+                self.open_loops.append(f"{where}; the surface is left out")
                 f.open_loops.append(err)
-                continue
+                return None
             except Unbounded:
                 target = _target(f, e)
-                unbounded[f.entities[target].type] = unbounded.get(f.entities[target].type, 0) + 1
+                kind = f.entities[target].type
+                self.unbounded[kind] = self.unbounded.get(kind, 0) + 1
                 f.used.discard(target)
-                continue
+                return None
             except Unsupported as u:
                 target = f.entities.get(_target(f, e))
                 try:
@@ -281,29 +383,108 @@ def draw(f):
                 except (Unsupported, Unbounded):
                     s = None
                 if s is None:  # the surface itself cannot be drawn: both are left out (skipped)
-                    continue
-                unsupported[u.entity.type] = unsupported.get(u.entity.type, 0) + 1
-                untrimmed.append(e.de)
-                surfaces.append(s)
-            else:
-                surfaces.append(face.surface)
-                inverted += face.inverted
+                    return None
+                self.unsupported[u.entity.type] = self.unsupported.get(u.entity.type, 0) + 1
+                self.untrimmed.append(e.de)
+                f.used.add(e.de)
+                return s
+            self.inverted += face.inverted
+            if face.note:
+                self.notes.append(face.note)
             f.used.add(e.de)
-            names.append(f.name(e))
-        elif e.type in SURFACE_TYPES and e.de not in trimmed_targets:
+            return face.surface
+        if e.type in SURFACE_TYPES and e.de not in self.trimmed_targets:
             try:
                 s = _whole(f, e)
             except Unsupported:
-                continue
+                return None
             if s is None:
-                unbounded[e.type] = unbounded.get(e.type, 0) + 1
+                self.unbounded[e.type] = self.unbounded.get(e.type, 0) + 1
                 f.used.discard(e.de)
-                continue
-            surfaces.append(s)
-            names.append(f.name(e))
+                return None
             f.used.add(e.de)
-    warnings = list(open_loops)
-    if inverted:
+            return s
+        return None
+
+    def instance(self, e, outer: np.ndarray, chain: tuple) -> list:
+        """[(surface, name)] a 408 places: its definition's members, nested instances included
+        (named by the face and the chain of 408s, outermost first). outer: the enclosing
+        instances' placement (4x4); chain: their DEs."""
+        f = self.f
+        if e.de in chain:
+            raise f.fail(e, "the subfigure instances at DE " + ", ".join(map(str, chain + (e.de,)))
+                         + " contain each other in a loop")
+        definition, place = _instance(f, e)
+        matrix, members = _subfigure(f, definition)
+        place = outer @ place if matrix is None else outer @ place @ matrix
+        f.used.update((e.de, definition.de))
+        out = []
+        for de in members:
+            member = f.entities[de]
+            if member.type == 408:
+                out += self.instance(member, place, chain + (e.de,))
+                continue
+            faces: list[int] = []
+            _faces_under(f, de, faces)
+            if member.type in (186, 514):
+                _shells(f, member)
+            for face in faces:
+                s = self.entity(f.entities[face])
+                if s is not None:
+                    where = " > ".join(f"#D{de}" for de in chain + (e.de,))
+                    out.append((s.transformed(place), f"{f.name(f.entities[face])} in 408 {where}"))
+        return out
+
+
+def _subfigure_owned(f) -> tuple[set, set]:
+    """(DEs drawn only through subfigure instances, the 408s that are members of a definition)."""
+    owned, nested = set(), set()
+    for e in f.entities.values():
+        if e.type == 308:
+            p = f.params(e)
+            p.int("DEPTH")
+            p.skip(1, "NAME")
+            for _ in range(p.int("the member count N", 0)):
+                de = f.get(p, p.pointer("a member pointer"), "member pointer").de
+                if f.entities[de].type == 408:
+                    nested.add(de)
+                else:
+                    owned.add(de)
+                    faces: list[int] = []
+                    _faces_under(f, de, faces)
+                    owned.update(faces)
+    return owned, nested
+
+
+def draw(f):
+    """(surfaces, names, warnings, untrimmed count) of an IgesFile.
+
+    Subfigures: the members of a definition (308) -- and the faces of its solids and shells --
+    are drawn only where an instance (408) that is itself no definition's member places them,
+    nested instances within it."""
+    d = _Drawing(f)
+    owned, nested = _subfigure_owned(f)
+    surfaces, names = [], []
+    for e in f.entities.values():
+        if e.type in (186, 514):
+            if e.de not in owned:
+                _shells(f, e)
+        elif e.type == 408:
+            if e.de not in nested:
+                for s, name in d.instance(e, np.eye(4), ()):
+                    surfaces.append(s)
+                    names.append(name)
+        elif e.de in owned:
+            continue
+        elif e.type in _TRIMMERS or e.type in SURFACE_TYPES:
+            s = d.entity(e)
+            if s is not None:
+                surfaces.append(s)
+                names.append(f.name(e))
+    untrimmed, unsupported, unbounded = d.untrimmed, d.unsupported, d.unbounded
+    warnings = list(d.open_loops) + d.notes
+    if d.inverted:
+        inverted = d.inverted
         warnings.append(
             f"{inverted} trim curve{'s were' if inverted != 1 else ' was'} given only in model space and "
             f"carried into the surface's (u, v) by point inversion, as degree-1 polylines within "

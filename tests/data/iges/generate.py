@@ -573,6 +573,58 @@ def closed_128_seam_144() -> list[E]:
     ]
 
 
+def subfigures() -> list[E]:
+    """Subfigures: a 308 definition "D1" holding a 144 (the plane x = u, y = v, z = 0 over
+    [0, 1]^2, trimmed to the square [0.2, 0.8]^2 in (u, v)), a 308 "D2" holding a 408 of D1
+    (scale 2, translation (0, 0, 1)), and two 408s placing them: one of D2 translated by
+    (10, 0, 0) then turned 90 degrees about z by its 124, one of D1 with scale 3 and
+    translation (0, 5, 0); and a 308 nobody places. Drawn: the square twice, at the corners
+    (0.6, 5.6, 0)..(2.4, 7.4, 0) and (-0.4, 10.4, 1)..(-1.6, 11.6, 1); nothing at z = 0 in
+    [0.2, 0.8]^2 (the definition itself)."""
+    return [
+        plane_128("S", 0.0, 1.0, 0.0, 1.0),
+        *polygon("B", [(0.2, 0.2), (0.8, 0.2), (0.8, 0.8), (0.2, 0.8)]),
+        E(142, [1, R("S"), R("B"), 0, 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T", status="00010000"),
+        E(308, [0, "plate", 1, R("T")], name="D1", status="00010200"),
+        E(408, [R("D1"), 0.0, 0.0, 1.0, 2.0], name="I1", status="00010000"),
+        E(308, [1, "pair", 1, R("I1")], name="D2", status="00010200"),
+        matrix("Rz", [[0, -1, 0], [1, 0, 0], [0, 0, 1]], [0.0, 0.0, 0.0]),
+        E(408, [R("D2"), 10.0, 0.0, 0.0, 1.0], name="A", xform="Rz"),
+        E(408, [R("D1"), 0.0, 5.0, 0.0, 3.0], name="Bi"),
+        E(308, [0, "unused", 1, R("T")], name="D3", status="00010200"),
+    ]
+
+
+def sphere_120_shifted_pcurve() -> list[E]:
+    """A 144 on a 120 sphere (radius 1 at the origin: the arc from (0, 1) to (0, -1) through
+    (-1, 0), turned a full turn about the line from the origin to (0, -1, 0)), whose 142 has
+    both curves. The model-space loop: the meridian from the pole (0, -1, 0) up to (1, 0, 0),
+    the equator through (0, 0, 1) to (-1, 0, 0) (two 100 arcs turned into the plane y = 0 by a
+    124), the meridian back down: the quarter of the sphere with y <= 0 and z >= 0 (area pi).
+    The parameter-space loop, as bug22566_test_Bad.igs writes it, counts the arc's parameter
+    from 0 at its start (IGES counts it from the start angle, pi / 2): its corners (pi, pi),
+    (pi / 2, pi), (pi / 2, 2 pi), (pi, 2 pi) are the right ones in the writer's parameters
+    (there u = pi / 2 is the equator, pi the pole, where the loop closes) but in IGES's u = pi is
+    the equator and pi / 2 the other pole: the loop does not close."""
+    h = math.pi / 2
+    return [
+        line("axis", (0.0, 0.0, 0.0), (0.0, -1.0, 0.0)),
+        arc("gen", 0.0, (0.0, 0.0), (0.0, 1.0), (0.0, -1.0)),
+        E(120, [R("axis"), R("gen"), 0.0, 2 * math.pi], name="S"),
+        matrix("Rx", [[1, 0, 0], [0, 0, -1], [0, 1, 0]], [0.0, 0.0, 0.0]),
+        arc("m1", 0.0, (0.0, 0.0), (0.0, -1.0), (1.0, 0.0)),
+        arc("e1", 0.0, (0.0, 0.0), (1.0, 0.0), (0.0, 1.0), xform="Rx"),
+        arc("e2", 0.0, (0.0, 0.0), (0.0, 1.0), (-1.0, 0.0), xform="Rx"),
+        arc("m2", 0.0, (0.0, 0.0), (-1.0, 0.0), (0.0, -1.0)),
+        E(102, [4, R("m1"), R("e1"), R("e2"), R("m2")], name="model"),
+        *polygon("uv", [(2 * h, 2 * h), (h, 2 * h), (h, 3 * h), (h, 4 * h), (2 * h, 4 * h)])[:4],
+        E(102, [4, R("uv.0"), R("uv.1"), R("uv.2"), R("uv.3")], name="uv"),
+        E(142, [1, R("S"), R("uv"), R("model"), 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T"),
+    ]
+
+
 FILES = {
     "plane_circle_144.igs": plane_circle_144,
     "plane_143.igs": plane_143,
@@ -590,6 +642,8 @@ FILES = {
     "cylinder_band_brep.igs": cylinder_band_brep,
     "once_round_144.igs": once_round_144,
     "closed_128_seam_144.igs": closed_128_seam_144,
+    "subfigures.igs": subfigures,
+    "sphere_120_shifted_pcurve.igs": sphere_120_shifted_pcurve,
 }
 
 
