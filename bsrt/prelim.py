@@ -24,7 +24,7 @@ from .camera import Camera, clip_from_eye, pixel_footprint
 from .errors import InputError, RenderError
 from .kernels.prelim import decode_tile
 from .kernels.threads import run_chunks
-from .kernels.trim import MIXED, OUTSIDE, classify_grid
+from .kernels.trim import INSIDE, MIXED, OUTSIDE, classify_grid, rect_states
 from .patches import PatchSet
 from .settings import MAP_MODES
 from .trim_gl import TrimTextures
@@ -264,12 +264,20 @@ class _MapMesh:
 
     vertices (V, 6) float32 (tessellate()'s rows), indices (T, 3) uint32 and
     edges (T, 6) uint32 (every triangle's edges as lines): the triangles drawn
-    without the trim test (untrimmed surfaces, cells inside the trims, and
-    cells where the view is singular). tested (3 K, 10) float32: the K
-    triangles drawn with it, three vertices each, rows (x, y, z, u_norm,
-    v_norm, surface index + 1, u, v in the knot domain, reach_u, reach_v: the
-    margin of the trim test, _param_per_pixel's bound times TRIM_GROW, the
-    largest over the cell's corners); tested_edges (K, 6) uint32 their edges.
+    without the trim test. tested (3 K, 10) float32: the K triangles drawn
+    with it, three vertices each, rows (x, y, z, u_norm, v_norm, surface
+    index + 1, u, v in the knot domain, reach_u, reach_v: the margin of the
+    trim test, _param_per_pixel's bound times TRIM_GROW, the largest over the
+    cell's corners); tested_edges (K, 6) uint32 their edges.
+
+    The triangles of the cells that trim curves cross (MIXED; where the view
+    is singular at a corner they stay whole and untested) are cut into
+    sub-triangles of about SUB_PIXELS on the film, in their own plane (the
+    same points, positions and (u, v) as the GPU interpolates them), and each
+    is classified by kernels.trim.rect_states on its (u, v) box: grown by the
+    reach and OUTSIDE, every fragment would be discarded (left out); INSIDE,
+    none would (drawn without the test); else drawn with the test. The
+    per-fragment test then runs only near the curves.
     """
 
     def __init__(self, patches: PatchSet, camera: Camera, width: int, height: int, trim_map: bool):
@@ -283,24 +291,94 @@ class _MapMesh:
             tested[:] = False
         else:
             tested &= np.isfinite(reach).all(axis=1)
-        plain = indices[~tested].astype(np.uint32)
-        self.vertices = np.ascontiguousarray(vertices)
+        plain = indices[~tested]
+        sub, sub_surface, sub_reach, test = _cut(patches.trims, camera, footprint, vertices, indices[tested],
+                                                 reach[tested] if reach is not None else np.zeros((0, 2)),
+                                                 patches.domain)
+        keep = sub[~test]  # (I, 3, 7) drawn plainly, three vertices each
+        extra = np.empty((keep.shape[0] * 3, 6), dtype=np.float32)
+        extra[:, :5] = keep[:, :, :5].reshape(-1, 5)
+        extra[:, 5] = np.repeat(sub_surface[~test] + 1, 3)
+        plain = np.concatenate([plain, vertices.shape[0] + np.arange(extra.shape[0]).reshape(-1, 3)]).astype(np.uint32)
+        self.vertices = np.ascontiguousarray(np.concatenate([vertices, extra]))
         self.indices = np.ascontiguousarray(plain)
         self.edges = np.ascontiguousarray(plain[:, [0, 1, 1, 2, 2, 0]])
-        k = int(tested.sum())
-        corners = indices[tested].ravel()
-        rows = np.empty((3 * k, 10), dtype=np.float32)
-        rows[:, :6] = vertices[corners]
-        m = rows[:, 5].astype(np.int64) - 1
-        d = patches.domain[m]
-        rows[:, 6] = d[:, 0] + (d[:, 1] - d[:, 0]) * rows[:, 3].astype(np.float64)
-        rows[:, 7] = d[:, 2] + (d[:, 3] - d[:, 2]) * rows[:, 4].astype(np.float64)
-        if k:
-            rows[:, 8:] = np.repeat(reach[tested], 3, axis=0)
-        self.tested = rows
+        k = int(test.sum())
+        rows = np.empty((k, 3, 10), dtype=np.float32)
+        rows[:, :, :5] = sub[test][:, :, :5]
+        rows[:, :, 5] = (sub_surface[test] + 1)[:, None]
+        rows[:, :, 6:8] = sub[test][:, :, 5:7]
+        rows[:, :, 8:] = sub_reach[test][:, None, :]
+        self.tested = rows.reshape(3 * k, 10)
         first = np.arange(k, dtype=np.uint32) * 3
         self.tested_edges = np.ascontiguousarray(
             np.stack([first, first + 1, first + 1, first + 2, first + 2, first], axis=1))
+
+
+# The map's triangles that trim curves cross are halved (into 4) until their
+# pieces lie inside the trims, outside beyond the reach, or within the reach of
+# a curve everywhere; a piece still undecided when it is SUB_PIXELS across on
+# the film (or after MAX_HALVINGS) is drawn with the per-fragment trim test.
+SUB_PIXELS = 2.0
+MAX_HALVINGS = 10
+
+
+def _cut(table, camera: Camera, footprint: float, vertices: np.ndarray, tris: np.ndarray, reach: np.ndarray,
+         domain: np.ndarray):
+    """The pieces of the map's triangles tris (K, 3) (indices into vertices (V, 6),
+    tessellate()'s rows) with reach (K, 2): each triangle is cut into four at its
+    edges' midpoints, in its plane (the points, positions and (u, v) the GPU
+    interpolates there), over and over; a piece is classified by
+    kernels.trim.rect_states of its (u, v) box: grown by the reach and OUTSIDE,
+    the test would discard every fragment (left out); INSIDE, none (kept, drawn
+    without the test); no larger than the reach along u and v, none either
+    (every point of the box is within the reach of any curve passing through it,
+    and if none does the box is wholly inside or outside: kept, conservatively);
+    else cut again, or drawn with the per-fragment test once SUB_PIXELS across.
+
+    Returns (pieces (S, 3, 7) float64 rows (x, y, z, u_norm, v_norm, u, v in the
+    knot domain) of each piece's vertices, surface (S,) int64, reach (S, 2),
+    test (S,) bool: draw with the per-fragment test)."""
+    corner = vertices[tris].astype(np.float64)  # (K, 3, 6)
+    surface = np.rint(corner[:, 0, 5]).astype(np.int64) - 1
+    d = domain[surface]
+    data = np.concatenate([corner[:, :, :5], (d[:, None, 0] + (d[:, None, 1] - d[:, None, 0]) * corner[:, :, 3])[..., None],
+                           (d[:, None, 2] + (d[:, None, 3] - d[:, None, 2]) * corner[:, :, 4])[..., None]], axis=2)
+    r, up, f = camera.basis()
+    done = []  # (pieces, surface, reach, test)
+    for halving in range(MAX_HALVINGS + 1):
+        if not data.shape[0]:
+            break
+        lo, hi = data[:, :, 5:7].min(axis=1), data[:, :, 5:7].max(axis=1)
+        grown = rect_states(table, surface, lo[:, 0] - reach[:, 0], hi[:, 0] + reach[:, 0],
+                            lo[:, 1] - reach[:, 1], hi[:, 1] + reach[:, 1])
+        inside = rect_states(table, surface, lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1]) == INSIDE
+        small = ((hi - lo) <= reach).all(axis=1)
+        plain = (grown != OUTSIDE) & (inside | small)
+        undecided = (grown != OUTSIDE) & ~plain
+        P = data[:, :, :3]
+        z = P @ f
+        with np.errstate(all="ignore"):
+            film = np.stack([P @ r, P @ up], axis=2) / (z * footprint)[..., None]  # (K, 3, 2) pixels
+            longest = np.linalg.norm(film - np.roll(film, 1, axis=1), axis=2).max(axis=1)
+        final = undecided & ((z > 0).all(axis=1) & (longest <= SUB_PIXELS) | (halving == MAX_HALVINGS))
+        done.append((data[plain], surface[plain], reach[plain], np.zeros(int(plain.sum()), dtype=bool)))
+        done.append((data[final], surface[final], reach[final], np.ones(int(final.sum()), dtype=bool)))
+        split = undecided & ~final
+        data = _quarters(data[split])
+        surface, reach = np.repeat(surface[split], 4), np.repeat(reach[split], 4, axis=0)
+    parts = list(zip(*done)) if done else [[np.zeros((0, 3, 7))], [np.zeros(0, dtype=np.int64)], [np.zeros((0, 2))],
+                                           [np.zeros(0, dtype=bool)]]
+    return tuple(np.concatenate(p) for p in parts)
+
+
+def _quarters(tris: np.ndarray) -> np.ndarray:
+    """(4 K, 3, C): each triangle of tris (K, 3, C) (per-vertex values, linear over
+    it) cut into four at its edges' midpoints, a triangle's four in a row."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+    return np.stack([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))],
+                    axis=1).reshape(-1, 3, tris.shape[2])
 
 
 def tiles(first: int, stop: int, width: int, side: int):
