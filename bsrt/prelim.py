@@ -246,7 +246,7 @@ def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
     _MapMesh of tessellate()'s triangles, the cells that trim curves cross
     split off (with TRIM_MAP) to be drawn with the trim test."""
     key = (tuple(camera.eye), tuple(camera.look_at), tuple(camera.up), camera.fov, camera.fov_axis, width, height,
-           TRIM_MAP)
+           TRIM_MAP, SUB_PIXELS)
     cached = patches.derived.get("tessellation")
     if cached is None or cached[0] != key:
         patches.derived["tessellation"] = cached = (key, _MapMesh(patches, camera, width, height, TRIM_MAP))

@@ -72,7 +72,7 @@ layout(location = 1) out float eye_distance;
 void main() {
 #if defined TRIM_TEST
     if (!trim_kept_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y)
-        && !trim_near_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y, frag_reach.x, frag_reach.y)) {
+        && !trim_near_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y, frag_reach.x, frag_reach.y, true)) {
         discard;
     }
 #endif

@@ -116,8 +116,6 @@ def test_a_step_part_renders_the_same(ctx, monkeypatch, tmp_path):
 def test_the_map_leaves_out_what_the_trims_remove(ctx, monkeypatch):
     """A plane with a small disc kept: its one tessellation cell is mostly
     trimmed away, and the map now shows the plane only around the disc."""
-    from bsrt.patches import PatchSet
-
     scene = api.load(DATA / "iges" / "plane_circle_144.igs", width=128, height=128)
     patches = Geometry(scene).patches
     camera = RenderOptions.resolve(scene).camera
@@ -126,5 +124,16 @@ def test_the_map_leaves_out_what_the_trims_remove(ctx, monkeypatch):
         monkeypatch.setattr(prelim, "TRIM_MAP", flag)
         m = prelim.render_map(patches, camera, 128, 128)
         covered.append(int((m.surface >= 0).sum()))
-    assert covered[1] <= covered[0]
-    assert isinstance(patches, PatchSet)
+    assert covered[1] < covered[0]
+
+
+@pytest.mark.parametrize("path", OCCT + [p for p in IGES if "144" in p.name], ids=lambda p: p.name)
+def test_the_per_fragment_trim_test_alone_renders_the_same(ctx, monkeypatch, path):
+    """No cutting on the CPU: every triangle a trim curve crosses is drawn with
+    shaders/prelim.glsl's per-fragment test (the fallback the cutting leaves
+    for pieces still undecided at prelim.SUB_PIXELS)."""
+    monkeypatch.setattr(prelim, "SUB_PIXELS", np.inf)
+    scene = api.load(path, width=160, height=160)
+    a, b, diagonal = both(scene, monkeypatch)
+    assert_same_hits(a, b, diagonal, path.name)
+    assert b.stats["trimmed_roots"] <= a.stats["trimmed_roots"]
