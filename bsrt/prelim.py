@@ -10,6 +10,15 @@ index + 1, green/blue = u, v normalised over the surface's domain), either
 32-bit float or the paper's 8-bit RGBA decoded with eq. 6, and the distance
 from the eye (32-bit float). Arrays leave this module; no GL object does (the
 framebuffers of small maps stay on the context, gl.keep, for the next map).
+
+Trimmed surfaces: cells that the trims remove entirely are left out, and the
+cells that trim curves cross are cut (in their plane) into pieces whose
+fragments the trim test would discard (left out), keep (drawn plainly), or
+both (drawn with shaders/trim.glsl's test per fragment: the TRIM_TEST variant
+of shaders/prelim.glsl), so the depth test keeps the nearest *kept* surface.
+The test keeps every fragment within a margin of a trim curve that bounds how
+far the map's interpolated (u, v) is from the (u, v) of the point the pixel
+sees (_param_per_pixel), so the map never loses a kept part.
 """
 
 from __future__ import annotations
@@ -93,10 +102,13 @@ def _grids(patches: PatchSet, segments: np.ndarray, eye: np.ndarray, camera: Cam
     bool: the triangle's cell is MIXED, trim curves may cross it)], reach).
 
     With a camera (and footprint = pixel_footprint), reach is (T, 2) float64
-    over the concatenated triangles: trim_reach of each triangle's cell
-    (NaN where not mixed); else None.
+    over the concatenated triangles: the trim test's margin along u and v of
+    each mixed triangle's cell, TRIM_GROW times the largest _param_per_pixel
+    bound of its four corners (NaN where not mixed, or where the view is
+    singular at a corner); else None.
     """
-    verts, tris, reach, base = [], [], [], 0  # every surface's grid vertices; the triangles of its kept cells
+    verts, tris, base = [], [], 0  # every surface's grid vertices; the triangles of its kept cells
+    at, cells, count, len_at = [], [], 0, 0  # the mixed cells' corners (S, Su, Sv, chord); (cell rows, corner rows)
     for m in range(len(patches.surfaces)):
         mine = patches.surface == m
         n_u, n_v = segments[mine].max(axis=0)
@@ -131,20 +143,30 @@ def _grids(patches: PatchSet, segments: np.ndarray, eye: np.ndarray, camera: Cam
         corner = i * gv.size + j
         quad = np.stack([corner, corner + gv.size, corner + gv.size + 1, corner + 1], axis=1)
         tris.append((base + np.concatenate([quad[:, [0, 1, 2]], quad[:, [0, 2, 3]]]), np.concatenate([mixed, mixed])))
-        if camera is not None:
-            cell = np.full((quad.shape[0], 2), np.nan)
-            if wants_reach:
-                chord = _chord_bound(patches.bend[mine], n_u, n_v).max()
-                at_vertex = _param_per_pixel(camera, footprint, S.T, Su.T, Sv.T, chord)
-                cell[mixed] = TRIM_GROW * at_vertex[quad[mixed]].max(axis=1)  # NaN (any corner) stays NaN
-            reach.append(np.concatenate([cell, cell]))
+        if wants_reach:  # the mixed cells' corners, in one batch below
+            corners = np.unique(quad[mixed])
+            chord = _chord_bound(patches.bend[mine], n_u, n_v).max()
+            at.append((S.T[corners], Su.T[corners], Sv.T[corners], np.full(corners.size, chord)))
+            cells.append((count + np.flatnonzero(np.concatenate([mixed, mixed])),
+                          len_at + np.searchsorted(corners, np.concatenate([quad[mixed], quad[mixed]]))))
+            len_at += corners.size
+        count += 2 * quad.shape[0]
         base += u.size
-    return verts, tris, (np.concatenate(reach) if camera is not None else None)
+    if camera is None:
+        return verts, tris, None
+    reach = np.full((count, 2), np.nan)
+    if at:
+        S, Su, Sv, chord = (np.concatenate(a) for a in zip(*at))
+        at_vertex = _param_per_pixel(camera, footprint, S, Su, Sv, chord)
+        for rows, corner in cells:
+            reach[rows] = TRIM_GROW * at_vertex[corner].max(axis=1)  # NaN (any corner) stays NaN
+    return verts, tris, reach
 
 
 # The map's trim test keeps a fragment whose (u, v) lies within this many
-# times the first-order parameter error of a trim curve (prelim.trim_reach):
-# a safety factor for the Jacobian's change over a cell.
+# times the first-order parameter error (_param_per_pixel, the largest at the
+# cell's corners) of a trim curve: a safety factor for the Jacobian's change
+# over a cell and for the linearisation.
 TRIM_GROW = 2.0
 
 
@@ -157,10 +179,11 @@ def _chord_bound(bend: np.ndarray, n_u: int, n_v: int) -> np.ndarray:
 
 
 def _param_per_pixel(camera: Camera, footprint: float, S: np.ndarray, Su: np.ndarray, Sv: np.ndarray,
-                     chord: float) -> np.ndarray:
+                     chord) -> np.ndarray:
     """(N, 2) float64: how far (u, v) may be from the true hit's, along u and v, at a map
-    fragment drawn near the surface point S (N, 3) with derivatives Su, Sv (N, 3); NaN
-    where the view is singular there (behind the eye, edge-on).
+    fragment drawn near the surface point S (N, 3) with derivatives Su, Sv (N, 3), on a
+    tessellation whose chord error is at most chord (scalar or (N,)); NaN where the
+    view is singular there (behind the eye, edge-on).
 
     A fragment at pixel p carries the (u, v) that the triangle interpolates at
     its point P on p's ray (perspective-correct), and S(u, v) lies within the
@@ -271,13 +294,10 @@ class _MapMesh:
     cell's corners); tested_edges (K, 6) uint32 their edges.
 
     The triangles of the cells that trim curves cross (MIXED; where the view
-    is singular at a corner they stay whole and untested) are cut into
-    sub-triangles of about SUB_PIXELS on the film, in their own plane (the
-    same points, positions and (u, v) as the GPU interpolates them), and each
-    is classified by kernels.trim.rect_states on its (u, v) box: grown by the
-    reach and OUTSIDE, every fragment would be discarded (left out); INSIDE,
-    none would (drawn without the test); else drawn with the test. The
-    per-fragment test then runs only near the curves.
+    is singular at a corner they stay whole and untested) are cut by _cut,
+    in their own plane, into pieces that are left out (the trim test would
+    discard every fragment), drawn plainly (it would discard none), or, only
+    where that stays undecided down to SUB_PIXELS, drawn with the test.
     """
 
     def __init__(self, patches: PatchSet, camera: Camera, width: int, height: int, trim_map: bool):
