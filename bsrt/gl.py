@@ -155,14 +155,16 @@ def headless_context() -> moderngl.Context:
     return _headless
 
 
-def program(ctx: moderngl.Context, name: str) -> moderngl.Program:
-    """The compiled program NAME, cached on the context (released with it)."""
+def program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
+    """The compiled program NAME (the variant with defines, as load_program),
+    cached on the context (released with it)."""
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     programs = ctx.extra.setdefault("bsrt_programs", {})
-    if name not in programs:
-        programs[name] = load_program(ctx, name)
-    return programs[name]
+    key = (name, tuple(defines)) if defines else name
+    if key not in programs:
+        programs[key] = load_program(ctx, name, tuple(defines))
+    return programs[key]
 
 
 def keep(ctx: moderngl.Context, key, make, limit: int = 1):

@@ -134,7 +134,7 @@ void main() {
     // kept: inside the trim loops, or within trim_grow pixels (along x and y) of a curve
     vec2 reach = trim_grow * (abs(dFdx(frag_param)) + abs(dFdy(frag_param)));  // in uniform control flow
     if (!trim_kept_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y)
-        && !trim_near_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y, reach.x, reach.y)) {
+        && !trim_near_at(frag_trim_surface, frag_trim_band, frag_param.x, frag_param.y, reach.x, reach.y, false)) {
         discard;
     }
 #endif

@@ -183,13 +183,18 @@ bool trim_segment_meets(vec2 a, vec2 b, vec2 c, vec2 r) {
     return abs(centre) <= spread;
 }
 
-const int TRIM_NEAR_CHORDS = 8;   // a curved piece is taken as this many chords in trim_near
+const int TRIM_NEAR_CHORDS = 8;   // a curved piece is cut into this many parts in trim_near
 
 // Does a trim curve of the surface pass through the rectangle [u - du, u + du] x [v - dv, v + dv]
-// (du, dv >= 0)? Segments exactly; a curved piece by its chords at s = i / TRIM_NEAR_CHORDS (off
-// the curve by their sagitta: a heuristic). Not part of point_kept: the preview's fast view keeps
-// the fragments it says are near a curve, growing each face by about a pixel over the seams.
-bool trim_near_at(ivec4 surface, vec4 band_map, float u, float v, float du, float dv) {
+// (du, dv >= 0)? Segments exactly; a curved piece by its parts between s = i / TRIM_NEAR_CHORDS:
+// with boxes false, by the parts' chords (off the curve by their sagitta: a heuristic, for the
+// preview's fast view, which keeps the fragments it says are near a curve, growing each face by
+// about a pixel over the seams); with boxes true, by the box of each part's two ends, which holds
+// the part (the piece is monotone in u and in v), so the answer is never no when a curve passes
+// (up to float32 rounding) but may be yes for one within a part's box: the preliminary map's, which
+// must never discard a fragment whose interpolated (u, v) may be off a kept point. Not part of
+// point_kept.
+bool trim_near_at(ivec4 surface, vec4 band_map, float u, float v, float du, float dv, bool boxes) {
     if (surface.x == 0) {
         return false;
     }
@@ -220,7 +225,9 @@ bool trim_near_at(ivec4 surface, vec4 band_map, float u, float v, float du, floa
             for (int i = 1; i <= TRIM_NEAR_CHORDS; ++i) {
                 vec3 p = trim_eval(entry.x, entry.y, float(i) / float(TRIM_NEAR_CHORDS), deriv);
                 vec2 b = p.xy / p.z;
-                if (trim_segment_meets(a, b, local, r)) {
+                bool meets = boxes ? all(lessThanEqual(min(a, b), local + r)) && all(greaterThanEqual(max(a, b), local - r))
+                                   : trim_segment_meets(a, b, local, r);
+                if (meets) {
                     return true;
                 }
                 a = b;
