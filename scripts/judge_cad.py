@@ -173,6 +173,11 @@ def header(path: Path) -> dict:
 # OpenCASCADE's side
 
 
+#: an XSTEP selection (e.g. "iges-type(144)") that OpenCASCADE transfers instead of the file's roots: some IGES
+#: files group their untrimmed base surfaces in 402 associativities, which OpenCASCADE draws (marsCapsule.igs)
+OCC_SELECT = ""
+
+
 def occ_read(path: Path, keep_mm: bool = False):
     """(shape, seconds): the file as OpenCASCADE reads it, in bsrt's units (IGES scaled back to the file's
     unless keep_mm: bsrt reads IGES with format "occt" in OpenCASCADE's millimetres)."""
@@ -195,11 +200,18 @@ def occ_read(path: Path, keep_mm: bool = False):
         reader = STEPControl_Reader()
     else:
         from OCP.IGESControl import IGESControl_Reader
+        from OCP.Interface import Interface_Static
 
+        # blanked entities (status "blank": the 128 under a 144, construction geometry) are not drawn;
+        # OpenCASCADE transfers them unless told to keep to the visible ones
+        Interface_Static.SetIVal_s("read.iges.onlyvisible", 1)
         reader = IGESControl_Reader()
     if reader.ReadFile(str(path)) != IFSelect_RetDone:
         raise RuntimeError(f"OpenCASCADE cannot read this {kind.upper()} file")
-    reader.TransferRoots()
+    if OCC_SELECT and kind == "iges":
+        reader.TransferList(reader.GiveList(OCC_SELECT))
+    else:
+        reader.TransferRoots()
     shape = reader.OneShape()
     seconds = time.perf_counter() - start
     if kind == "iges" and not keep_mm:
@@ -456,7 +468,7 @@ def collect(args: list[str]) -> list[Path]:
 
 def run_child(path: Path, size: int, max_decide: int, timeout: float, format: str = "auto") -> dict:
     cmd = [sys.executable, os.path.abspath(__file__), "--one", str(path), "--size", str(size),
-           "--max-decide", str(max_decide), "--format", format]
+           "--max-decide", str(max_decide), "--format", format, "--occ-select", OCC_SELECT]
     start = time.perf_counter()
     try:
         proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=timeout)
@@ -505,8 +517,13 @@ def main(argv=None) -> int:
     parser.add_argument("--format", default="auto",
                         help='load_model\'s format: "auto" (by extension, as users do) or "occt" (IGES too '
                              'through OpenCASCADE)')
+    parser.add_argument("--occ-select", default="",
+                        help='IGES: the entities OpenCASCADE transfers, as an XSTEP selection such as '
+                             '"iges-type(144)" (default: the file\'s roots)')
     parser.add_argument("--one", help=argparse.SUPPRESS)  # the child process: judge one file, print JSON
     args = parser.parse_args(argv)
+    global OCC_SELECT
+    OCC_SELECT = args.occ_select
     if args.one:
         result = judge_one(Path(args.one), args.size, args.max_decide, args.format)
         print("JUDGE-RESULT " + json.dumps(result))

@@ -187,7 +187,7 @@ def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
 
 
 _ORDER = re.compile("S*G*D*P*T*")
-_SEQS = re.compile("(?: *[0-9]+)*")  # sequence fields, run together (each 7 columns, not blank)
+_SEQ = re.compile(" *[0-9]+")  # one sequence field (7 columns, not blank)
 
 
 def _records_fast(lines: list[str]) -> dict[str, list[tuple[int, str]]] | None:
@@ -206,7 +206,7 @@ def _records_fast(lines: list[str]) -> dict[str, list[tuple[int, str]]] | None:
         end = len(letters) - len(letters[start:].lstrip(letter))
         seqs = [rec[73:80] for rec in recs[start:end]]
         if seqs != [f"{k:7d}" for k in range(1, end - start + 1)] and (  # not blank-padded: zero-padded?
-            _SEQS.fullmatch("".join(seqs)) is None or list(map(int, seqs)) != list(range(1, end - start + 1))
+            not all(_SEQ.fullmatch(q) for q in seqs) or list(map(int, seqs)) != list(range(1, end - start + 1))
         ):
             return None
         sections[letter] = list(zip(range(start + 1, end + 1), recs[start:end]))
