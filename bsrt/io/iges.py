@@ -87,7 +87,7 @@ ENTITY_NAMES = {
 _SECTIONS = "SGDPT"
 _HOLLERITH = re.compile(r"\s*([0-9]+)H")
 _REAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?")
-_REALS = re.compile(r"(?:[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\n)*")  # newline-terminated
+_REALS = re.compile(r"(?:[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\n)*")  # newline-terminated
 _INT = re.compile(r"[+-]?[0-9]+")
 
 
