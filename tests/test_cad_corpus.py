@@ -43,13 +43,10 @@ import numpy as np
 import OCP  # noqa: F401  -- the extra must be installed: fail, never skip
 import pytest
 from conftest import MODELS, model_files
+from occ_reference import distance, interior, occt_hits
 from OCP.Bnd import Bnd_Box
 from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
-from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-from OCP.gp import gp_Dir, gp_Lin, gp_Pnt
 from OCP.IFSelect import IFSelect_RetDone
-from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
 from OCP.STEPControl import STEPControl_Reader
 
 from bsrt.camera import pixel_rays
@@ -102,44 +99,11 @@ def _diagonal(shape) -> float:
     return math.dist((lo.X(), lo.Y(), lo.Z()), (hi.X(), hi.Y(), hi.Z()))
 
 
-def _occt_hits(shape, eye, directions, size):
-    """(hit (N,) bool, t (N,) float64, NaN where no hit, face (N,) int64: the hit face's hash, -1 where none)."""
-    intersector = IntCurvesFace_ShapeIntersector()
-    intersector.Load(shape, 1e-9 * size)
-    hit = np.zeros(len(directions), dtype=bool)
-    t = np.full(len(directions), np.nan)
-    face = np.full(len(directions), -1, dtype=np.int64)
-    origin = gp_Pnt(*map(float, eye))
-    for k, d in enumerate(directions):
-        intersector.Perform(gp_Lin(origin, gp_Dir(*map(float, d))), 0.0, math.inf)
-        if intersector.IsDone() and intersector.NbPnt() > 0:
-            i = min(range(1, intersector.NbPnt() + 1), key=intersector.WParameter)
-            hit[k], t[k] = True, intersector.WParameter(i)
-            face[k] = hash(intersector.Face(i)) & 0x3FFFFFFFFFFFFFFF  # a label: only equality matters
-    return hit, t, face
-
-
-def _interior(labels: np.ndarray) -> np.ndarray:
-    """Pixels whose 3 x 3 neighbourhood all see the same face (or all nothing)."""
-    h, w = labels.shape
-    pad = np.pad(labels, 1, constant_values=-2)
-    same = np.ones((h, w), dtype=bool)
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            same &= pad[1 + di: 1 + di + h, 1 + dj: 1 + dj + w] == labels
-    return same
-
-
-def _distance(shape, point) -> float:
-    tool = BRepExtrema_DistShapeShape(BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, point))).Vertex(), shape)
-    return float(tool.Value()) if tool.IsDone() else math.inf
-
-
 def _side(hit, t, shape, eye, direction, size) -> str:
     """One side's hit for a failure message: its t and its distance to the shape (of the diagonal)."""
     if not hit:
         return "miss"
-    return f"t={t:.9g} (off the shape by {_distance(shape, eye + t * direction) / size:.2g})"
+    return f"t={t:.9g} (off the shape by {distance(shape, eye + t * direction) / size:.2g})"
 
 
 @pytest.mark.parametrize("name", CORPUS)
@@ -157,12 +121,12 @@ def test_corpus_part_hits_agree_with_occt_away_from_edges(name):
     scene = scene_for_model(model, SIZE, SIZE)
     aovs = render(scene).aovs()
     directions = pixel_rays(scene.camera, SIZE, SIZE)
-    hit, t, face = _occt_hits(shape, scene.camera.eye, directions, size)
+    hit, t, face = occt_hits(shape, scene.camera.eye, directions, size)
     hit, t, face = hit.reshape(SIZE, SIZE), t.reshape(SIZE, SIZE), face.reshape(SIZE, SIZE)
     assert hit.sum() > 0.05 * SIZE * SIZE  # the camera sees the part
     ours = np.where(aovs["hit"], aovs["surface"], -1)
     theirs = np.where(hit, face, -1)
-    inside = _interior(ours) & _interior(theirs)
+    inside = interior(ours) & interior(theirs)
     both = inside & hit & aovs["hit"]
     assert both.sum() > 0.1 * hit.sum()
     depth = np.zeros_like(both)

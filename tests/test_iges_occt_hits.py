@@ -31,15 +31,12 @@ import numpy as np
 import OCP  # noqa: F401  -- the extra must be installed: fail, never skip
 import pytest
 from OCP.BRepBndLib import BRepBndLib
-from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
-from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 from OCP.Bnd import Bnd_Box
-from OCP.gp import gp_Dir, gp_Lin, gp_Pnt
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.IGESControl import IGESControl_Reader
-from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
+from occ_reference import distance, interior, occt_hits
 
 from bsrt.camera import pixel_rays
 from bsrt.io import load_model
@@ -78,22 +75,6 @@ def _diagonal(shape) -> float:
     return math.dist((lo.X(), lo.Y(), lo.Z()), (hi.X(), hi.Y(), hi.Z()))
 
 
-def _distance(shape, point) -> float:
-    vertex = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, point))).Vertex()
-    return BRepExtrema_DistShapeShape(vertex, shape).Value()
-
-
-def _interior(labels: np.ndarray) -> np.ndarray:
-    """Pixels whose 3 x 3 neighbourhood all see the same face (or all nothing)."""
-    h, w = labels.shape
-    pad = np.pad(labels, 1, constant_values=-2)
-    same = np.ones((h, w), dtype=bool)
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            same &= pad[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] == labels
-    return same
-
-
 @pytest.mark.parametrize("name", sorted(FILES))
 def test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape(name):
     path = FILES[name]
@@ -106,30 +87,22 @@ def test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape(name
     aovs = render(scene).aovs()
     eye = np.asarray(scene.camera.eye, float)
     directions = pixel_rays(scene.camera, SIZE, SIZE)
-    intersector = IntCurvesFace_ShapeIntersector()
-    intersector.Load(shape, 1e-9 * size)
     n = len(directions)
-    hit, t, face = np.zeros(n, bool), np.full(n, np.nan), np.full(n, -1)
-    for k, d in enumerate(directions):
-        intersector.Perform(gp_Lin(gp_Pnt(*eye), gp_Dir(*map(float, d))), 0.0, math.inf)
-        if intersector.IsDone() and intersector.NbPnt() > 0:
-            i = min(range(1, intersector.NbPnt() + 1), key=intersector.WParameter)
-            hit[k], t[k] = True, intersector.WParameter(i)
-            face[k] = next(j for j, g in enumerate(faces) if g.IsSame(intersector.Face(i)))
+    hit, t, face = occt_hits(shape, eye, directions, size, faces)
     ours, ours_t = aovs["hit"].ravel(), aovs["t"].ravel()
     assert hit.sum() > 0.1 * n
-    interior = _interior(np.where(hit, face, -1).reshape(SIZE, SIZE)).ravel()
+    away = interior(np.where(hit, face, -1).reshape(SIZE, SIZE)).ravel()
     differ = (ours != hit) | (ours & hit & (np.abs(np.where(ours, ours_t, 0) - np.where(hit, t, 0)) > SAME_T * size))
     assert differ.sum() <= 4  # measured: 2 in each file, all OpenCASCADE's
     wrong = []
     for k in np.flatnonzero(differ):
-        mine = _distance(shape, eye + ours_t[k] * directions[k]) / size if ours[k] else None
-        theirs = _distance(shape, eye + t[k] * directions[k]) / size if hit[k] else None
+        mine = distance(shape, eye + ours_t[k] * directions[k]) / size if ours[k] else None
+        theirs = distance(shape, eye + t[k] * directions[k]) / size if hit[k] else None
         bsrt_right = (
             (mine is not None and mine <= ON_SHAPE)
             and (theirs is None or theirs > ON_SHAPE or ours_t[k] < t[k])
         ) or (mine is None and (theirs is None or theirs > ON_SHAPE))
         if not bsrt_right:
-            wrong.append((divmod(int(k), SIZE), mine, theirs, bool(interior[k])))
+            wrong.append((divmod(int(k), SIZE), mine, theirs, bool(away[k])))
     assert not [w for w in wrong if w[3]], wrong  # away from edges: none
     assert not wrong, wrong  # and, measured, none at the edges either

@@ -38,10 +38,9 @@ from OCP.Bnd import Bnd_Box
 from OCP.GCPnts import GCPnts_AbscissaPoint
 from OCP.GeomAbs import GeomAbs_Circle
 from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
-from OCP.gp import gp_Ax2, gp_Dir, gp_Elips, gp_Lin, gp_Pnt
+from OCP.gp import gp_Ax2, gp_Dir, gp_Elips, gp_Pnt
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.IGESControl import IGESControl_Reader, IGESControl_Writer
-from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
 from OCP.Interface import Interface_Static
 from OCP.Quantity import Quantity_Color, Quantity_TOC_RGB
 from OCP.ShapeAnalysis import ShapeAnalysis_Surface
@@ -55,6 +54,8 @@ from OCP.TopoDS import TopoDS, TopoDS_Compound
 from OCP.XCAFApp import XCAFApp_Application
 from OCP.XCAFDoc import XCAFDoc_ColorGen, XCAFDoc_ColorSurf, XCAFDoc_DocumentTool
 from PIL import Image
+
+from occ_reference import interior, occt_hits
 
 from bsrt.bspline import basis_functions, evaluate, find_span
 from bsrt.camera import pixel_rays
@@ -565,35 +566,6 @@ def test_cli_garbage_step_exits_2_with_one_line(tmp_path, capsys):
 # Every pixel against OpenCASCADE's exact ray / shape intersector
 
 
-def _occt_hits(shape, faces, eye, directions, size):
-    """(hit, t, face index) per ray from OpenCASCADE's IntCurvesFace_ShapeIntersector."""
-    intersector = IntCurvesFace_ShapeIntersector()
-    intersector.Load(shape, 1e-9 * size)
-    hit = np.zeros(len(directions), dtype=bool)
-    t = np.full(len(directions), np.nan)
-    face = np.full(len(directions), -1)
-    origin = gp_Pnt(*map(float, eye))
-    for k, d in enumerate(directions):
-        intersector.Perform(gp_Lin(origin, gp_Dir(*map(float, d))), 0.0, math.inf)
-        if intersector.IsDone() and intersector.NbPnt() > 0:
-            i = min(range(1, intersector.NbPnt() + 1), key=intersector.WParameter)
-            hit[k], t[k] = True, intersector.WParameter(i)
-            f = intersector.Face(i)
-            face[k] = next(j for j, g in enumerate(faces) if g.IsSame(f))
-    return hit, t, face
-
-
-def _interior(labels: np.ndarray) -> np.ndarray:
-    """Pixels whose 3 x 3 neighbourhood all see the same face (or all nothing)."""
-    h, w = labels.shape
-    pad = np.pad(labels, 1, constant_values=-2)
-    same = np.ones((h, w), dtype=bool)
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            same &= pad[1 + di: 1 + di + h, 1 + dj: 1 + dj + w] == labels
-    return same
-
-
 @pytest.mark.parametrize("name", list(SHAPES) + ["as1-oc-214"])
 def test_hits_agree_against_occt_intersector(tmp_path, name):
     """Every pixel's ray, traced by bsrt (trims included) and by OpenCASCADE's
@@ -613,12 +585,12 @@ def test_hits_agree_against_occt_intersector(tmp_path, name):
     scene = scene_for_model(model, width, height)
     aovs = render(scene).aovs()
     directions = pixel_rays(scene.camera, width, height)
-    hit, t, face = _occt_hits(reference, faces, scene.camera.eye, directions, size)
+    hit, t, face = occt_hits(reference, scene.camera.eye, directions, size, faces)
     hit, t, face = hit.reshape(height, width), t.reshape(height, width), face.reshape(height, width)
     assert hit.sum() > 0.1 * width * height
     ours = np.where(aovs["hit"], aovs["surface"], -1)
     theirs = np.where(hit, face, -1)
-    inside = _interior(theirs)  # away from silhouettes and from the faces' edges
+    inside = interior(theirs)  # away from silhouettes and from the faces' edges
     both = inside & hit
     assert both.sum() > 0.25 * hit.sum()
     assert np.array_equal(aovs["hit"][inside], hit[inside])
@@ -647,8 +619,8 @@ def test_step_and_iges_through_bsrts_own_reader_render_the_same_hits(tmp_path, b
         results.append(render(other, RenderOptions.resolve(other)).hits)
     a, b = results
     size = diagonal(read_back(tmp_path / "part.step"))
-    interior = _interior(np.where(a.hit, 1, 0).reshape(96, 96)).ravel()
-    np.testing.assert_array_equal(a.hit[interior], b.hit[interior])
-    both = a.hit & b.hit & interior
+    away = interior(np.where(a.hit, 1, 0).reshape(96, 96)).ravel()
+    np.testing.assert_array_equal(a.hit[away], b.hit[away])
+    both = a.hit & b.hit & away
     assert both.sum() > 1000
     np.testing.assert_allclose(a.t[both], b.t[both], atol=1e-7 * size)
