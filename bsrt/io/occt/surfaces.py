@@ -284,7 +284,7 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
         breaks = _breaks(knots, p, n)
         other_breaks = _breaks(*((whole.knots_v, whole.degree[1], whole.shape[1]) if axis == 0 else
                                  (whole.knots_u, whole.degree[0], whole.shape[0])))
-        other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: the last but one at most
+        other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: a middle one (poles are at ends)
         kind = "identity" if approximated else _kind(original, whole, axis, breaks, other_breaks, size)
         fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
         if kind == "table":
