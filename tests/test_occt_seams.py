@@ -952,3 +952,41 @@ def test_a_face_opencascade_cannot_convert_is_named_once(tmp_path):
     (warning,) = model.warnings
     assert "infinite" in warning and "#1" in warning, warning
     assert "infinite" in warning.lower() or "unbounded" in warning.lower() or "range" in warning.lower(), warning
+
+
+# ---------------------------------------------------------------------------
+# Wires once round a periodic direction with no seam edge (third-party files): closed along the domain
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_chains_once_round_are_closed_into_the_band_between_them(flip):
+    """A band of a cylinder bounded by two circles and no seam edge: in (u, v) two chains, one running +u
+    along v = 0 (the face above it, on its left), one running -u along v = 1 (the face below it). Closed
+    along the domain's edge they keep exactly 0 < v < 1, for every u of the period, whichever way the
+    chains start; reversed (flip: the face outside the band) they keep the rest."""
+    from bsrt.bspline import make_surface
+    from bsrt.io.occt.curves import segment
+    from bsrt.io.occt.surfaces import AxisMap, ParamMap
+    from bsrt.io.occt.topology import _close, _closed_around
+    from bsrt.trim import TrimLoop, kept
+
+    period = 2 * math.pi
+    identity = AxisMap("identity", np.array([0.0, period]))
+    pmap = ParamMap(identity, AxisMap("identity", np.array([-1.0, 2.0])), (0.0, period, -1.0, 2.0), period, 0.0)
+    low = [segment((0.3, 0.0), (period + 0.3, 0.0))]  # starts off the seam, runs +u
+    high = [segment((period - 0.7, 1.0), (-0.7, 1.0))]  # runs -u
+    if flip:
+        low, high = [segment((period + 0.3, 0.0), (0.3, 0.0))], [segment((-0.7, 1.0), (period - 0.7, 1.0))]
+    around = [(low, np.array([-period if not flip else period, 0.0])),
+              (high, np.array([period if not flip else -period, 0.0]))]
+    loops = _closed_around(around, pmap)
+    plane = make_surface((1, 1), [0, 0, period, period], [-1, -1, 2, 2],
+                         np.array([[[0, -1, 0], [0, 2, 0]], [[period, -1, 0], [period, 2, 0]]], dtype=float))
+    # as the import does: each loop cut at the domain's edge
+    surface = plane.with_trims([TrimLoop(tuple(_close(loop, plane, 10.0))) for loop in loops])
+    rng = np.random.default_rng(3)
+    u, v = rng.uniform(0, period, 4000), rng.uniform(-1, 2, 4000)
+    away = (np.abs(v) > 1e-6) & (np.abs(v - 1) > 1e-6)
+    inside = (v > 0) & (v < 1)
+    got = kept(surface, u[away], v[away])
+    np.testing.assert_array_equal(got, inside[away] != flip)

@@ -250,7 +250,7 @@ def _closed_around(around, pmap: ParamMap) -> list[list[TrimCurve]]:
         loop = chain + closing
         directions.append((float(np.mean([c.points[:, other].mean() for c in chain])), float(np.sign(b[axis] - a[axis]))))
         offset = np.zeros(2)
-        offset[axis] = -p
+        offset[axis] = a[axis] - b[axis]  # the copy one period back along the chain covers the rest
         loops.append(loop)
         loops.append([shifted(c, offset) for c in loop])
     # the face lies left of its wires: above a chain running +u (axis 0), below one running -u; for
