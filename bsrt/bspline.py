@@ -344,3 +344,42 @@ def bezier_patches(surface: BSplineSurface):
     bounds[..., 2] = kv[spans_v][None, :]
     bounds[..., 3] = kv[spans_v + 1][None, :]
     return ctrl, bounds.reshape(-1, 4)
+
+
+def restrict(surface: BSplineSurface, range_u, range_v) -> BSplineSurface:
+    """The part of ``surface`` over [u0, u1] x [v0, v1], by knot insertion.
+
+    Each range is clipped to the knot domain; one that covers the domain
+    leaves that direction as is. Callers check that the clipped ranges are
+    non-empty. The result is the same geometry with fewer control points.
+    """
+    ctrl = surface.homogeneous()  # (nu, nv, 4)
+    knots = [surface.knots_u, surface.knots_v]
+    for axis, (a, b) in enumerate((range_u, range_v)):
+        p = surface.degree[axis]
+        k = knots[axis]
+        c = np.moveaxis(ctrl, axis, 0)
+        lo, hi = k[p], k[c.shape[0]]
+        a, b = max(a, lo), min(b, hi)
+        if a == lo and b == hi:
+            continue
+        for x in (a, b):
+            if lo < x < hi:
+                while np.count_nonzero(k == x) < p:
+                    k, c = insert_knot(k, c, p, x)
+        # keep the control points whose basis functions are non-zero on [a, b]
+        first = int(np.searchsorted(k, a, side="right")) - 1 - p
+        last = int(np.searchsorted(k, b, side="left"))
+        c = c[first:last]
+        k = k[first : last + p + 1]
+        # clamp the new ends so the domain is exactly [a, b]
+        k = k.copy()
+        k[: p + 1] = np.maximum(k[: p + 1], a)
+        k[-(p + 1) :] = np.minimum(k[-(p + 1) :], b)
+        knots[axis] = k
+        ctrl = np.moveaxis(c, 0, axis)
+    w = ctrl[..., 3]
+    weights = None if surface.weights is None else w
+    with np.errstate(all="ignore"):  # extreme weights give non-finite points, which make_surface reports
+        pts = ctrl[..., :3] / w[..., None]
+    return make_surface(surface.degree, knots[0], knots[1], pts, weights)

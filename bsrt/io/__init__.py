@@ -15,7 +15,7 @@ a second load of an unchanged file unpickles the first one's Model.
 This module also holds the small helpers the readers share: decoding the file
 (:func:`read_text`), strict number parsing, error formatting, building a
 surface with a located error (:func:`build_surface`) and cutting a surface to
-a sub-rectangle of its domain (:func:`cut`, :func:`restrict`).
+a sub-rectangle of its domain (:func:`cut`; :func:`bsrt.bspline.restrict`).
 """
 
 from __future__ import annotations
@@ -25,59 +25,18 @@ import os
 import re
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..bspline import BSplineSurface, insert_knot, make_surface
+from ..bspline import BSplineSurface, make_surface, restrict  # noqa: F401  (restrict: the readers')
 from .. import validate
 from ..errors import InputError
 from ..files import check_input_file
+from .model import LoadRecord, Model
 
 __all__ = ["FORMATS", "LoadRecord", "Model", "load_model"]
 
 
-@dataclass(frozen=True)
-class LoadRecord:
-    """How one model file was loaded (``--stats``' ``load`` entry, ``bsrt info``).
-
-    seconds: the whole :func:`load_model` call. cached: whether the model came
-    from the converted-model cache. faces: (converted, total) as the reader
-    last reported them through its progress callback, or None (a reader that
-    does not report, or a cached load).
-    """
-
-    path: str
-    format: str
-    seconds: float
-    cached: bool
-    faces: tuple[int, int] | None = None
-
-
-@dataclass
-class Model:
-    """The drawable content of one model file.
-
-    path: the file as given to :func:`load_model`.
-    surfaces: the surfaces, in file order.
-    names: one label per surface (``"teapot.bez#3"``, an IGES label, ...).
-    skipped: description of something bsrt cannot draw -> how many there are.
-    warnings: full sentences about approximations (e.g. trimming ignored).
-    untrimmed: how many of the surfaces are trimmed in the file but drawn whole.
-    colors: empty (the file gives no colours), or one per surface: a linear RGB
-      colour (r, g, b), each in 0..1, or None where the file gives none.
-    load: how this load went (time, cache), set by :func:`load_model`; not
-      part of the cached value nor of equality.
-    """
-
-    path: str
-    surfaces: list[BSplineSurface]
-    names: list[str]
-    skipped: dict[str, int] = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
-    untrimmed: int = 0
-    colors: list[tuple[float, float, float] | None] = field(default_factory=list)
-    load: LoadRecord | None = field(default=None, compare=False, repr=False)
 
 
 #: extension (lower case, with dot) -> format name
@@ -333,42 +292,3 @@ def cut(path: str, line: int, which: str, surface: BSplineSurface, ranges, label
         return restrict(surface, *clean)
     except InputError as e:
         raise fail(path, line, f"{which}: {e}") from None
-
-
-def restrict(surface: BSplineSurface, range_u, range_v) -> BSplineSurface:
-    """The part of ``surface`` over [u0, u1] x [v0, v1], by knot insertion.
-
-    Each range is clipped to the knot domain; one that covers the domain
-    leaves that direction as is. Callers check that the clipped ranges are
-    non-empty. The result is the same geometry with fewer control points.
-    """
-    ctrl = surface.homogeneous()  # (nu, nv, 4)
-    knots = [surface.knots_u, surface.knots_v]
-    for axis, (a, b) in enumerate((range_u, range_v)):
-        p = surface.degree[axis]
-        k = knots[axis]
-        c = np.moveaxis(ctrl, axis, 0)
-        lo, hi = k[p], k[c.shape[0]]
-        a, b = max(a, lo), min(b, hi)
-        if a == lo and b == hi:
-            continue
-        for x in (a, b):
-            if lo < x < hi:
-                while np.count_nonzero(k == x) < p:
-                    k, c = insert_knot(k, c, p, x)
-        # keep the control points whose basis functions are non-zero on [a, b]
-        first = int(np.searchsorted(k, a, side="right")) - 1 - p
-        last = int(np.searchsorted(k, b, side="left"))
-        c = c[first:last]
-        k = k[first : last + p + 1]
-        # clamp the new ends so the domain is exactly [a, b]
-        k = k.copy()
-        k[: p + 1] = np.maximum(k[: p + 1], a)
-        k[-(p + 1) :] = np.minimum(k[-(p + 1) :], b)
-        knots[axis] = k
-        ctrl = np.moveaxis(c, 0, axis)
-    w = ctrl[..., 3]
-    weights = None if surface.weights is None else w
-    with np.errstate(all="ignore"):  # extreme weights give non-finite points, which make_surface reports
-        pts = ctrl[..., :3] / w[..., None]
-    return make_surface(surface.degree, knots[0], knots[1], pts, weights)

@@ -195,7 +195,7 @@ def _fetch(entry: Path, key: bytes):
 
 def _decode(data: bytes, key: bytes):
     """(problem, model): problem is None and model the Model, or a short reason and None."""
-    from . import Model
+    from .model import Model
 
     head = len(MAGIC) + _HEADER.size
     if len(data) < head or not data.startswith(MAGIC):

@@ -154,7 +154,7 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
     converted. Raises InputError (one sentence naming the file) if OpenCASCADE
     is missing or cannot read the file.
     """
-    from .. import Model
+    from ..model import Model
 
     path = os.fspath(path)
     kind = kind_of(path, format)

@@ -401,7 +401,7 @@ def _rotated(surface: BSplineSurface, axis: int, start: float) -> BSplineSurface
 
 def _restricted(surface: BSplineSurface, axis: int, a: float, b: float) -> BSplineSurface:
     """The surface cut to [a, b] in ``axis`` where that is inside its domain (knot insertion)."""
-    from .. import restrict
+    from ...bspline import restrict
 
     lo, hi = surface.domain_u if axis == 0 else surface.domain_v
     tol = 1e-12 * max(1.0, abs(lo), abs(hi))
