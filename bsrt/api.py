@@ -18,6 +18,7 @@ file that :func:`load` reads back to the same scene, bit for bit.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
@@ -35,8 +36,8 @@ from . import validate
 from .bspline import BSplineSurface
 from .camera import Camera as _Camera
 from .errors import InputError
-from .scene import Film, Material, RenderSettings
-from .settings import MAP_MODES, METHODS
+from .scene import Material
+from .settings import Film, RenderSettings, checked_overrides, with_settings
 
 if TYPE_CHECKING:
     from .pipeline import RenderResult
@@ -229,7 +230,8 @@ class Scene(_scene.Scene):
         ``<python>: surface[0].knots_u: expected 6 values (3 points + degree 2 + 1), got 5``.
         """
         data, order = _document(list(surfaces), camera, lights, materials, film, render)
-        scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order, cache=cache)
+        with _python_words():
+            scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order, cache=cache)
         if camera is None or lights is None:
             scene = _automatic(scene, camera is None, lights is None)
         return _wrap(scene)
@@ -266,6 +268,28 @@ class Scene(_scene.Scene):
                 f"{self.render.method}, spp={self.render.spp})")
 
 
+_TOML_WORDS = ((re.compile(r"expected a table$"), "expected a mapping (a dict) or the bsrt object"),
+               (re.compile(r"expected an array of tables \[\[\w+\]\]"), "expected a list"),
+               (re.compile(r"missing table \[(\w+)\]"), r"missing (\1= is required)"),
+               (re.compile(r"the scene has no \[\[surface\]\] or \[\[import\]\] \(nothing to render\)"),
+                "no surfaces given (nothing to render)"))
+
+
+@contextlib.contextmanager
+def _python_words():
+    """The scene format's messages about its tables, said in Python's words for a scene built in Python
+    (keys and values keep their names: they are the keyword and field names)."""
+    try:
+        yield
+    except InputError as exc:
+        message = str(exc)
+        for pattern, words in _TOML_WORDS:
+            message = pattern.sub(words, message)
+        if message == str(exc):
+            raise
+        raise type(exc)(message) from None
+
+
 def _wrap(scene: _scene.Scene) -> Scene:
     return scene if type(scene) is Scene else Scene(**{f.name: getattr(scene, f.name) for f in fields(scene)})
 
@@ -285,6 +309,7 @@ def load(
     tolerance: float | None = None,
     max_iterations: int | None = None,
     max_depth: int | None = None,
+    background: Vector3 | None = None,
     camera_eye: Vector3 | None = None,
     camera_look_at: Vector3 | None = None,
     camera_up: Vector3 | None = None,
@@ -313,41 +338,13 @@ def load(
     """
     from .loading import CameraOverrides, load_input
 
-    settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map, tolerance=tolerance,
-                                 max_iterations=max_iterations, max_depth=max_depth)
+    settings = checked_overrides(dict(width=width, height=height, method=method, spp=spp, map=map,
+                                      tolerance=tolerance, max_iterations=max_iterations, max_depth=max_depth,
+                                      background=background))
     camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True)
     scene = load_input(path, format, width=settings.get("width"), height=settings.get("height"), camera=camera,
                        cache=cache, progress=progress)
-    return _wrap(_with_settings(scene, settings))
-
-
-def _with_settings(scene: _scene.Scene, settings: dict) -> _scene.Scene:
-    """The scene with checked film and [render] overrides applied."""
-    film = replace(scene.film, **{k: settings[k] for k in ("width", "height") if k in settings})
-    render = replace(scene.render, **{k: v for k, v in settings.items() if k not in ("width", "height")})
-    return replace(scene, film=film, render=render)
-
-
-_WHOLE_LIMITS = {"width": validate.MAX_FILM_SIDE, "height": validate.MAX_FILM_SIDE, "spp": validate.MAX_SPP,
-                 "max_iterations": validate.MAX_ITERATIONS, "max_depth": validate.MAX_DEPTH}
-
-
-def _render_overrides(**values) -> dict:
-    """The given (not None) overrides, checked, with the messages of RenderOptions."""
-    out = {}
-    for key, value in values.items():
-        if value is None:
-            continue
-        if key in _WHOLE_LIMITS:
-            out[key] = validate.whole(key, value, 0 if key == "max_depth" else 1, _WHOLE_LIMITS[key])
-        elif key == "tolerance":
-            out[key] = validate.real("tolerance", value, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
-        else:
-            choices = METHODS if key == "method" else MAP_MODES
-            if value not in choices:
-                raise InputError(f"{key}: expected one of {', '.join(choices)}, got {value!r}")
-            out[key] = value
-    return out
+    return _wrap(with_settings(scene, settings))
 
 
 # ---------------------------------------------------------------------------
@@ -355,7 +352,7 @@ def _render_overrides(**values) -> dict:
 
 
 def render(
-    scene: Scene | _scene.Scene | str | os.PathLike,
+    scene: Scene | _scene.Scene | str | os.PathLike | Surface | Import | Iterable | Any,
     *,
     width: int | None = None,
     height: int | None = None,
@@ -365,11 +362,14 @@ def render(
     tolerance: float | None = None,
     max_iterations: int | None = None,
     max_depth: int | None = None,
+    background: Vector3 | None = None,
     camera: Camera | Mapping | None = None,
     progress: ProgressArg = None,
     cache: bool = True,
 ) -> RenderResult:
-    """Render a scene (or a scene or model file, loaded with :func:`load`).
+    """Render a scene: a :class:`Scene`, a scene or model file (loaded with :func:`load`), or
+    what :meth:`Scene.build` takes (surfaces: bsrt, Splipy or geomdl objects, :class:`Import`,
+    or a list of them; framed and lit automatically).
 
     The keywords override the scene's own settings for this render only
     (None: the scene's value): width, height, method ("newton", "gradient",
@@ -385,8 +385,8 @@ def render(
     Returns a :class:`bsrt.pipeline.RenderResult`: ``pixels`` (H, W, 3) uint8
     sRGB, ``linear`` (H, W, 3) float64, ``aovs()`` (the per-pixel arrays of
     ``--aov``: hit, t, surface, u, v, position, normal, iterations,
-    residual), ``stats`` (timings and counters), ``save(path)`` (PNG);
-    a notebook shows it as an image.
+    residual), ``stats`` (timings and counters), ``save(path)`` (PNG, JPEG
+    or WebP by the extension), ``to_pil()``; a notebook shows it as an image.
     """
     from .pipeline import render as pipeline
     from .settings import RenderOptions
@@ -405,11 +405,11 @@ def render(
     try:
         if isinstance(scene, (str, os.PathLike)):
             scene = load(scene, cache=cache, progress=report)
-        if not isinstance(scene, _scene.Scene):
-            raise TypeError(f"render() needs a bsrt.Scene (bsrt.load or bsrt.Scene.build), got "
-                            f"{type(scene).__name__}")
-        settings = _render_overrides(width=width, height=height, method=method, spp=spp, map=map,
-                                     tolerance=tolerance, max_iterations=max_iterations, max_depth=max_depth)
+        elif not isinstance(scene, _scene.Scene):  # what Scene.build takes: surfaces, imports, lists of them
+            scene = Scene.build(scene if isinstance(scene, (list, tuple)) else [scene], cache=cache)
+        settings = checked_overrides(dict(width=width, height=height, method=method, spp=spp, map=map,
+                                          tolerance=tolerance, max_iterations=max_iterations, max_depth=max_depth,
+                                          background=background))
         if camera is not None:
             settings["camera"] = _checked_camera(camera)
         options = RenderOptions.resolve(scene, **settings)
@@ -434,7 +434,8 @@ _PROBE_SURFACE = {"degree": [1, 1], "knots_u": [0.0, 0.0, 1.0, 1.0], "knots_v": 
 def _checked_camera(camera) -> _Camera:
     """A camera checked as a [camera] table (the messages of a scene file)."""
     probe = {"camera": _camera_doc(camera), "surface": [_PROBE_SURFACE]}
-    return _scene.parse_scene(probe, WHERE).camera
+    with _python_words():
+        return _scene.parse_scene(probe, WHERE).camera
 
 
 # ---------------------------------------------------------------------------

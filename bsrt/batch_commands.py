@@ -23,25 +23,21 @@ import time
 from pathlib import Path
 
 from .errors import InputError
+from .settings import checked_overrides, flag_values
 
 ANIMATION_KINDS = {"webp": ".webp", "apng": ".png"}
 
 
 def add_commands(sub, positive_int) -> None:
     """Add ``batch`` and ``animate`` to the CLI's subparsers."""
-    from .settings import METHODS
+    from .settings import add_flags
 
     b = sub.add_parser("batch", help="render many scenes or model files on a Dask cluster")
     b.add_argument("inputs", nargs="+", metavar="INPUT",
                    help="scene or model files, folders (searched recursively) or glob patterns")
-    common = [("--width", "film width (a model's framing too)"), ("--height", "film height"),
-              ("--spp", "samples per pixel")]
-
     def shared(p) -> None:
         p.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
-        for flag, text in common:
-            p.add_argument(flag, type=positive_int, help=f"{text} (overrides the file's)")
-        p.add_argument("--method", choices=METHODS, help="root finder (overrides [render].method)")
+        add_flags(p, "render")
         where = p.add_mutually_exclusive_group()
         where.add_argument("--workers", type=positive_int, metavar="N",
                            help="local worker processes (default: one per core)")
@@ -120,8 +116,8 @@ def _summary_path(path) -> Path | None:
     return path
 
 
-def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=False, workers=None,
-          scheduler=None, client=None, resume=False, summary=None, progress=None, report=None, cache=True):
+def batch(inputs, out, *, aov=False, workers=None, scheduler=None, client=None, resume=False, summary=None,
+          progress=None, report=None, cache=True, **settings):
     """Render every scene or model file of ``inputs`` (files, folders, globs) to
     ``out/<name>.png`` (and ``<name>.npz`` with ``aov``) on Dask; returns the
     :class:`bsrt.batching.Summary` (``.items``, ``.exit_code``, ``.to_dict()``).
@@ -129,7 +125,8 @@ def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=Fa
     client: a ``distributed.Client`` to use; else scheduler (an address); else a
     local cluster of ``workers`` processes. summary: also write the JSON there.
     progress(stage, fraction), report(item): optional callbacks. cache: False
-    reads the model files without the converted-model cache.
+    reads the model files without the converted-model cache. settings: render
+    settings overriding every file's (bsrt.settings.SETTINGS: width, spp, method, ...).
     Raises InputError for bad usage (an input that does not exist, no Dask).
     """
     from . import batching
@@ -137,9 +134,7 @@ def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=Fa
     start = time.perf_counter()
     require_dask("batch")
     paths = batching.discover([inputs] if isinstance(inputs, (str, os.PathLike)) else inputs)
-    options = {"width": width, "height": height, "spp": spp, "method": method}
-    _check_options(options)
-    options["cache"] = bool(cache)
+    options = {"settings": checked_overrides(settings), "cache": bool(cache)}
     summary_file = _summary_path(summary)
     out = _output_folder(out)
     work, notes = batching.plan(paths, out, options, aov)
@@ -152,15 +147,14 @@ def batch(inputs, out, *, width=None, height=None, spp=None, method=None, aov=Fa
     return result
 
 
-def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, width=None, height=None, spp=None,
-            method=None, workers=None, scheduler=None, client=None, resume=False, summary=None, progress=None,
-            report=None, cache=True):
+def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, workers=None, scheduler=None,
+            client=None, resume=False, summary=None, progress=None, report=None, cache=True, **settings):
     """Render the frames of ``input`` (a scene or model file) to ``out/frame_0001.png``
     ... on Dask: an orbit of ``orbit`` degrees, else the scene's
     ``[[camera.keyframe]]`` path; ``animation`` "webp" or "apng" also writes
     ``out/<name>.webp`` / ``.png``. Returns the Summary (the animated file, if
     any, is its last item). cache: False reads the model files without the
-    converted-model cache."""
+    converted-model cache. settings: render settings, as for :func:`batch`."""
     from . import batching, camera_path
     from .loading import CameraOverrides
 
@@ -169,9 +163,7 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wi
     camera_path.check_fps(fps)
     if animation not in (None, *ANIMATION_KINDS):
         raise InputError(f"animation: expected 'webp' or 'apng', got {animation!r}")
-    options = {"width": width, "height": height, "spp": spp, "method": method}
-    _check_options(options)
-    options["cache"] = bool(cache)
+    options = {"settings": checked_overrides(settings), "cache": bool(cache)}
     path = Path(input)
     root, files = batching.pack(path)
     template = batching.Job(str(path), path.stem, files, root, options)
@@ -201,17 +193,6 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wi
     result = batching.Summary(items, time.perf_counter() - start, str(out))
     _write_summary(summary_file, result)
     return result
-
-
-def _check_options(options: dict) -> None:
-    from .settings import METHODS
-
-    for key in ("width", "height", "spp"):
-        value = options[key]
-        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
-            raise InputError(f"{key}: expected a whole number >= 1, got {value!r}")
-    if options["method"] is not None and options["method"] not in METHODS:
-        raise InputError(f"method: expected one of {', '.join(METHODS)}, got {options['method']!r}")
 
 
 def _write_animation(frames, target: Path, fps: float, kind: str):
@@ -282,8 +263,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     for note in batching.output_names(paths)[1]:
         print(f"bsrt: note: {note}", file=sys.stderr)
     return _run("batch", lambda progress, report: batch(
-        paths, args.out, width=args.width, height=args.height, spp=args.spp, method=args.method, aov=args.aov,
-        workers=args.workers, scheduler=args.scheduler, resume=args.resume, summary=args.summary,
+        paths, args.out, aov=args.aov, **flag_values(args, "render"), workers=args.workers, scheduler=args.scheduler, resume=args.resume, summary=args.summary,
         progress=progress, report=report, cache=args.cache))
 
 
@@ -291,6 +271,6 @@ def cmd_animate(args: argparse.Namespace) -> int:
     require_dask("animate")
     return _run("animate", lambda progress, report: animate(
         args.input, args.out, frames=args.frames, orbit=args.orbit, fps=args.fps, animation=args.animation,
-        width=args.width, height=args.height, spp=args.spp, method=args.method, workers=args.workers,
+        **flag_values(args, "render"), workers=args.workers,
         scheduler=args.scheduler, resume=args.resume, summary=args.summary, progress=progress, report=report,
         cache=args.cache))

@@ -137,9 +137,9 @@ class Job:
     files: ((path relative to root, bytes), ...): the input first, then the
       model files a scene imports by relative path. root: the client's folder
       the files are laid out from (a worker's messages name it, not its own
-      temporary folder). options: width, height, spp, method (None: the
-      file's), cache (False: the worker reads model files without the
-      converted-model cache; default True). camera: overrides (an animation's frame camera). aov: also
+      temporary folder). options: "settings" (checked render settings,
+      bsrt.settings: name -> value, overriding the file's), "cache" (False:
+      the worker reads model files without the converted-model cache; default True). camera: overrides (an animation's frame camera). aov: also
       return the per-pixel arrays.
     """
 
@@ -225,8 +225,12 @@ def load_job(job: Job, path: Path):
     """The Scene of a job's input (already unpacked at ``path``)."""
     from .loading import load_input
 
-    return load_input(path, width=job.options.get("width"), height=job.options.get("height"), camera=job.camera,
-                      cache=job.options.get("cache", True))
+    from .settings import with_settings
+
+    settings = job.options.get("settings", {})
+    scene = load_input(path, width=settings.get("width"), height=settings.get("height"), camera=job.camera,
+                       cache=job.options.get("cache", True))
+    return with_settings(scene, settings)
 
 
 def render_job(job: Job) -> dict:
@@ -258,9 +262,7 @@ def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
     from .pipeline import render
     from .settings import RenderOptions
 
-    o = job.options
-    options = RenderOptions.resolve(scene, method=o.get("method"), width=o.get("width"), height=o.get("height"),
-                                    spp=o.get("spp"))
+    options = RenderOptions.resolve(scene)  # the job's settings are in the scene (load_job)
     result = render(scene, options)
     return _encoded(png_writer(result.pixels)), _encoded(npz_writer(result.aovs())) if job.aov else None
 

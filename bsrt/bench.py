@@ -21,6 +21,7 @@ import numpy as np
 
 from .errors import InputError
 from .image import write_text
+from .methods import MAP_METHODS, REFERENCE_METHOD
 from .settings import RenderOptions
 from .pipeline import Geometry, render
 from .scene import load_scene
@@ -30,7 +31,7 @@ PAPER = {  # Sisojevs & Glazs, 512x512, 1 ray/pixel, 3.2 GHz Xeon: seconds
     "water-lily": {"gradient": 180.2, "fast": 98.3, "martin": 205.6},
 }
 DEFAULT_SCENES = ("column", "water-lily")
-DEFAULT_METHODS = ("gradient", "fast", "newton")
+DEFAULT_METHODS = MAP_METHODS
 
 
 def scene_path(name: str) -> Path:
@@ -59,7 +60,7 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
         setup = statistics.median(builds)
         label = path.stem
         entry = {"surfaces": len(scene.surfaces), "patches": geometry.patches.size, "setup_seconds": setup, "methods": {}}
-        order = sorted(methods, key=lambda m: m != "newton")
+        order = sorted(methods, key=lambda m: m != REFERENCE_METHOD)
         options = {m: RenderOptions.resolve(scene, method=m, width=size, height=size) for m in order}
         for method in order:
             render(scene, options[method], geometry=geometry)  # warm-up
@@ -71,7 +72,7 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
                 last[method] = render(scene, options[method], geometry=geometry)
                 runs[method].append((last[method].stats["seconds"], time.perf_counter() - clock))
         for method in order:
-            entry["methods"][method] = _row(method, runs[method], last[method], last.get("newton"), scene, geometry)
+            entry["methods"][method] = _row(method, runs[method], last[method], last.get(REFERENCE_METHOD), scene, geometry)
             med = entry["methods"][method]["seconds"]
             log(f"{label:12s} {method:9s} map+solve {med['map+solve']:7.3f} s  total {med['total']:7.3f} s")
         results["scenes"][label] = entry
@@ -100,7 +101,7 @@ def _row(method, runs, res, reference, scene, geometry) -> dict:
         "shadow_rays": res.stats.get("shadow_rays", 0),
         "reflection_rays": res.stats.get("reflection_rays", 0),
     }
-    if reference is not None and method != "newton":
+    if reference is not None and method != REFERENCE_METHOD:
         reference = reference.hits
         tol = 1e3 * scene.render.tolerance * geometry.patches.scene_diagonal()
         both = hits.hit & reference.hit
@@ -116,7 +117,7 @@ def format_tables(results: dict) -> str:
     """Table 1 (seconds) and Table 2 (percent of martin, or of newton without it)."""
     scenes = results["scenes"]
     methods = list(dict.fromkeys(m for e in scenes.values() for m in e["methods"]))
-    base = "martin" if "martin" in methods else "newton"
+    base = "martin" if "martin" in methods else REFERENCE_METHOD  # the paper's Table 2 is in percent of martin
     lines = [f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets)"]
     lines.append(f"{'scene':12s}" + "".join(f"{m:>20s}" for m in methods) + f"{'paper (grad/fast/martin)':>30s}")
     for name, e in scenes.items():

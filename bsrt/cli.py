@@ -22,7 +22,9 @@ from pathlib import Path
 from . import __version__
 from . import interrupts
 from .errors import InputError, OutputError, RenderError
-from .settings import MAP_MODES, METHODS
+from .io.formats import extensions_text, format_choices
+from .methods import MAP_METHODS, METHODS
+from .settings import add_flags, flag_values
 
 
 def _positive_int(text: str) -> int:
@@ -48,15 +50,12 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"bsrt {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    r = sub.add_parser("render", help="render a scene or a model file to a PNG image")
-    r.add_argument("scene", help="scene file (.toml) or model file (.bez .bpt .g2 .igs .iges .obj .nurbs)")
+    r = sub.add_parser("render", help="render a scene or a model file to a PNG image", epilog=METHODS_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    r.add_argument("scene", help=INPUT_HELP)
     r.add_argument("-o", "--output", required=True, help="output image (.png)")
-    r.add_argument("--width", type=_positive_int, help="film width in pixels (overrides [film])")
-    r.add_argument("--height", type=_positive_int, help="film height in pixels (overrides [film])")
+    add_flags(r, "render")
     _camera_options(r)
-    r.add_argument("--method", choices=METHODS, help="root finder (overrides [render].method)")
-    r.add_argument("--spp", type=_positive_int, help="samples per pixel (overrides [render].spp)")
-    r.add_argument("--map", choices=MAP_MODES, dest="map_mode", help="preliminary map precision")
     r.add_argument("--aov", metavar="FILE.npz", help="also write per-pixel arrays (hit, t, surface, u, v, ...)")
     r.add_argument("--stats", action="store_true", help="print timings and counters as JSON on stdout")
     r.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -64,22 +63,21 @@ def _parser() -> argparse.ArgumentParser:
                         "terminal, not in CI; --progress elsewhere writes plain lines)")
 
     m = sub.add_parser("map", help="write the preliminary map as a picture (paper's Figure 1)")
-    m.add_argument("scene", help="scene file (.toml) or model file")
+    m.add_argument("scene", help=INPUT_HELP)
     m.add_argument("-o", "--output", required=True, help="output image (.png)")
-    m.add_argument("--width", type=_positive_int)
-    m.add_argument("--height", type=_positive_int)
-    m.add_argument("--map", choices=MAP_MODES, dest="map_mode")
+    add_flags(m, "map")
     _camera_options(m)
 
     i = sub.add_parser("info", help="what a model or scene file holds")
-    i.add_argument("file", help="model file (.bez .bpt .g2 .igs .iges .obj .nurbs) or scene (.toml)")
-    i.add_argument("--format", default="auto", help="model format (default: by extension)")
+    i.add_argument("file", help=INPUT_HELP)
+    _format_option(i)
 
-    sub.add_parser("doctor", help="check the OpenGL set-up (EGL devices, renderer)")
+    sub.add_parser("doctor", help="check the set-up: OpenGL (EGL devices, renderer), kernels, model readers")
 
     b = sub.add_parser("bench", help="time the methods on the paper's scenes (Tables 1 and 2)")
     b.add_argument("--scenes", nargs="+", help="scene names under scenes/ or paths (default: column water-lily)")
-    b.add_argument("--methods", default="gradient,fast,newton", help="comma-separated (default: %(default)s)")
+    b.add_argument("--methods", default=",".join(MAP_METHODS), help="comma-separated, of "
+                   f"{', '.join(METHODS)} (default: %(default)s)")
     b.add_argument("--size", type=_positive_int, default=512, help="film width and height (default 512)")
     b.add_argument("--repeat", type=_positive_int, default=3, help="timed runs per method; the median is shown")
     b.add_argument("--json", metavar="FILE", help="also write the results as JSON")
@@ -98,6 +96,16 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+INPUT_HELP = f"scene file (.toml) or model file ({extensions_text()})"
+METHODS_HELP = "methods (--method):\n" + "\n".join(f"  {m.name:9} {m.help}" for m in METHODS.values())
+
+
+def _format_option(parser) -> None:
+    parser.add_argument("--format", default="auto", choices=format_choices(),
+                        help="model file format (default: auto, by extension; occt: STEP, BREP or IGES through "
+                             "OpenCASCADE)")
+
+
 def _cache_option(parser) -> None:
     parser.add_argument("--no-cache", dest="cache", action="store_false",
                         help="read model files without the converted-model cache (neither use nor write it)")
@@ -114,7 +122,7 @@ def _vector(text: str):
 
 
 def _camera_options(parser) -> None:
-    parser.add_argument("--format", default="auto", help="model file format (default: by extension)")
+    _format_option(parser)
     parser.add_argument("--camera-eye", type=_vector, metavar="X,Y,Z", help="camera position (overrides)")
     parser.add_argument("--camera-look-at", type=_vector, metavar="X,Y,Z", help="point the camera looks at")
     parser.add_argument("--camera-up", type=_vector, metavar="X,Y,Z", help="up direction (models default to +z)")
@@ -126,8 +134,9 @@ def _load_input(args, progress=None):
     progress: the render's progress, shown the "load" stage."""
     from .loading import CameraOverrides, load_input
 
-    scene = load_input(args.scene, args.format, width=args.width, height=args.height,
-                       camera=CameraOverrides.from_args(args), cache=args.cache, progress=progress)
+    scene = load_input(args.scene, args.format, width=getattr(args, "width", None),
+                       height=getattr(args, "height", None), camera=CameraOverrides.from_args(args),
+                       cache=args.cache, progress=progress)
     if progress:
         progress.clear()  # the warnings below get clean lines
     for note in scene.notes:
@@ -201,8 +210,7 @@ def _cmd_render(args) -> int:
             progress.clear()
         raise
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
-    options = RenderOptions.resolve(scene, method=args.method, map=args.map_mode, width=args.width,
-                                    height=args.height, spp=args.spp)
+    options = RenderOptions.resolve(scene, **flag_values(args, "render"))
     _say_if_compiling()
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
@@ -232,13 +240,15 @@ def _cmd_map(args) -> int:
     from .outputs import Outputs
     from .prelim import render_map
     from .pipeline import Geometry
+    from .settings import with_settings
 
     out = _check_output(args.output, ".png")
     scene = _load_input(args)
     _refuse_overwriting([out], scene)
-    width, height = args.width or scene.film.width, args.height or scene.film.height
+    scene = with_settings(scene, flag_values(args, "map"))
     with interrupts.at_safe_points(), Outputs() as outputs:  # as render: signals wait for a safe point
-        prelim = render_map(Geometry(scene).patches, scene.camera, width, height, args.map_mode or scene.render.map)
+        prelim = render_map(Geometry(scene).patches, scene.camera, scene.film.width, scene.film.height,
+                            scene.render.map)
         outputs.write(out, png_writer(prelim.picture))
         outputs.commit()
     return 0
@@ -299,6 +309,11 @@ def _cmd_doctor(args) -> int:
     seconds = kernels.warm_up()
     print(f"kernels:         {'loaded from the cache' if cached else 'compiled'} in {seconds:.1f} s "
           f"(cache: {kernels.cache_folder() or 'none'})")
+    from .io.formats import READERS
+
+    for reader in READERS.values():
+        state = "ready" if reader.available() else f"needs pip install 'bsrt[{reader.extra}]'"
+        print(f"reader {reader.name + ':':7} {' '.join(reader.extensions):38} {state}")
     print("OK: bsrt can render headless")
     return 0
 

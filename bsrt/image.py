@@ -9,7 +9,12 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
+from .errors import InputError
 from .outputs import write_file
+
+#: extension -> (Pillow's format name, its options): what RenderResult.save writes
+IMAGE_FORMATS = {".png": ("PNG", {}), ".jpg": ("JPEG", {"quality": 95}), ".jpeg": ("JPEG", {"quality": 95}),
+                 ".webp": ("WEBP", {"lossless": True})}
 
 
 def srgb_encode(linear: np.ndarray) -> np.ndarray:
@@ -32,6 +37,19 @@ def npz_writer(arrays: dict):
 def write_png(path, pixels: np.ndarray) -> None:
     """pixels: (H, W, 3) uint8 -> PNG at path, all or nothing."""
     write_file(path, png_writer(pixels))
+
+
+def write_image(path, pixels: np.ndarray) -> None:
+    """pixels: (H, W, 3) uint8 -> the format the extension of ``path`` names (IMAGE_FORMATS), all or
+    nothing; an InputError for any other extension."""
+    from pathlib import Path
+
+    ext = Path(path).suffix.lower()
+    if ext not in IMAGE_FORMATS:
+        raise InputError(f"{path}: cannot tell the image format from {ext or 'no extension'!r}; use one of "
+                         f"{', '.join(IMAGE_FORMATS)}")
+    name, options = IMAGE_FORMATS[ext]
+    write_file(path, lambda f: Image.fromarray(pixels, "RGB").save(f, format=name, **options))
 
 
 def write_text(path, text: str) -> None:

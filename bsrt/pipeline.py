@@ -65,20 +65,33 @@ class RenderResult:
     def normal(self) -> np.ndarray:
         return self._frames[1]
 
-    def save(self, path) -> None:
-        """Write the image as a PNG (atomically: a failure leaves no file)."""
-        from .image import write_png
+    def __repr__(self) -> str:
+        h, w = self.pixels.shape[:2]
+        hit = int(np.count_nonzero(self.hits.hit))
+        took = f", {sum(self.stats.get('seconds', {}).values()):.2f} s"
+        return (f"<RenderResult {w}x{h}, {self.options.spp} spp, {self.options.method}, {hit} of {w * h} pixel rays "
+                f"hit{took}>")
 
-        write_png(path, self.pixels)
+    def to_pil(self):
+        """The image as a ``PIL.Image.Image`` (RGB, 8-bit sRGB)."""
+        from PIL import Image
+
+        return Image.fromarray(self.pixels, "RGB")
+
+    def save(self, path) -> None:
+        """Write the image in the format its extension names (``.png``, ``.jpg``/``.jpeg``,
+        ``.webp``: bsrt.image.IMAGE_FORMATS), atomically: a failure leaves no file. Another
+        extension is an InputError, before anything is written."""
+        from .image import write_image
+
+        write_image(path, self.pixels)
 
     def png_bytes(self) -> bytes:
         """The image encoded as PNG."""
         import io
 
-        from PIL import Image
-
         buffer = io.BytesIO()
-        Image.fromarray(self.pixels, "RGB").save(buffer, format="PNG")
+        self.to_pil().save(buffer, format="PNG")
         return buffer.getvalue()
 
     def _repr_png_(self) -> bytes:  # Jupyter shows the image
@@ -234,7 +247,7 @@ class _Shader:
         """Linear RGB (K, 3) seen along each ray (ending at ``hits``)."""
         position, normal, speed = facing_frames(self.geometry.patches, hits, directions)
         colour = np.empty((len(hits), 3))
-        colour[:] = self.scene.film.background
+        colour[:] = self.options.background
         hit = np.flatnonzero(hits.hit)
         if not hit.size:
             return colour

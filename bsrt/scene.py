@@ -22,28 +22,10 @@ import numpy as np
 from . import validate
 from .bspline import BSplineSurface, make_surface
 from .camera import Camera
-from .errors import InputError
+from .errors import InputError, MissingFileError
 from .files import check_input_file
-from .settings import MAP_MODES, METHODS
+from .settings import SETTINGS, Film, RenderSettings
 from .trim import TrimLoop, make_trim_curve
-
-
-
-@dataclass(frozen=True)
-class Film:
-    width: int = 512
-    height: int = 512
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)  # linear RGB
-
-
-@dataclass(frozen=True)
-class RenderSettings:
-    method: str = "newton"
-    map: str = "float"
-    tolerance: float = 1e-9  # fraction of the scene's bounding-box diagonal
-    max_iterations: int = 64
-    spp: int = 1
-    max_depth: int = 3  # mirror-reflection bounces
 
 
 @dataclass(frozen=True)
@@ -195,7 +177,7 @@ def load_scene(path: str | Path, *, cache: bool = True, progress=None) -> Scene:
     try:
         text = path.read_bytes().decode("utf-8-sig")  # a byte-order mark is accepted, as in model files
     except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
+        raise MissingFileError(path) from None
     except IsADirectoryError:
         raise InputError(f"{path}: is a directory, not a scene file") from None
     except UnicodeDecodeError:
@@ -230,13 +212,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         if key not in known:
             raise InputError(f"{where}: {key}: unknown table (expected one of {', '.join(sorted(known))})")
 
-    film_t = _Table(where, data.get("film", {}), "film")
-    film = Film(
-        width=film_t.integer("width", 512, lo=1, hi=validate.MAX_FILM_SIDE),
-        height=film_t.integer("height", 512, lo=1, hi=validate.MAX_FILM_SIDE),
-        background=film_t.vector("background", (0.0, 0.0, 0.0), lo=0.0),
-    )
-    film_t.finish()
+    film = Film(**_settings_table(where, data, "film"))
 
     if "camera" not in data:
         raise InputError(f"{where}: camera: missing table [camera]")
@@ -260,16 +236,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
 
         keyframes = parse_keyframes(keyframes, where, camera)
 
-    ren_t = _Table(where, data.get("render", {}), "render")
-    render = RenderSettings(
-        method=ren_t.string("method", "newton", choices=METHODS),
-        map=ren_t.string("map", "float", choices=MAP_MODES),
-        tolerance=ren_t.number("tolerance", 1e-9, lo=0.0, lo_open=True, hi=1.0),
-        max_iterations=ren_t.integer("max_iterations", 64, lo=1, hi=validate.MAX_ITERATIONS),
-        spp=ren_t.integer("spp", 1, lo=1, hi=validate.MAX_SPP),
-        max_depth=ren_t.integer("max_depth", 3, lo=0, hi=validate.MAX_DEPTH),
-    )
-    ren_t.finish()
+    render = RenderSettings(**_settings_table(where, data, "render"))
 
     materials, by_name = [], {}
     for i, raw in enumerate(_array_of_tables(where, data, "material")):
@@ -343,6 +310,18 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
                  tuple(inputs), tuple(keyframes), tuple(loads))
 
 
+def _settings_table(where: str, data: dict, table: str) -> dict:
+    """The values of the settings that ``table`` ("film" or "render") holds (bsrt.settings.SETTINGS),
+    each checked by its setting; absent keys take the setting's default."""
+    t = _Table(where, data.get(table, {}), table)
+    values = {}
+    for s in SETTINGS:
+        if s.table == table:
+            values[s.name] = s.check(t.raw(s.name), f"{where}: {s.key}") if t.has(s.name) else s.default
+    t.finish()
+    return values
+
+
 def _surface_arrays(t: _Table) -> tuple:
     """(degree, knots_u, knots_v, points, weights) of a [[surface]], each checked for type
     (whole numbers for the degrees, numbers elsewhere: no booleans, no strings) and finiteness."""
@@ -396,17 +375,18 @@ def _trimmed(t: _Table, geometry):
 
 
 def _load_import(t: _Table, folder: Path | None, cache: bool = True, progress=None):
-    from .io import FORMATS, load_model
+    from .io import load_model
+    from .io.formats import format_choices
 
     file = t.string("file", required=True)
-    fmt = t.string("format", "auto", choices=("auto", "occt") + tuple(sorted(set(FORMATS.values()))))
+    fmt = t.string("format", "auto", choices=format_choices())
     path = Path(file) if folder is None or Path(file).is_absolute() else folder / file
     try:
         found = path.exists()
     except (OSError, ValueError) as exc:  # a name over 255 bytes, a NUL character
         t.fail("file", f"cannot open {_show(str(path))}: {getattr(exc, 'strerror', None) or exc}")
     if not found:
-        t.fail("file", f"no such file: {path}")
+        raise MissingFileError(path, f"{t.where}: {t.name}.file: no such file: {path}")
     try:
         check_input_file(path, "model file")
     except InputError as exc:
@@ -587,7 +567,7 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     surfaces = tuple(SceneSurface(g, 0 if c is None else c, n) for g, n, c in zip(model.surfaces, model.names, colored))
     notes = tuple(f"{model.path}: {w}" for w in model.warnings) + tuple(_skipped_notes(model))
     return Scene(
-        Film(width, height, (0.03, 0.03, 0.04)),
+        Film(width, height),
         Camera(eye, look, up, fov, "y"),
         RenderSettings(),
         tuple(materials),

@@ -1,104 +1,295 @@
-"""Render settings, resolved once at the edge.
+"""The render settings: one declaration each, everything else derived from it.
 
-The one list of methods and map modes lives here. ``RenderOptions`` is built
-by the CLI, the preview window and the Python API (scene values, then the
-caller's overrides, every override validated) and passed to ``render()``;
-nothing downstream re-reads the scene's [render] table or re-checks a name.
+:data:`SETTINGS` is the registry. Each :class:`Setting` says its name (the
+Python keyword and the :class:`RenderOptions` field), the scene table that
+holds it (``[film]`` or ``[render]``), its type, default, bounds, unit and
+help. From it come: the scene format's ``[film]`` / ``[render]`` parsing
+(:mod:`bsrt.scene`), the dataclasses :class:`Film` and
+:class:`RenderSettings`, the command line's flags (``--spp`` ...,
+:func:`add_flags`), the Python API's keyword checks (:func:`checked_overrides`),
+batches and the preview, and the settings table of the docs
+(:func:`markdown_table`). Adding a setting is one entry here plus the code
+that uses it.
+
+``RenderOptions`` is resolved once at the edge (scene values, then the
+caller's overrides, every value checked) and passed to ``render()``;
+nothing downstream re-reads the scene's tables or re-checks a name.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, make_dataclass, replace
+from typing import Any
 
 from . import validate
 from .camera import Camera
 from .errors import InputError
+from .methods import DEFAULT_METHOD, METHODS, MAP_METHODS
 
-MAP_METHODS = ("gradient", "fast", "newton")  # seeded by the preliminary map
-METHODS = MAP_METHODS + ("martin",)  # "martin": the hierarchy for every ray, no map
 MAP_MODES = ("float", "rgba8")
 
 
 @dataclass(frozen=True)
-class RenderOptions:
-    """Everything a render needs besides the scene's geometry, lights and materials.
+class Setting:
+    """One render setting.
 
-    method: one of METHODS. map: one of MAP_MODES. tolerance: largest
-    ray-surface distance of a hit as a fraction of the scene diagonal.
-    max_iterations: per pixel and start. spp: samples per pixel.
-    max_depth: mirror bounces. width, height: film size in pixels.
-    camera: the camera to render from.
+    name: the Python keyword, the RenderOptions field and the key in its
+    table. table: "film" or "render". kind: "int", "float", "choice" or
+    "color" (three numbers >= 0, linear RGB). lo, hi: bounds (lo_open: lo
+    itself excluded). choices: for "choice". unit: shown in help and docs.
+    commands: the CLI commands that take it as a flag ("render" also means
+    batch and animate; "map"; "preview").
     """
 
-    method: str
-    map: str
-    tolerance: float
-    max_iterations: int
-    spp: int
-    max_depth: int
-    width: int
-    height: int
-    camera: Camera
+    name: str
+    table: str
+    kind: str
+    default: Any
+    help: str
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    choices: tuple[str, ...] = ()
+    unit: str = ""
+    commands: tuple[str, ...] = ("render", "preview")
 
     @property
-    def uses_map(self) -> bool:
-        return self.method in MAP_METHODS
+    def key(self) -> str:
+        """The scene file's key: ``render.spp``."""
+        return f"{self.table}.{self.name}"
 
-    @classmethod
-    def resolve(cls, scene, **overrides) -> "RenderOptions":
-        """The scene's settings with ``overrides`` (None values are ignored) applied.
+    @property
+    def flag(self) -> str:
+        """The command line's flag: ``--max-iterations``."""
+        return "--" + self.name.replace("_", "-")
 
-        Keys: the field names (``map_mode`` is accepted for ``map``). An
-        explicit width, height or spp of 0 is an error, not "the default".
-        """
-        if "map_mode" in overrides:
-            overrides["map"] = overrides.pop("map_mode")
-        r = scene.render
-        base = cls(method=r.method, map=r.map, tolerance=r.tolerance, max_iterations=r.max_iterations, spp=r.spp,
-                   max_depth=r.max_depth, width=scene.film.width, height=scene.film.height, camera=scene.camera)
-        unknown = set(overrides) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise TypeError(f"unknown render option {sorted(unknown)[0]!r}")
-        options = replace(base, **{k: v for k, v in overrides.items() if v is not None}).checked()
-        return options.check_tolerance(scene)
+    @property
+    def python_type(self) -> type:
+        return {"int": int, "float": float, "choice": str, "color": tuple}[self.kind]
 
-    def checked(self) -> "RenderOptions":
-        """Every value's type and range (the README's Limits), the camera's frame and the film's memory."""
-        if self.method not in METHODS:
-            raise InputError(f"method: expected one of {', '.join(METHODS)}, got {self.method!r}")
-        if self.map not in MAP_MODES:
-            raise InputError(f"map: expected one of {', '.join(MAP_MODES)}, got {self.map!r}")
-        validate.whole("width", self.width, 1, validate.MAX_FILM_SIDE)
-        validate.whole("height", self.height, 1, validate.MAX_FILM_SIDE)
-        validate.whole("spp", self.spp, 1, validate.MAX_SPP)
-        validate.whole("max_iterations", self.max_iterations, 1, validate.MAX_ITERATIONS)
-        validate.whole("max_depth", self.max_depth, 0, validate.MAX_DEPTH)
-        validate.real("tolerance", self.tolerance, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
-        validate.camera(self.camera)
-        validate.film(self.width, self.height)
-        validate.environment()
-        return self
+    def check(self, value, label: str | None = None):
+        """``value`` checked and normalised (int, float, str or a 3-tuple of floats);
+        else an InputError ``<label>: <what is wrong>`` (label: the name by default)."""
+        label = self.name if label is None else label
+        if self.kind == "int":
+            return validate.whole(label, value, int(self.lo), int(self.hi))
+        if self.kind == "float":
+            low = f"{'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}]"
+            return validate.real(label, value, self.lo, self.hi, lo_open=self.lo_open, expected=f"a number in {low}")
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise InputError(f"{label}: expected one of {', '.join(self.choices)}, got {validate.show(value)}")
+            return value
+        if (isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 3
+                or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)):
+            raise InputError(f"{label}: expected three numbers (linear RGB), got {validate.show(value)}")
+        if not all(math.isfinite(x) and x >= 0 for x in value):
+            raise InputError(f"{label}: expected three finite numbers >= 0 (linear RGB), got {validate.show(value)}")
+        return tuple(float(x) for x in value)
 
-    def check_tolerance(self, scene) -> "RenderOptions":
-        """A tolerance float64 can resolve at the scene's size, seen from the camera (never silently
-        degraded): else an InputError naming the key and the smallest usable value."""
-        smallest = validate.smallest_tolerance([s.geometry for s in scene.surfaces], self.camera.eye)
-        if smallest > 1.0:
-            raise InputError(f"{scene.path}: camera.eye: float64 cannot resolve this scene from so far away (or so far "
-                             f"from the origin): even tolerance = 1 is below what it resolves; bring the eye and "
-                             f"the scene nearer each other and the origin")
-        if self.tolerance < smallest:
-            raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves "
-                             f"at this scene's size and distance; the smallest usable value is {smallest:.2g}")
-        geometry = [s.geometry for s in scene.surfaces]
-        worst = validate.smallest_tolerance_of_high_degrees(geometry, [s.name for s in scene.surfaces],
-                                                           validate.diagonal(geometry))
-        if worst is not None and worst[0] > 1.0:
-            raise InputError(f"{scene.path}: surface {worst[1]!r} of degree {worst[2]}: bsrt's power-basis evaluation "
-                             f"is off by {worst[0] / 4:.2g} of the scene's size at this degree, so it cannot be "
-                             f"rendered (see the README's Limits)")
-        if worst is not None and self.tolerance < worst[0]:
-            raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves on "
-                             f"surface {worst[1]!r} of degree {worst[2]} (its power-basis evaluation is off by "
-                             f"{worst[0] / 4:.2g} of the scene's size); the smallest usable value is {worst[0]:.2g}")
-        return self
+    def describe(self) -> str:
+        """The help line: text, range or choices, default."""
+        if self.kind == "choice":
+            span = "one of " + ", ".join(self.choices)
+        elif self.kind == "color":
+            span = "R,G,B >= 0"
+        else:
+            span = f"{'>' if self.lo_open else '>='} {self.lo:g}, <= {self.hi:g}"
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.help} ({span}; default {_shown(self.default)}{unit}; scene key {self.key})"
+
+
+def _shown(value) -> str:
+    return ",".join(f"{x:g}" for x in value) if isinstance(value, tuple) else f"{value:g}" if isinstance(
+        value, float) else str(value)
+
+
+SETTINGS: tuple[Setting, ...] = (
+    Setting("width", "film", "int", 512, "film width", 1, validate.MAX_FILM_SIDE, unit="pixels",
+            commands=("render", "map")),
+    Setting("height", "film", "int", 512, "film height", 1, validate.MAX_FILM_SIDE, unit="pixels",
+            commands=("render", "map")),
+    Setting("background", "film", "color", (0.03, 0.03, 0.04), "colour where no surface is hit, linear RGB"),
+    Setting("method", "render", "choice", DEFAULT_METHOD, "root finder (the methods are listed at the end of `bsrt render --help`)",
+            choices=tuple(METHODS)),
+    Setting("map", "render", "choice", "float", "precision of the preliminary map", choices=MAP_MODES,
+            commands=("render", "map", "preview")),
+    Setting("tolerance", "render", "float", 1e-9, "largest ray-surface distance of a hit", 0.0, 1.0, lo_open=True,
+            unit="of the scene's diagonal"),
+    Setting("max_iterations", "render", "int", 64, "root-finder steps per pixel and start", 1,
+            validate.MAX_ITERATIONS),
+    Setting("spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP),
+    Setting("max_depth", "render", "int", 3, "mirror-reflection bounces", 0, validate.MAX_DEPTH),
+)
+BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
+
+
+def _table_class(name: str, table: str, doc: str) -> type:
+    """A frozen dataclass with one field per setting of ``table``, in registry order, with its default."""
+    cls = make_dataclass(name, [(s.name, s.python_type, field(default=s.default)) for s in SETTINGS
+                                if s.table == table], frozen=True)
+    cls.__module__ = __name__  # make_dataclass's own module otherwise: pickling (batches) needs the real one
+    cls.__doc__ = doc + "\n\n" + "\n".join(f"{s.name}: {s.describe()}" for s in SETTINGS if s.table == table)
+    return cls
+
+
+Film = _table_class("Film", "film", "The scene's ``[film]``: the picture's size and background.")
+RenderSettings = _table_class("RenderSettings", "render", "The scene's ``[render]``: how rays are traced.")
+
+
+def checked_overrides(values: Mapping[str, Any], label: Callable[[Setting], str] | None = None) -> dict:
+    """The given (not None) settings, checked: name -> value. Unknown names are a TypeError
+    (a programming error). label: how a message names the setting (default: its name)."""
+    out = {}
+    for name, value in values.items():
+        if name not in BY_NAME:
+            raise TypeError(f"unknown render setting {name!r} (known: {', '.join(BY_NAME)})")
+        if value is not None:
+            setting = BY_NAME[name]
+            out[name] = setting.check(value, None if label is None else label(setting))
+    return out
+
+
+def with_settings(scene, values: Mapping[str, Any]):
+    """The scene with checked settings (name -> value) written into its [film] and [render]."""
+    film = {k: v for k, v in values.items() if BY_NAME[k].table == "film"}
+    render = {k: v for k, v in values.items() if BY_NAME[k].table == "render"}
+    return replace(scene, film=replace(scene.film, **film), render=replace(scene.render, **render))
+
+
+# ---------------------------------------------------------------------------
+# The command line's flags, derived
+
+
+def add_flags(parser, command: str) -> None:
+    """Add a flag for each setting that ``command`` ("render", "map" or "preview") takes;
+    each value is checked by the setting itself (argparse's one-line error on a bad one)."""
+    for s in SETTINGS:
+        if command in s.commands:
+            kwargs: dict[str, Any] = {"dest": s.name, "help": s.describe()}
+            if s.kind == "choice":
+                kwargs["choices"] = s.choices
+            else:
+                kwargs["type"] = _parse_flag(s)
+                kwargs["metavar"] = "R,G,B" if s.kind == "color" else s.name.upper()
+            parser.add_argument(s.flag, **kwargs)
+
+
+def _parse_flag(setting: Setting):
+    import argparse
+
+    def parse(text: str):
+        try:
+            if setting.kind == "color":
+                value = [float(x) for x in text.replace(",", " ").split()]
+            else:
+                value = int(text) if setting.kind == "int" else float(text)
+        except ValueError:
+            what = "a whole number" if setting.kind == "int" else "three numbers like 1,1,1" \
+                if setting.kind == "color" else "a number"
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        try:
+            return setting.check(value, "")
+        except InputError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix(": ")) from None
+
+    parse.__name__ = setting.name  # argparse's "invalid <name> value" fallback
+    return parse
+
+
+def flag_values(args, command: str) -> dict:
+    """The settings given on the command line (argparse namespace): name -> value."""
+    return {s.name: getattr(args, s.name) for s in SETTINGS
+            if command in s.commands and getattr(args, s.name, None) is not None}
+
+
+# ---------------------------------------------------------------------------
+# The docs' table, derived
+
+
+def markdown_table() -> str:
+    """The settings as a Markdown table (docs/scene-format.md carries it; a test keeps it current)."""
+    rows = ["| scene key | Python keyword | flag | type | default | range | meaning |", "|---|---|---|---|---|---|---|"]
+    for s in SETTINGS:
+        if s.kind == "choice":
+            span = ", ".join(f"`{c}`" for c in s.choices)
+        elif s.kind == "color":
+            span = "3 numbers >= 0"
+        else:
+            span = f"{'(' if s.lo_open else '['}{s.lo:g}, {s.hi:g}]"
+        flag = f"`{s.flag}`" if "render" in s.commands else f"`{s.flag}` (map, preview)"
+        unit = f" ({s.unit})" if s.unit else ""
+        rows.append(f"| `{s.key}` | `{s.name}` | {flag} | {s.kind} | `{_shown(s.default)}` | {span} | {s.help}{unit} |")
+    return "\n".join(rows)
+
+
+# ---------------------------------------------------------------------------
+# What one render uses
+
+
+def _options_class() -> type:
+    cls = make_dataclass("RenderOptions", [(s.name, s.python_type) for s in SETTINGS] + [("camera", Camera)],
+                         frozen=True, namespace=dict(_OPTIONS_METHODS))
+    cls.__module__ = __name__
+    cls.__doc__ = ("Everything a render needs besides the scene's geometry, lights and materials: one field per "
+                   "setting of SETTINGS, and camera (the camera to render from).\n\n"
+                   + "\n".join(f"{s.name}: {s.describe()}" for s in SETTINGS))
+    return cls
+
+
+def _uses_map(self) -> bool:
+    """Whether the method is seeded by the preliminary map (every method but "martin")."""
+    return self.method in MAP_METHODS
+
+
+def _resolve(cls, scene, **overrides):
+    """The scene's settings with ``overrides`` (None values are ignored) applied, every value checked.
+
+    Keys: the settings' names, and camera. An explicit width, height or spp of 0 is an error,
+    not "the default"."""
+    base = {s.name: getattr(getattr(scene, s.table), s.name) for s in SETTINGS}
+    camera = overrides.pop("camera", None) or scene.camera
+    values = {**base, **checked_overrides(overrides)}
+    return cls(**values, camera=camera).checked().check_tolerance(scene)
+
+
+def _checked(self):
+    """Every value's type and range (the docs' Limits), the camera's frame and the film's memory."""
+    for s in SETTINGS:
+        s.check(getattr(self, s.name))
+    validate.camera(self.camera)
+    validate.film(self.width, self.height)
+    validate.environment()
+    return self
+
+
+def _check_tolerance(self, scene):
+    """A tolerance float64 can resolve at the scene's size, seen from the camera (never silently
+    degraded): else an InputError naming the key and the smallest usable value."""
+    smallest = validate.smallest_tolerance([s.geometry for s in scene.surfaces], self.camera.eye)
+    if smallest > 1.0:
+        raise InputError(f"{scene.path}: camera.eye: float64 cannot resolve this scene from so far away (or so far "
+                         f"from the origin): even tolerance = 1 is below what it resolves; bring the eye and "
+                         f"the scene nearer each other and the origin")
+    if self.tolerance < smallest:
+        raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves "
+                         f"at this scene's size and distance; the smallest usable value is {smallest:.2g}")
+    geometry = [s.geometry for s in scene.surfaces]
+    worst = validate.smallest_tolerance_of_high_degrees(geometry, [s.name for s in scene.surfaces],
+                                                       validate.diagonal(geometry))
+    if worst is not None and worst[0] > 1.0:
+        raise InputError(f"{scene.path}: surface {worst[1]!r} of degree {worst[2]}: bsrt's power-basis evaluation "
+                         f"is off by {worst[0] / 4:.2g} of the scene's size at this degree, so it cannot be "
+                         f"rendered (see the docs' Limits)")
+    if worst is not None and self.tolerance < worst[0]:
+        raise InputError(f"{scene.path}: render.tolerance: {self.tolerance:g} is below what float64 resolves on "
+                         f"surface {worst[1]!r} of degree {worst[2]} (its power-basis evaluation is off by "
+                         f"{worst[0] / 4:.2g} of the scene's size); the smallest usable value is {worst[0]:.2g}")
+    return self
+
+
+_OPTIONS_METHODS = {"uses_map": property(_uses_map), "resolve": classmethod(_resolve), "checked": _checked,
+                    "check_tolerance": _check_tolerance}
+RenderOptions = _options_class()

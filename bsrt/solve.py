@@ -13,12 +13,11 @@ import numpy as np
 
 from .hits import Hits
 from .kernels.prelim import normalise_rows
-from .kernels.roots import METHOD_IDS, solve_items
+from .kernels.roots import solve_items
 from .kernels.threads import run_chunks
 from .kernels.trim import kept_many
+from .methods import METHODS, REFERENCE_METHOD
 from .patches import PatchSet
-
-METHODS = tuple(METHOD_IDS)  # the map-seeded ones; settings.METHODS adds "martin"
 
 
 @dataclass
@@ -83,7 +82,7 @@ def find_roots(
     surface: np.ndarray,
     u: np.ndarray,
     v: np.ndarray,
-    method: str = "newton",
+    method: str = REFERENCE_METHOD,
     tolerance: float = 1e-9,
     max_iterations: int = 64,
     stop_on_growth: bool = False,
@@ -96,8 +95,9 @@ def find_roots(
     converged. stop_on_growth: give up on an item as soon as a Newton step
     increases the residual (Martin et al.'s rule, for starts that may be far).
     """
-    if method not in METHOD_IDS:
-        raise ValueError(f"unknown method {method!r}")
+    kernel_id = METHODS[method].kernel_id if method in METHODS else None
+    if kernel_id is None:
+        raise ValueError(f"not a seeded method: {method!r}")
     m = np.shape(ray)[0]
     out = RootResult(
         converged=np.zeros(m, dtype=bool), trimmed=np.zeros(m, dtype=bool), u=np.empty(m), v=np.empty(m),
@@ -108,7 +108,7 @@ def find_roots(
     run_chunks(
         solve_items, m, patches.arrays, rays.origin, rays.direction, np.ascontiguousarray(ray, dtype=np.int64),
         np.ascontiguousarray(surface, dtype=np.int64), np.ascontiguousarray(u, dtype=np.float64),
-        np.ascontiguousarray(v, dtype=np.float64), METHOD_IDS[method], float(tolerance), int(max_iterations),
+        np.ascontiguousarray(v, dtype=np.float64), kernel_id, float(tolerance), int(max_iterations),
         bool(stop_on_growth), out.converged, out.u, out.v, out.patch, out.t, out.residual, out.iterations,
     )
     if patches.trimmed:

@@ -166,7 +166,7 @@ def test_files_travel_with_the_task_to_a_scheduler(tmp_path, cluster):
     # The packed job alone renders: the original folder is gone while the worker's copy is used.
     moved = tmp_path / "moved"
     project.rename(moved)
-    job = batching.Job("cup.toml", "cup", files, root, {"width": 32, "height": 32})
+    job = batching.Job("cup.toml", "cup", files, root, {"settings": {"width": 32, "height": 32}})
     result = batching.render_job(job)
     assert result["status"] == "ok", result["message"]
     moved.rename(project)

@@ -6,7 +6,8 @@
 for any malformed input, with one sentence of the form
 ``FILE:LINE: what is wrong``.
 
-Supported formats (extension -> name): see :data:`FORMATS`. STEP and BREP
+The formats are declared once, in :data:`bsrt.io.formats.READERS`
+(:data:`FORMATS`: extension -> the format read by default). STEP and BREP
 (and IGES with format "occt") are read through OpenCASCADE, the optional
 extra ``bsrt[cad]`` (:mod:`bsrt.io.occt`); without it they give one message.
 The slow formats go through the converted-model cache (:mod:`bsrt.io.cache`):
@@ -32,42 +33,22 @@ from ..bspline import BSplineSurface, make_surface, restrict  # noqa: F401  (res
 from .. import validate
 from ..errors import InputError
 from ..files import check_input_file
+from .formats import BY_EXTENSION as FORMATS
+from .formats import READERS
 from .model import LoadRecord, Model
 
-__all__ = ["FORMATS", "LoadRecord", "Model", "load_model"]
-
-
-
-
-#: extension (lower case, with dot) -> format name
-FORMATS: dict[str, str] = {
-    ".bez": "bez",
-    ".bpt": "bpt",
-    ".g2": "g2",
-    ".igs": "iges",
-    ".iges": "iges",
-    ".obj": "obj",
-    ".nurbs": "nurbs",
-    ".step": "step",
-    ".stp": "step",
-    ".p21": "step",
-    ".brep": "brep",
-    ".brp": "brep",
-}
-
-#: formats read through OpenCASCADE (bsrt.io.occt); "occt" picks the reader by extension, IGES included
-OCCT_FORMATS = ("step", "brep", "occt")
+__all__ = ["FORMATS", "READERS", "LoadRecord", "Model", "load_model"]
 
 
 def load_model(path, format: str = "auto", *, cache: bool = True,
                progress: Callable[[int, int], None] | None = None) -> Model:
     """Read a model file.
 
-    format: "auto" (by extension, case-insensitive) or one of the names in
-    :data:`FORMATS` ("bez", "bpt", "brep", "g2", "iges", "obj", "nurbs",
-    "step"), or "occt" (STEP, BREP or IGES through OpenCASCADE, by extension).
+    format: "auto" (by extension, case-insensitive) or a format name of
+    :data:`bsrt.io.formats.READERS` (e.g. "occt": STEP, BREP or IGES through
+    OpenCASCADE, by extension).
     cache: use the converted-model cache (:mod:`bsrt.io.cache`) for the
-    formats it holds (STEP, BREP, IGES); False reads the file and writes
+    formats it holds (``Reader.cached``); False reads the file and writes
     nothing. progress: called as ``progress(done, total)`` while the
     OpenCASCADE reader converts faces (not on a cached load, nor by the
     other readers). ``Model.load`` tells how long it took and whether the
@@ -85,7 +66,7 @@ def load_model(path, format: str = "auto", *, cache: bool = True,
 
     from . import cache as model_cache
 
-    if cache and format in model_cache.CACHED_FORMATS:
+    if cache and READERS[format].cached:
         _check_reader(path, format)  # a missing extra or a FIFO: the same message as without the cache
         model, cached = model_cache.load(path, format, lambda: _read(path, format, count))
     else:
@@ -97,24 +78,23 @@ def load_model(path, format: str = "auto", *, cache: bool = True,
 def _resolve_format(path: str, format: str) -> str:
     """The format name for ``format`` ("auto": by the extension); InputError for an unknown one."""
     format = format.lower()
-    names = sorted(set(FORMATS.values()) | set(OCCT_FORMATS))
     if format == "auto":
         ext = os.path.splitext(path)[1].lower()
         if ext in FORMATS:
             return FORMATS[ext]
-        exts = ", ".join(FORMATS)
+        exts = ", ".join(sorted(FORMATS))
         raise InputError(
             f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}"
         )
-    if format not in names:
-        raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(names)}")
+    if format not in READERS:
+        raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(sorted(READERS))}")
     return format
 
 
 def _check_reader(path: str, format: str) -> None:
     """InputError if the reader cannot run (the OpenCASCADE extra missing) or the path is not a
     regular file: checked before the cache is asked, so its answer never hides them."""
-    if format in OCCT_FORMATS:
+    if READERS[format].module == "occt":
         from . import occt
 
         kind = occt.kind_of(path, format)  # format "occt" with another extension: its own message first
@@ -125,13 +105,14 @@ def _check_reader(path: str, format: str) -> None:
 
 def _read(path: str, format: str, progress) -> Model:
     """The model, read by its reader (no cache); the new model's ``load`` is None."""
-    if format in OCCT_FORMATS:
+    module = READERS[format].module
+    if module == "occt":
         from . import occt
 
         if not occt.available():
             raise InputError(occt.needs_message(path, occt.kind_of(path, format)))
         return checked(occt.read(path, format, progress=progress))
-    reader = importlib.import_module(f".{format}", __name__)
+    reader = importlib.import_module(f".{module}", __name__)
     return checked(reader.read(_regular(path)))
 
 

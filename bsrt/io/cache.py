@@ -5,8 +5,9 @@ own reader) takes seconds to minutes; the result, a :class:`bsrt.io.Model`,
 unpickles in milliseconds. :func:`load` wraps a reader call with the cache;
 ``bsrt.io.load_model(path, format, cache=True)`` is its one caller.
 
-- **Which formats**: :data:`CACHED_FORMATS` (OpenCASCADE's STEP, BREP and
-  IGES, and bsrt's own IGES reader). The small text formats (bez, bpt, g2,
+- **Which formats**: those whose reader says ``cached``
+  (:data:`bsrt.io.formats.READERS`: OpenCASCADE's STEP, BREP and IGES, and
+  bsrt's own IGES reader). The small text formats (bez, bpt, g2,
   nurbs, obj) read in about 10 ms, no faster from a cache, and skip it.
 - **Key**: SHA-256 of the file's bytes, the file's name (surface names
   start with it), the format name, bsrt's version,
@@ -56,7 +57,6 @@ import time
 from pathlib import Path
 
 #: formats whose loads are cached (format names of bsrt.io.load_model, after "auto" is resolved)
-CACHED_FORMATS = frozenset({"step", "brep", "occt", "iges"})
 OCCT_KINDS = frozenset({"step", "brep", "occt"})
 
 FORMAT_VERSION = 1  # of the entry files; part of the key, so a new layout never opens an old file

@@ -10,7 +10,7 @@ and w = Qx^2 + Qy^2 is the squared distance between the ray and S(u, v),
 which the tolerance bounds; t = d . (S - o). The rotation is applied to the
 evaluated point, not to the control net: two dot products per evaluation.
 
-Methods (``METHOD_IDS``):
+Methods (ids GRADIENT, FAST, NEWTON; their names are declared in bsrt/methods.py):
 
 - newton: Newton on (Qx, Qy) with a Levenberg-Marquardt term of 1e-12 of the
   Jacobian's scale (finite steps where J is singular). ``stop_on_growth``
@@ -52,10 +52,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .method_ids import FAST, GRADIENT, NEWTON
 from .patches import clamp, frame, inside_patch, locate, point
 
-METHOD_IDS = {"gradient": 0, "fast": 1, "newton": 2}
-GRADIENT, FAST, NEWTON = 0, 1, 2
 MAX_HALVINGS = 60
 STALL_STEPS = 32  # evaluations without halving w: stagnation
 

@@ -38,7 +38,8 @@ from numba import njit
 
 from .flatten import copy_net, leaf_net, split_half
 from .patches import frame
-from .roots import NEWTON, ray_frame, solve_one
+from .method_ids import NEWTON
+from .roots import ray_frame, solve_one
 from .trim import point_kept
 
 GRAZING_COSINE = 0.3

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..camera import Camera, camera_toml, orbit, pan, zoom
 from ..errors import InputError, RenderError
-from ..settings import MAP_MODES, METHODS
+from ..settings import add_flags, flag_values, with_settings
 from . import script
 from .bindings import BINDINGS, KEYS_HELP, ORBIT_DEGREES_PER_PIXEL
 from .refine import MAP_BAND_PIXELS, Refinement
@@ -42,8 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", help="scene file (.toml) or model file (.bez .bpt .g2 .igs .iges .obj .nurbs .step)")
     parser.add_argument("--width", type=int, default=800, help="window width in screen coordinates (default 800)")
     parser.add_argument("--height", type=int, default=600, help="window height (default 600)")
-    parser.add_argument("--method", choices=METHODS, help="root finder to start with (overrides [render].method)")
-    parser.add_argument("--map", choices=MAP_MODES, dest="map_mode", help="preliminary map precision")
+    add_flags(parser, "preview")
     _camera_options(parser)
     parser.add_argument("--frames", type=int, help="quit after N frames")
     parser.add_argument("--screenshot", metavar="OUT.png", help="with --frames: write the last frame")
@@ -100,8 +99,8 @@ class Preview:
         from ..pipeline import Geometry
 
         self.scene, self.scene_path, self.args = scene, scene_path, args
-        self.map_mode = args.map_mode or scene.render.map
-        self.method = args.method or scene.render.method
+        self.map_mode = scene.render.map
+        self.method = scene.render.method
         self.geometry = Geometry(scene)
         self.home = self.camera = scene.camera
         self.commands = collections.deque(commands)
@@ -446,6 +445,7 @@ def main(args) -> int:
     commands = _check_args(args)
     scene = load_input(args.scene, getattr(args, "format", "auto"), width=args.width, height=args.height,
                        camera=CameraOverrides.from_args(args), cache=getattr(args, "cache", True))
+    scene = with_settings(scene, flag_values(args, "preview"))
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
     preview = Preview(scene, Path(args.scene), args, commands)

@@ -6,6 +6,8 @@ same names.
 
 from __future__ import annotations
 
+from ..methods import METHODS
+
 ORBIT_DEGREES_PER_PIXEL = 0.4  # mouse drag, screen coordinates
 KEY_ORBIT_DEGREES = 10.0
 KEY_PAN_FRACTION = 0.05  # of the view height
@@ -14,7 +16,7 @@ ZOOM_STEP = 0.9  # distance factor per wheel notch or '+' press
 BINDINGS = {
     "q": ("quit",), "escape": ("quit",),
     "m": ("toggle_map",),
-    "1": ("method", "gradient"), "2": ("method", "fast"), "3": ("method", "newton"), "4": ("method", "martin"),
+    **{str(k): ("method", name) for k, name in enumerate(METHODS, start=1)},
     "s": ("save",),
     "c": ("print_camera",),
     "r": ("reset",),
@@ -28,7 +30,7 @@ BINDINGS = {
 KEYS_HELP = """\
 mouse: left drag orbits, right or middle drag pans, the wheel zooms
 keys:  arrows orbit (Shift+arrows pan), +/- zoom, M the preliminary map,
-       1-4 method (gradient, fast, newton, martin), S save the exact image
+       1-{n} method ({names}), S save the exact image
        next to the scene, C print the camera as a [camera] table,
        R reset the camera, Esc/Q quit
-"""
+""".format(n=len(METHODS), names=", ".join(METHODS))

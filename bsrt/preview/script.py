@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..camera import camera_toml, orbit, pan, zoom
 from ..errors import InputError, RenderError
-from ..settings import METHODS
+from ..methods import METHODS
 from .bindings import BINDINGS
 
 RESIZE_SECONDS = 5.0  # how long ``resize`` waits for the window to take the size
@@ -23,8 +23,8 @@ script commands (';' or newline separated, '#' starts a comment):
   orbit DYAW DPITCH [FRAMES]  orbit by degrees (spread over FRAMES frames, default 1)
   pan DX DY [FRAMES]          move the scene by DX, DY view heights (right, up)
   zoom FACTOR [FRAMES]        multiply the eye's distance to look_at by FACTOR
-  key NAME                    press a key: m, s, c, r, 1-4, q, left, right, up, down, plus, minus
-  method NAME                 switch the method (gradient, fast, newton, martin)
+  key NAME                    press a key: m, s, c, r, 1-{n}, q, left, right, up, down, plus, minus
+  method NAME                 switch the method ({names})
   resize W H                  resize the window (screen coordinates), until it has that size
   wait                        until the exact full-resolution image (or its failure)
   frames N                    let N frames pass
@@ -33,7 +33,7 @@ script commands (';' or newline separated, '#' starts a comment):
   screenshot FILE.png         write the next drawn frame (what the window shows)
   camera [FILE.toml]          print (or write) the camera as a [camera] table
   reset                       reset the camera
-  quit                        close the window"""
+  quit                        close the window""".format(n=len(METHODS), names=", ".join(METHODS))
 
 
 @dataclass
