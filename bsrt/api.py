@@ -121,7 +121,7 @@ class Surface:
     trims: trim loops in the surface's (u, v) domain, each a sequence of
       curves ``{"degree": p, "knots": (n + p + 1,), "points": (n, 2),
       "weights": (n,) or None}`` (mappings, or objects with those
-      attributes, such as :class:`bsrt.trim.TrimCurve`); see the README's
+      attributes, such as :class:`bsrt.trim.TrimCurve`); see docs/scene-format.md,
       "Trimmed surfaces" (even-odd rule).
     transform: ``{"scale": s or (3,), "rotate": (ax, ay, az, degrees),
       "translate": (3,)}``, applied in that order.
@@ -224,7 +224,7 @@ class Scene(_scene.Scene):
         (defaults: 512x512, black; the scene format's defaults). name: the
         label in error messages and ``Scene.path``. folder: where Import
         files are looked up. cache: False reads Import files without the
-        converted-model cache (README, "Model files").
+        converted-model cache (docs/usage.md, "Model files").
 
         Raises InputError with the scene format's messages, e.g.
         ``<python>: surface[0].knots_u: expected 6 values (3 points + degree 2 + 1), got 5``.
@@ -303,13 +303,13 @@ def load(
     *,
     width: int | None = None,
     height: int | None = None,
+    background: Vector3 | None = None,
     method: str | None = None,
-    spp: int | None = None,
     map: str | None = None,
     tolerance: float | None = None,
     max_iterations: int | None = None,
+    spp: int | None = None,
     max_depth: int | None = None,
-    background: Vector3 | None = None,
     camera_eye: Vector3 | None = None,
     camera_look_at: Vector3 | None = None,
     camera_up: Vector3 | None = None,
@@ -356,13 +356,13 @@ def render(
     *,
     width: int | None = None,
     height: int | None = None,
+    background: Vector3 | None = None,
     method: str | None = None,
-    spp: int | None = None,
     map: str | None = None,
     tolerance: float | None = None,
     max_iterations: int | None = None,
+    spp: int | None = None,
     max_depth: int | None = None,
-    background: Vector3 | None = None,
     camera: Camera | Mapping | None = None,
     progress: ProgressArg = None,
     cache: bool = True,

@@ -33,8 +33,11 @@ def add_commands(sub, positive_int) -> None:
     from .settings import add_flags
 
     b = sub.add_parser("batch", help="render many scenes or model files on a Dask cluster")
+    from .io.formats import extensions_text
+
     b.add_argument("inputs", nargs="+", metavar="INPUT",
-                   help="scene or model files, folders (searched recursively) or glob patterns")
+                   help=f"scene (.toml) or model files ({extensions_text()}), folders (searched recursively for "
+                        "them) or glob patterns")
     def shared(p) -> None:
         p.add_argument("--out", required=True, metavar="DIR", help="output folder (created if missing)")
         add_flags(p, "render")
@@ -49,7 +52,7 @@ def add_commands(sub, positive_int) -> None:
     b.add_argument("--aov", action="store_true", help="also write DIR/<name>.npz (per-pixel arrays)")
 
     a = sub.add_parser("animate", help="render the frames of an orbit or of camera keyframes on a Dask cluster")
-    a.add_argument("input", metavar="SCENE_OR_MODEL")
+    a.add_argument("input", metavar="SCENE_OR_MODEL", help=f"a scene (.toml) or model file ({extensions_text()})")
     shared(a)
     a.add_argument("--frames", type=positive_int, metavar="N",
                    help="number of frames (default with keyframes: the last keyframe's frame)")

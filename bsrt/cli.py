@@ -85,8 +85,6 @@ def _parser() -> argparse.ArgumentParser:
                    help="instead: whole renders of model files with and without their trims (the cost of trimming)")
     b.add_argument("--full", action="store_true", help="also show whole renders by stage (shadows, mirrors) and rays per second")
 
-    from .preview import add_arguments as _preview_arguments
-
     _preview_arguments(sub.add_parser("preview", help="interactive window: orbit, pan, zoom; refines to the exact image"))
     from .batch_commands import add_commands as _batch_commands
 
@@ -98,6 +96,27 @@ def _parser() -> argparse.ArgumentParser:
 
 INPUT_HELP = f"scene file (.toml) or model file ({extensions_text()})"
 METHODS_HELP = "methods (--method):\n" + "\n".join(f"  {m.name:9} {m.help}" for m in METHODS.values())
+
+
+def _preview_arguments(parser) -> None:
+    """The options of ``bsrt preview``."""
+    from .preview.bindings import KEYS_HELP
+    from .preview.script import SCRIPT_HELP
+
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.description = "An interactive window: a fast GL view while the camera moves, then the exact image."
+    parser.epilog = KEYS_HELP + "\n" + SCRIPT_HELP
+    parser.add_argument("scene", help=INPUT_HELP)
+    parser.add_argument("--width", type=int, default=800, help="window width in screen coordinates (default 800)")
+    parser.add_argument("--height", type=int, default=600, help="window height (default 600)")
+    add_flags(parser, "preview")
+    _camera_options(parser)
+    parser.add_argument("--frames", type=int, help="quit after N frames")
+    parser.add_argument("--screenshot", metavar="OUT.png", help="with --frames: write the last frame")
+    parser.add_argument("--events", metavar="SCRIPT", help="drive the window: e.g. \"orbit 30 0; wait; save out.png; quit\"")
+    parser.add_argument("--script", metavar="FILE", help="the same commands from a file")
+    parser.add_argument("--frame-log", metavar="FILE.json", help="write per-frame timestamps and states as JSON")
+    parser.add_argument("--max-fps", type=float, default=60.0, help="frame rate cap (default 60; 0: none)")
 
 
 def _format_option(parser) -> None:
@@ -343,8 +362,14 @@ def _cmd_bench(args) -> int:
 
 def _cmd_preview(args) -> int:
     from . import preview
+    from .loading import CameraOverrides, load_input
+    from .settings import with_settings
 
-    return preview.main(args)
+    options = preview.WindowOptions(args.width, args.height, args.frames, args.screenshot, args.max_fps,
+                                    args.frame_log, preview.script_commands(args.events, args.script)).checked()
+    scene = load_input(args.scene, args.format, width=args.width, height=args.height,
+                       camera=CameraOverrides.from_args(args), cache=args.cache)
+    return preview.run(with_settings(scene, flag_values(args, "preview")), Path(args.scene), options)
 
 
 def _cmd_batch(args) -> int:

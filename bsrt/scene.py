@@ -115,7 +115,7 @@ class _Table:
         if hi is not None and (value > hi or (hi_open and value == hi)):
             self.fail(key, f"must be {'<' if hi_open else '<='} {hi:g}, got {value:g}")
         if limit is not None and abs(value) > limit:
-            self.fail(key, f"must lie within +-{limit:g} (see the README's Limits), got {value:g}")
+            self.fail(key, f"must lie within +-{limit:g} (see Limits in docs/scene-format.md), got {value:g}")
         return value
 
     def integer(self, key: str, default=None, lo=None, required=False, hi=None):
@@ -125,7 +125,7 @@ class _Table:
         if lo is not None and value < lo:
             self.fail(key, f"must be >= {lo}, got {value}")
         if hi is not None and value > hi:
-            self.fail(key, f"must be at most {hi} (see the README's Limits), got {_show(value)}")
+            self.fail(key, f"must be at most {hi} (see Limits in docs/scene-format.md), got {_show(value)}")
         return value
 
     def string(self, key: str, default=None, choices=None, required=False):
@@ -153,7 +153,7 @@ class _Table:
         if lo is not None and any(x < lo for x in value):
             self.fail(key, f"values must be >= {lo:g}")
         if limit is not None and any(abs(x) > limit for x in value):
-            self.fail(key, f"values must lie within +-{limit:g} (see the README's Limits)")
+            self.fail(key, f"values must lie within +-{limit:g} (see Limits in docs/scene-format.md)")
         return tuple(float(x) for x in value)
 
     def finish(self):
@@ -168,7 +168,7 @@ def _show(value) -> str:
 
 
 def load_scene(path: str | Path, *, cache: bool = True, progress=None) -> Scene:
-    """Read and validate a scene file (see the README for the format).
+    """Read and validate a scene file (docs/scene-format.md is the format).
 
     cache, progress: for the model files of its [[import]] tables, as in
     :func:`bsrt.io.load_model` (progress(done, total): faces converted)."""
@@ -222,7 +222,7 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
     fov = cam_t.number("fov", 40.0, lo=0.0, hi=validate.MAX_FOV, lo_open=True, hi_open=True)
     if fov < validate.MIN_FOV:
-        cam_t.fail("fov", f"must be at least {validate.MIN_FOV:g} degrees (see the README's Limits), got {fov:g}")
+        cam_t.fail("fov", f"must be at least {validate.MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {fov:g}")
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
     keyframes = cam_t.raw("keyframe", [])  # parsed below, by bsrt/camera_path.py
     cam_t.finish()
@@ -330,7 +330,7 @@ def _surface_arrays(t: _Table) -> tuple:
                                                                for d in degree):
         raise InputError(f"degree: expected two whole numbers [p, q], got {_show(degree)}")
     if max(degree) > validate.MAX_DEGREE:
-        raise InputError(f"degree: at most {validate.MAX_DEGREE} (see the README's Limits), got {_show(degree)}")
+        raise InputError(f"degree: at most {validate.MAX_DEGREE} (see Limits in docs/scene-format.md), got {_show(degree)}")
     arrays = [validate.numbers(key, t.raw(key, required=True), check=False) for key in ("knots_u", "knots_v", "points")]
     weights = t.raw("weights")
     return (degree, *arrays, None if weights is None else validate.numbers("weights", weights, check=False))
@@ -346,7 +346,7 @@ def _within_limits(t: _Table, key: str, geometry, name: str):
 
 
 def _trimmed(t: _Table, geometry):
-    """The surface with its [[surface.trim]] loops (see the README's "Trimmed surfaces")."""
+    """The surface with its [[surface.trim]] loops (docs/scene-format.md, "Trimmed surfaces")."""
     raw = t.raw("trim")
     if not isinstance(raw, list):
         t.fail("trim", "expected an array of tables [[surface.trim]], each with curves = [...]")
@@ -469,7 +469,7 @@ def _transform(parent: _Table, key: str) -> np.ndarray:
     if np.any(scale == 0):
         t.fail("scale", "must not be zero")
     if np.any(np.abs(scale) > validate.MAX_COORDINATE) or np.any(np.abs(scale) < 1.0 / validate.MAX_COORDINATE):
-        t.fail("scale", f"each factor's size must lie within 1e-15 .. 1e15 (see the README's Limits), got {scale_raw}")
+        t.fail("scale", f"each factor's size must lie within 1e-15 .. 1e15 (see Limits in docs/scene-format.md), got {scale_raw}")
     rot = t.vector("rotate", (0.0, 0.0, 1.0, 0.0), length=4)
     translate = np.array(t.vector("translate", (0.0, 0.0, 0.0)))
     t.finish()

@@ -120,7 +120,8 @@ SETTINGS: tuple[Setting, ...] = (
             unit="of the scene's diagonal"),
     Setting("max_iterations", "render", "int", 64, "root-finder steps per pixel and start", 1,
             validate.MAX_ITERATIONS),
-    Setting("spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP),
+    Setting("spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP,
+            commands=("render",)),  # the preview traces one sample per pixel
     Setting("max_depth", "render", "int", 3, "mirror-reflection bounces", 0, validate.MAX_DEPTH),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
@@ -219,7 +220,7 @@ def markdown_table() -> str:
             span = "3 numbers >= 0"
         else:
             span = f"{'(' if s.lo_open else '['}{s.lo:g}, {s.hi:g}]"
-        flag = f"`{s.flag}`" if "render" in s.commands else f"`{s.flag}` (map, preview)"
+        flag = f"`{s.flag}`"
         unit = f" ({s.unit})" if s.unit else ""
         rows.append(f"| `{s.key}` | `{s.name}` | {flag} | {s.kind} | `{_shown(s.default)}` | {span} | {s.help}{unit} |")
     return "\n".join(rows)

@@ -1,6 +1,6 @@
 """Checks shared by every entry point (scene files, model files, the command
 line, the Python API): types, finiteness, ranges, sizes and the limits of the
-README's "Limits" section, applied once, before any work starts.
+"Limits" of docs/scene-format.md, applied once, before any work starts.
 
 Every function raises :class:`InputError` whose message starts with the key it
 was given (``"points: ..."``); callers prefix the file and table or line.
@@ -16,10 +16,10 @@ import numpy as np
 
 from .errors import InputError
 
-# The limits (README, "Limits"), each with its reason there.
+# The limits (docs/scene-format.md, "Limits"), each with its reason there.
 MAX_COORDINATE = 1e15  # |x|, |y|, |z| of points, eye, look_at, lights, translations
-MAX_DEGREE = 25  # OpenCASCADE's Geom_BSplineSurface::MaxDegree() (README, Limits)
-CHECKED_DEGREE = 9  # above this, the power-basis evaluation is measured against the reference (README, Limits)
+MAX_DEGREE = 25  # OpenCASCADE's Geom_BSplineSurface::MaxDegree() (docs/scene-format.md, Limits)
+CHECKED_DEGREE = 9  # above this, the power-basis evaluation is measured against the reference (docs/scene-format.md, Limits)
 MAX_WEIGHT_RATIO = 1e12  # largest / smallest weight of one surface
 MAX_SPP = 256  # 8-bit output: a coverage step finer than 1/256 cannot show
 MAX_ITERATIONS = 10_000  # root finders converge in tens of steps
@@ -35,7 +35,7 @@ def whole(key: str, value, lo: int, hi: int) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
         raise InputError(f"{key}: expected a whole number >= {lo}, got {show(value)}")
     if value > hi:
-        raise InputError(f"{key}: must be at most {hi} (see the README's Limits), got {show(value)}")
+        raise InputError(f"{key}: must be at most {hi} (see Limits in docs/scene-format.md), got {show(value)}")
     return int(value)
 
 
@@ -98,7 +98,7 @@ def finite(key: str, array: np.ndarray, limit: float | None = None) -> None:
         big = np.abs(array) > limit
         if big.any():
             raise InputError(f"{key}: value {_index(big)} ({array[big].flat[0]:g}) is beyond +-{limit:g} "
-                             "(see the README's Limits)")
+                             "(see Limits in docs/scene-format.md)")
 
 
 def _index(mask: np.ndarray) -> str:
@@ -109,7 +109,7 @@ def surface(geometry) -> None:
     """A built BSplineSurface within the limits: degree, coordinates, weights, knots."""
     p, q = geometry.degree
     if max(p, q) > MAX_DEGREE:
-        raise InputError(f"degree: at most {MAX_DEGREE} (see the README's Limits), got [{p}, {q}]")
+        raise InputError(f"degree: at most {MAX_DEGREE} (see Limits in docs/scene-format.md), got [{p}, {q}]")
     finite("points", geometry.points, MAX_COORDINATE)
     finite("knots_u", geometry.knots_u, MAX_COORDINATE)
     finite("knots_v", geometry.knots_v, MAX_COORDINATE)
@@ -146,7 +146,7 @@ def fov(value, key: str = "fov") -> float:
         raise InputError(f"{key}: must be between 0 and 180 degrees, got {shown}")
     value = float(value)
     if value < MIN_FOV:
-        raise InputError(f"{key}: must be at least {MIN_FOV:g} degrees (see the README's Limits), got {value:g}")
+        raise InputError(f"{key}: must be at least {MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {value:g}")
     return value
 
 

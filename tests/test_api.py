@@ -740,7 +740,7 @@ def python_blocks(text: str) -> list[str]:
 def test_the_readme_and_docs_examples_run(tmp_path, ctx, monkeypatch):
     root = Path(__file__).resolve().parents[1]
     readme = (root / "README.md").read_text(encoding="utf-8")
-    section = readme[readme.index("\n## Python API\n"):readme.index("\n## How it works\n")]
+    section = readme[readme.index("\n## Python\n"):readme.index("\n## Documentation\n")]
     docs = python_blocks((root / "docs" / "python-api.md").read_text(encoding="utf-8"))
     (tmp_path / "scenes").symlink_to(root / "scenes")
     monkeypatch.chdir(tmp_path)
@@ -750,3 +750,5 @@ def test_the_readme_and_docs_examples_run(tmp_path, ctx, monkeypatch):
         again = bsrt.render(bsrt.load(tmp_path / toml))
         np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / png)), again.pixels)
     assert Image.open(tmp_path / "sphere.png").size == (256, 256)
+    assert Image.open(tmp_path / "column.jpg").format == "JPEG"  # the README's: save() by the extension
+    assert Image.open(tmp_path / "column.jpg").size == (320, 240)

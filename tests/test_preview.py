@@ -8,6 +8,7 @@ compared with render() called here with the camera it printed.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -313,16 +314,11 @@ def test_bad_script_exits_2_before_opening_a_window():
 
 def test_input_callbacks_in_process(display, monkeypatch):
     """Mouse, wheel and keys through the real glfw callbacks of a real window."""
-    import argparse
-
     import glfw
 
     monkeypatch.setenv("DISPLAY", display)
-    parser = argparse.ArgumentParser()
-    preview.add_arguments(parser)
     path = SCENES / "quad.toml"
-    args = parser.parse_args([str(path), "--width", "120", "--height", "90"])
-    window = preview.Preview(load_scene(path), path, args, [])
+    window = preview.Preview(load_scene(path), path, preview.WindowOptions(120, 90))
     window.open()
     try:
         w, win = window.window.handle, window.window
@@ -353,7 +349,7 @@ def test_input_callbacks_in_process(display, monkeypatch):
         assert window.method == "fast"
         win._on_key(w, glfw.KEY_R, 0, glfw.PRESS, 0)
         assert np.array_equal(window.camera.eye, home.eye)
-        window.args.frames = 3
+        window.options = dataclasses.replace(window.options, frames=3)
         window.run()
         assert window.frame == 3
         win._on_key(w, glfw.KEY_ESCAPE, 0, glfw.PRESS, 0)

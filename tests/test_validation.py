@@ -322,11 +322,11 @@ def test_extreme_but_accepted_values_render_silently(tmp_path, old, new):
 
 
 @pytest.mark.parametrize("overrides, message", [
-    ({"spp": 10**29}, "spp: must be at most 256 (see the README's Limits), got 100000000000000000000000000000"),
+    ({"spp": 10**29}, "spp: must be at most 256 (see Limits in docs/scene-format.md), got 100000000000000000000000000000"),
     ({"width": 0}, "width: expected a whole number >= 1, got 0"),
-    ({"max_iterations": 10_001}, "max_iterations: must be at most 10000 (see the README's Limits), got 10001"),
-    ({"fov": 1e-9}, "fov: must be at least 0.001 degrees (see the README's Limits), got 1e-09"),
-    ({"camera_eye": (0.0, -1e300, 0.0)}, "camera_eye: value 1 (-1e+300) is beyond +-1e+15 (see the README's Limits)"),
+    ({"max_iterations": 10_001}, "max_iterations: must be at most 10000 (see Limits in docs/scene-format.md), got 10001"),
+    ({"fov": 1e-9}, "fov: must be at least 0.001 degrees (see Limits in docs/scene-format.md), got 1e-09"),
+    ({"camera_eye": (0.0, -1e300, 0.0)}, "camera_eye: value 1 (-1e+300) is beyond +-1e+15 (see Limits in docs/scene-format.md)"),
     ({"camera_eye": (True, -4.0, 0.0)}, "camera_eye: expected numbers, got True"),
 ])
 def test_api_overrides_are_checked_at_load(overrides, message):

@@ -176,7 +176,7 @@ def parse_float(path: str, line: int, token: str, what: str) -> float:
         raise fail(path, line, f"expected {what} (a number), got {token!r}")
     value = float(token)
     if not abs(value) <= validate.MAX_COORDINATE:
-        raise fail(path, line, f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see the README's Limits)")
+        raise fail(path, line, f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see Limits in docs/scene-format.md)")
     return value
 
 

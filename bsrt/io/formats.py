@@ -45,8 +45,8 @@ READERS: dict[str, Reader] = {r.name: r for r in (
     Reader("brep", (".brep", ".brp"), "OpenCASCADE BREP: trimmed faces of any surface, through OpenCASCADE",
            "occt", extra="cad", cached=True),
     Reader("g2", (".g2",), "GoTools / Splipy spline surfaces (class 200)", "g2"),
-    Reader("iges", (".igs", ".iges"), "IGES 5.3: NURBS (128), trimmed (143/144), B-rep (186), analytic "
-           "surfaces (bsrt's own reader)", "iges", cached=True),
+    Reader("iges", (".igs", ".iges"), "IGES 5.3 (bsrt's own reader): NURBS 128, analytic 108/114/118/120/122 "
+           "and 190-198 as exact NURBS, trimmed 144/142, bounded 143/141, B-rep solids 186, subfigures 308/408", "iges", cached=True),
     Reader("nurbs", (".nurbs",), "GLScene NURBS surface (VRML97 NurbsSurface fields)", "nurbs"),
     Reader("obj", (".obj",), "Wavefront OBJ free-form surfaces (bezier, bspline, rational)", "obj"),
     Reader("step", (".step", ".stp", ".p21"), "STEP AP203/AP214/AP242 B-reps and assemblies with colours, "

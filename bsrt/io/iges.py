@@ -131,7 +131,7 @@ class _Params:
             raise self.fail(f"expected {what} (a number), got {token!r}")
         value = float(token.replace("D", "E").replace("d", "e"))
         if not abs(value) <= validate.MAX_COORDINATE:
-            raise self.fail(f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see the README's Limits)")
+            raise self.fail(f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see Limits in docs/scene-format.md)")
         return value
 
     def reals(self, count: int, what: str) -> np.ndarray:

@@ -11,7 +11,6 @@ the same application. The window traces one sample per pixel (spp = 1).
 
 from __future__ import annotations
 
-import argparse
 import collections
 import json
 import sys
@@ -23,33 +22,60 @@ import numpy as np
 
 from ..camera import Camera, camera_toml, orbit, pan, zoom
 from ..errors import InputError, RenderError
-from ..settings import add_flags, flag_values, with_settings
 from . import script
-from .bindings import BINDINGS, KEYS_HELP, ORBIT_DEGREES_PER_PIXEL
+from .bindings import BINDINGS, ORBIT_DEGREES_PER_PIXEL
 from .refine import MAP_BAND_PIXELS, Refinement
 from .solver import Job, Solver
 from .view import View
 from .window import Window
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of ``bsrt preview`` (called by cli.py)."""
-    from ..cli import _camera_options
+@dataclass(frozen=True)
+class WindowOptions:
+    """How the window runs (the CLI's ``bsrt preview`` options, checked by :meth:`checked`).
 
-    parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.description = "An interactive window: a fast GL view while the camera moves, then the exact image."
-    parser.epilog = KEYS_HELP + "\n" + script.SCRIPT_HELP
-    parser.add_argument("scene", help="scene file (.toml) or model file (.bez .bpt .g2 .igs .iges .obj .nurbs .step)")
-    parser.add_argument("--width", type=int, default=800, help="window width in screen coordinates (default 800)")
-    parser.add_argument("--height", type=int, default=600, help="window height (default 600)")
-    add_flags(parser, "preview")
-    _camera_options(parser)
-    parser.add_argument("--frames", type=int, help="quit after N frames")
-    parser.add_argument("--screenshot", metavar="OUT.png", help="with --frames: write the last frame")
-    parser.add_argument("--events", metavar="SCRIPT", help="drive the window: e.g. \"orbit 30 0; wait; save out.png; quit\"")
-    parser.add_argument("--script", metavar="FILE", help="the same commands from a file")
-    parser.add_argument("--frame-log", metavar="FILE.json", help="write per-frame timestamps and states as JSON")
-    parser.add_argument("--max-fps", type=float, default=60.0, help="frame rate cap (default 60; 0: none)")
+    width, height: the window in screen coordinates. frames: quit after that
+    many frames (None: run until closed). screenshot: with frames, write the
+    last frame there (.png). max_fps: the frame-rate cap (0: none).
+    frame_log: write per-frame timestamps and states there (JSON).
+    commands: the parsed script (script.parse_script).
+    """
+
+    width: int = 800
+    height: int = 600
+    frames: int | None = None
+    screenshot: str | None = None
+    max_fps: float = 60.0
+    frame_log: str | None = None
+    commands: tuple = ()
+
+    def checked(self) -> "WindowOptions":
+        for name in ("width", "height"):
+            if getattr(self, name) < 1:
+                raise InputError(f"--{name}: must be at least 1, got {getattr(self, name)}")
+        if self.frames is not None and self.frames < 1:
+            raise InputError(f"--frames: must be at least 1, got {self.frames}")
+        if self.screenshot and not self.frames:
+            raise InputError("--screenshot needs --frames N (the frame to write)")
+        if self.screenshot and not self.screenshot.lower().endswith(".png"):
+            raise InputError(f"{self.screenshot}: the output file name must end in .png")
+        if self.max_fps < 0:
+            raise InputError(f"--max-fps: must be 0 (no cap) or more, got {self.max_fps}")
+        return self
+
+
+def script_commands(events: str | None, script_file: str | None) -> tuple:
+    """The commands of a script file and then of an events string (InputError on a bad one)."""
+    commands = []
+    if script_file:
+        try:
+            text = Path(script_file).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise InputError(f"{script_file}: cannot read the script ({exc.strerror})") from None
+        commands += script.parse_script(text, script_file)
+    if events:
+        commands += script.parse_script(events, "--events")
+    return tuple(commands)
 
 
 @dataclass
@@ -95,15 +121,15 @@ class Preview:
     loop. Main thread only. Input arrives as named events from :class:`Window`
     (``on_*``) or the script; ``self.refine`` decides what to solve next."""
 
-    def __init__(self, scene, scene_path: Path, args, commands: list):
+    def __init__(self, scene, scene_path: Path, options: WindowOptions):
         from ..pipeline import Geometry
 
-        self.scene, self.scene_path, self.args = scene, scene_path, args
+        self.scene, self.scene_path, self.options = scene, scene_path, options
         self.map_mode = scene.render.map
         self.method = scene.render.method
         self.geometry = Geometry(scene)
         self.home = self.camera = scene.camera
-        self.commands = collections.deque(commands)
+        self.commands = collections.deque(options.commands)
         self.log = FrameLog()
         self.window = Window(self, scene_path)
         self.view: View | None = None
@@ -128,7 +154,7 @@ class Preview:
     # ---- set-up and tear-down
 
     def open(self) -> None:
-        ctx = self.window.open(self.args.width, self.args.height, self._title_text())
+        ctx = self.window.open(self.options.width, self.options.height, self._title_text())
         self.fb_size = self.window.framebuffer_size()
         try:
             self.view = View(ctx, self.scene, self.geometry, self.camera, self.fb_size)
@@ -372,9 +398,9 @@ class Preview:
         """The frame loop: script, solver outcomes, refinement, drawing, input;
         paced by --max-fps, idle until input once exact."""
         start = time.perf_counter()
-        frame_seconds = 1.0 / self.args.max_fps if self.args.max_fps > 0 else 0.0
+        frame_seconds = 1.0 / self.options.max_fps if self.options.max_fps > 0 else 0.0
         next_frame = start
-        limit = self.args.frames
+        limit = self.options.frames
         while not self.quit and not self.window.should_close():
             if min(self.fb_size) < 1:  # minimised: nothing to draw
                 self.window.wait(0.25)
@@ -391,8 +417,8 @@ class Preview:
             work["collect"] = (clock - now) * 1e3
             self._refine(clock)
             last = limit is not None and self.frame + 1 >= limit
-            if last and self.args.screenshot:
-                self.pending_screenshots.append(Path(self.args.screenshot))
+            if last and self.options.screenshot:
+                self.pending_screenshots.append(Path(self.options.screenshot))
             state = self.state()
             now = time.perf_counter()
             work["refine"] = (now - clock) * 1e3
@@ -413,52 +439,23 @@ class Preview:
             self.window.wait(0.25 if idle else next_frame - time.perf_counter())
 
 
-def _check_args(args) -> list:
-    """The arguments' errors (InputError) before any work; returns the script's commands."""
-    for name in ("width", "height"):
-        if getattr(args, name) < 1:
-            raise InputError(f"--{name}: must be at least 1, got {getattr(args, name)}")
-    if args.frames is not None and args.frames < 1:
-        raise InputError(f"--frames: must be at least 1, got {args.frames}")
-    if args.screenshot and not args.frames:
-        raise InputError("--screenshot needs --frames N (the frame to write)")
-    if args.screenshot and not args.screenshot.lower().endswith(".png"):
-        raise InputError(f"{args.screenshot}: the output file name must end in .png")
-    if args.max_fps < 0:
-        raise InputError(f"--max-fps: must be 0 (no cap) or more, got {args.max_fps}")
-    commands = []
-    if args.script:
-        try:
-            text = Path(args.script).read_text(encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"{args.script}: cannot read the script ({exc.strerror})") from None
-        commands += script.parse_script(text, args.script)
-    if args.events:
-        commands += script.parse_script(args.events, "--events")
-    return commands
-
-
-def main(args) -> int:
-    """``bsrt preview``: returns the exit code (errors raise InputError/RenderError)."""
-    from ..loading import CameraOverrides, load_input
-
-    commands = _check_args(args)
-    scene = load_input(args.scene, getattr(args, "format", "auto"), width=args.width, height=args.height,
-                       camera=CameraOverrides.from_args(args), cache=getattr(args, "cache", True))
-    scene = with_settings(scene, flag_values(args, "preview"))
+def run(scene, scene_path: Path, options: WindowOptions) -> int:
+    """Open the window on ``scene`` (its [render] settings already final) and run it until it is
+    closed or ``options.frames`` have passed; returns the exit code (errors raise InputError/RenderError)."""
+    options = options.checked()
     for note in scene.notes:
         print(f"bsrt: warning: {note}", file=sys.stderr)
-    preview = Preview(scene, Path(args.scene), args, commands)
+    preview = Preview(scene, Path(scene_path), options)
     try:
         preview.open()
         preview.run()
     finally:
         if preview.window.handle is not None:
             preview.close()
-    if args.frame_log:
-        preview.log.write(Path(args.frame_log), {
-            "scene": str(args.scene), "framebuffer": list(preview.fb_size), "levels": list(preview.refine.levels),
-            "max_fps": args.max_fps, "map_band_pixels": MAP_BAND_PIXELS, "gl_error": preview.gl_error,
+    if options.frame_log:
+        preview.log.write(Path(options.frame_log), {
+            "scene": str(scene_path), "framebuffer": list(preview.fb_size), "levels": list(preview.refine.levels),
+            "max_fps": options.max_fps, "map_band_pixels": MAP_BAND_PIXELS, "gl_error": preview.gl_error,
             "gl_objects_released": preview.released,
             "gl_objects_left": len(preview.view.owned) if preview.view else 0,
             "solver_swaps": preview.solver.swaps,
