@@ -29,20 +29,17 @@ __version__ = "0.2.0"
 _LAZY = {
     "load": "api", "Scene": "api", "Surface": "api", "Camera": "api", "Light": "api", "Material": "api",
     "Film": "api", "RenderSettings": "api", "Import": "api",
-    "from_splipy": "adapters", "from_geomdl": "adapters",
+    "from_splipy": "api", "from_geomdl": "api",
     "InputError": "errors", "RenderError": "errors",
     "render": "api", "RenderResult": "pipeline",
     "batch": "batch_commands", "animate": "batch_commands",
 }
 
-__all__ = [
-    "Camera", "Film", "Import", "InputError", "Light", "Material", "RenderError", "RenderResult", "RenderSettings",
-    "Scene", "Surface", "__version__", "animate", "batch", "from_geomdl", "from_splipy", "load", "render",
-]
+__all__ = sorted([*_LAZY, "__version__"])
 
 if TYPE_CHECKING:  # what type checkers and IDEs see
-    from .adapters import from_geomdl, from_splipy
-    from .api import Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, load, render
+    from .api import (Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, from_geomdl,
+                      from_splipy, load, render)
     from .batch_commands import animate, batch
     from .errors import InputError, RenderError
     from .pipeline import RenderResult

@@ -20,26 +20,20 @@ evaluator in tests/test_api.py:
   (w x, w y, w z, w). geomdl trim curves are not converted (an error, not
   a silent drop): give ``trims=`` instead.
 
-2-D control points get z = 0.
+2-D control points get z = 0. Each function returns the fields of a
+:class:`bsrt.Surface` as a dict (degree, knots_u, knots_v, points, weights,
+and trims where the object has them); :mod:`bsrt.api` builds the Surface.
 """
 
 from __future__ import annotations
-
-from dataclasses import replace
 
 import numpy as np
 
 from .errors import InputError
 
 
-def from_splipy(surface, **kwargs):
-    """A :class:`bsrt.Surface` from a Splipy ``Surface`` or ``TrimmedSurface``.
-
-    kwargs: the other Surface fields (material, color, name, transform,
-    trims to replace a TrimmedSurface's loops).
-    """
-    from .api import Surface
-
+def splipy_fields(surface) -> dict:
+    """The Surface fields of a Splipy ``Surface`` or ``TrimmedSurface`` (with its loops as trims)."""
     if not (hasattr(surface, "bases") and hasattr(surface, "controlpoints")):
         raise TypeError(f"expected a Splipy Surface (with bases and controlpoints), got {type(surface).__name__}")
     bases = list(surface.bases)
@@ -50,22 +44,19 @@ def from_splipy(surface, **kwargs):
     points, weights = _split(cps, bool(surface.rational), "splipy")
     degree = tuple(int(b.order) - 1 for b in bases)
     knots = [np.array(b.knots, dtype=np.float64) for b in bases]
-    if "trims" not in kwargs and getattr(surface, "boundaries", None):
-        kwargs["trims"] = [[_splipy_curve(c) for c in loop] for loop in surface.boundaries]
-    return Surface(degree=degree, knots_u=knots[0], knots_v=knots[1], points=points, weights=weights, **kwargs)
+    fields = dict(degree=degree, knots_u=knots[0], knots_v=knots[1], points=points, weights=weights)
+    if getattr(surface, "boundaries", None):
+        fields["trims"] = [[_splipy_curve(c) for c in loop] for loop in surface.boundaries]
+    return fields
 
 
-def from_geomdl(surface, **kwargs):
-    """A :class:`bsrt.Surface` from a geomdl ``BSpline.Surface`` or ``NURBS.Surface``.
-
-    kwargs: the other Surface fields (material, color, name, transform, trims).
-    """
-    from .api import Surface
-
+def geomdl_fields(surface, trims_given: bool = False) -> dict:
+    """The Surface fields of a geomdl ``BSpline.Surface`` or ``NURBS.Surface``. Its own trim curves are
+    refused unless ``trims_given`` (the caller passes trims of its own)."""
     needed = ("degree_u", "degree_v", "knotvector_u", "knotvector_v", "ctrlpts_size_u", "ctrlpts_size_v")
     if not all(hasattr(surface, k) for k in needed):
         raise TypeError(f"expected a geomdl BSpline.Surface or NURBS.Surface, got {type(surface).__name__}")
-    if getattr(surface, "trims", None) and "trims" not in kwargs:
+    if getattr(surface, "trims", None) and not trims_given:
         raise InputError("geomdl: the surface has trim curves, which bsrt does not convert "
                          "(their sense follows geomdl's own rules); pass trims=[...] (loops of curves) instead")
     nu, nv = int(surface.ctrlpts_size_u), int(surface.ctrlpts_size_v)
@@ -74,35 +65,26 @@ def from_geomdl(surface, **kwargs):
     if flat.ndim != 2 or flat.shape[0] != nu * nv:
         raise InputError(f"geomdl: expected {nu} x {nv} control points, got an array of shape {flat.shape}")
     points, weights = _split(flat.reshape(nu, nv, -1), rational, "geomdl")
-    return Surface(
-        degree=(int(surface.degree_u), int(surface.degree_v)),
-        knots_u=np.array(surface.knotvector_u, dtype=np.float64),
-        knots_v=np.array(surface.knotvector_v, dtype=np.float64),
-        points=points,
-        weights=weights,
-        **kwargs,
-    )
+    return dict(degree=(int(surface.degree_u), int(surface.degree_v)),
+                knots_u=np.array(surface.knotvector_u, dtype=np.float64),
+                knots_v=np.array(surface.knotvector_v, dtype=np.float64), points=points, weights=weights)
 
 
-def surface_from_object(obj, **kwargs):
-    """:meth:`bsrt.Surface.from_object`: dispatch on what ``obj`` looks like."""
-    from .api import Surface
+def object_fields(obj, trims_given: bool = False) -> dict:
+    """The Surface fields of what ``obj`` looks like: a bsrt BSplineSurface or SceneSurface (its name
+    too), a Splipy or a geomdl surface; a TypeError for anything else."""
     from .bspline import BSplineSurface
     from .scene import SceneSurface
 
-    if isinstance(obj, Surface):
-        return replace(obj, **kwargs)
     if isinstance(obj, SceneSurface):
-        kwargs.setdefault("name", obj.name)
-        obj = obj.geometry
+        return {"name": obj.name, **object_fields(obj.geometry)}
     if isinstance(obj, BSplineSurface):
-        kwargs.setdefault("trims", obj.trims)
-        return Surface(degree=obj.degree, knots_u=obj.knots_u, knots_v=obj.knots_v, points=obj.points,
-                       weights=obj.weights, **kwargs)
+        return dict(degree=obj.degree, knots_u=obj.knots_u, knots_v=obj.knots_v, points=obj.points,
+                    weights=obj.weights, trims=obj.trims)
     if hasattr(obj, "bases") and hasattr(obj, "controlpoints"):
-        return from_splipy(obj, **kwargs)
+        return splipy_fields(obj)
     if hasattr(obj, "degree_u") and hasattr(obj, "knotvector_u"):
-        return from_geomdl(obj, **kwargs)
+        return geomdl_fields(obj, trims_given)
     raise TypeError(f"cannot make a bsrt.Surface from {type(obj).__name__}: expected a Splipy Surface, a geomdl "
                     f"Surface, a bsrt BSplineSurface or SceneSurface")
 

@@ -42,7 +42,8 @@ from .settings import Film, RenderSettings, checked_overrides, with_settings
 if TYPE_CHECKING:
     from .pipeline import RenderResult
 
-__all__ = ["Camera", "Film", "Import", "Light", "Material", "RenderSettings", "Scene", "Surface", "load", "render"]
+__all__ = ["Camera", "Film", "Import", "Light", "Material", "RenderSettings", "Scene", "Surface", "from_geomdl",
+           "from_splipy", "load", "render"]
 
 WHERE = "<python>"  # the "file name" in the messages about a scene built in Python
 
@@ -150,9 +151,11 @@ class Surface:
         ``material=``); recognised by their attributes (neither library is
         imported). kwargs: the other fields (material, color, name,
         transform, trims)."""
-        from .adapters import surface_from_object
+        from .adapters import object_fields
 
-        return surface_from_object(obj, **kwargs)
+        if isinstance(obj, Surface):
+            return replace(obj, **kwargs)
+        return cls(**{**object_fields(obj, trims_given="trims" in kwargs), **kwargs})
 
     def geometry(self) -> BSplineSurface:
         """The checked surface (transform applied, trims attached), as the
@@ -180,6 +183,22 @@ class Import:
     format: str = "auto"
     material: str | Material | None = None
     transform: Mapping | None = None
+
+
+def from_splipy(surface, **kwargs) -> Surface:
+    """A :class:`Surface` from a Splipy ``Surface`` or ``TrimmedSurface`` (its loops as trims).
+    kwargs: the other Surface fields (material, color, name, transform, trims to replace the loops)."""
+    from .adapters import splipy_fields
+
+    return Surface(**{**splipy_fields(surface), **kwargs})
+
+
+def from_geomdl(surface, **kwargs) -> Surface:
+    """A :class:`Surface` from a geomdl ``BSpline.Surface`` or ``NURBS.Surface``.
+    kwargs: the other Surface fields (material, color, name, transform, trims)."""
+    from .adapters import geomdl_fields
+
+    return Surface(**{**geomdl_fields(surface, trims_given="trims" in kwargs), **kwargs})
 
 
 # ---------------------------------------------------------------------------

@@ -8,7 +8,9 @@ clamped or uniform. Everything is float64.
 
 This module is the reference evaluator (Cox-de Boor, any knot vector) and owns
 knot insertion and Bezier extraction; the fast per-pixel evaluator built on
-the extracted Bezier patches lives in ``patches.py``.
+the extracted Bezier patches lives in ``patches.py``. The one-direction
+basics (spans, basis functions, knot insertion) are in ``basis.py``, shared
+with the trim curves.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .basis import basis_functions, find_span, insert_knot  # noqa: F401  (re-exported: the readers')
 from .errors import InputError
 
 
@@ -177,55 +180,7 @@ def _as_vector(key: str, values) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------
-# Basis functions
-
-
-def find_span(knots: np.ndarray, p: int, n: int, u: np.ndarray) -> np.ndarray:
-    """Knot span index i with knots[i] <= u < knots[i+1], clamped to [p, n-1].
-
-    knots: (n + p + 1,); u: (N,) -> (N,) int64. Parameters outside the domain
-    get the first/last span, i.e. the polynomial of that span is extended.
-    """
-    span = np.searchsorted(knots, u, side="right") - 1
-    return np.clip(span, p, n - 1)
-
-
-def basis_functions(knots: np.ndarray, p: int, span: np.ndarray, u: np.ndarray):
-    """The p + 1 non-zero basis functions at u and their first derivatives.
-
-    span, u: (N,). Returns (values, derivatives), each (N, p + 1); column k is
-    N_{span - p + k, p}(u). Cox-de Boor's triangular scheme, vectorised over N.
-    """
-    u = np.asarray(u, dtype=np.float64)
-    n_pts = u.shape[0]
-    left = np.empty((n_pts, p + 1))
-    right = np.empty((n_pts, p + 1))
-    vals = np.zeros((n_pts, p + 1))
-    vals[:, 0] = 1.0
-    prev = vals[:, :1].copy()
-    for j in range(1, p + 1):
-        left[:, j] = u - knots[span + 1 - j]
-        right[:, j] = knots[span + j] - u
-        saved = np.zeros(n_pts)
-        for r in range(j):
-            denom = right[:, r + 1] + left[:, j - r]
-            temp = np.divide(vals[:, r], denom, out=np.zeros(n_pts), where=denom != 0)
-            vals[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        vals[:, j] = saved
-        if j == p - 1:
-            prev = vals[:, :p].copy()
-    # dN_{i,p} = p (N_{i,p-1} / (k[i+p] - k[i]) - N_{i+1,p-1} / (k[i+p+1] - k[i+1]))
-    ders = np.zeros((n_pts, p + 1))
-    for k in range(p + 1):
-        i = span - p + k
-        if k >= 1:
-            d = knots[i + p] - knots[i]
-            ders[:, k] += np.divide(prev[:, k - 1], d, out=np.zeros(n_pts), where=d != 0)
-        if k <= p - 1:
-            d = knots[i + p + 1] - knots[i + 1]
-            ders[:, k] -= np.divide(prev[:, k], d, out=np.zeros(n_pts), where=d != 0)
-    return vals, p * ders
+# Evaluation
 
 
 def evaluate(surface: BSplineSurface, u, v):
@@ -261,26 +216,7 @@ def rational_quotient(h, hu, hv):
 
 
 # ---------------------------------------------------------------------------
-# Knot insertion and Bezier extraction
-
-
-def insert_knot(knots: np.ndarray, ctrl: np.ndarray, p: int, x: float):
-    """Insert the value x once into a knot vector (Boehm's algorithm).
-
-    knots: (n + p + 1,); ctrl: (n, ...) homogeneous control points, the first
-    axis being the direction of the knots. Returns (knots', ctrl') with one
-    more knot and one more control point; the curve (surface) is unchanged.
-    """
-    n = ctrl.shape[0]
-    k = int(np.clip(np.searchsorted(knots, x, side="right") - 1, p, n - 1))
-    new = np.empty((n + 1,) + ctrl.shape[1:])
-    new[: k - p + 1] = ctrl[: k - p + 1]
-    new[k + 1 :] = ctrl[k:]
-    for i in range(k - p + 1, k + 1):
-        denom = knots[i + p] - knots[i]
-        a = (x - knots[i]) / denom if denom != 0 else 0.0
-        new[i] = a * ctrl[i] + (1.0 - a) * ctrl[i - 1]
-    return np.insert(knots, k + 1, x), new
+# Bezier extraction
 
 
 def _span_matrices(knots: np.ndarray, n: int, p: int):

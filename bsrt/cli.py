@@ -444,8 +444,3 @@ def main(argv=None) -> int:
         print(f"bsrt: internal error: {type(exc).__name__}: {exc} (set BSRT_DEBUG=1 for a traceback)", file=sys.stderr)
         return 1
 
-
-if __name__ == "__main__":
-    from .__main__ import main as program
-
-    sys.exit(program())

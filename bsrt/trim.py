@@ -75,6 +75,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .basis import basis_functions, find_span, insert_knot
 from .errors import InputError
 
 CLOSE_TOLERANCE = 1e-9  # loop gaps allowed, as a fraction of the domain's size
@@ -106,8 +107,6 @@ class TrimCurve:
 
     def evaluate(self, s) -> np.ndarray:
         """(N, 2) points at curve parameters s (N,) (reference Cox-de Boor)."""
-        from .bspline import basis_functions, find_span
-
         s = np.atleast_1d(np.asarray(s, dtype=np.float64))
         p, n = self.degree, self.points.shape[0]
         span = find_span(self.knots, p, n, s)
@@ -248,8 +247,6 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
     curve itself (an end) outside it; spans still undecided after 30
     halvings (within 1e-9 of their length of the box's edge) count as inside.
     """
-    from .bspline import insert_knot
-
     u0, u1, v0, v1 = box
     p = curve.degree
     knots, ctrl = curve.knots, curve.homogeneous()

@@ -185,8 +185,13 @@ def test_render_result_shows_as_a_png(ctx):
     np.testing.assert_array_equal(np.asarray(image), result.pixels)
 
 
-def test_render_refuses_what_is_not_a_scene():
-    with pytest.raises(TypeError, match="needs a bsrt.Scene"):
+def test_render_takes_what_scene_build_takes_and_refuses_the_rest():
+    square = bsrt.Surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[0, 0, 0], [0, 0, 1]], [[1, 0, 0], [1, 0, 1]]])
+    built = bsrt.render(bsrt.Scene.build([square]), width=24, height=16)
+    for given in (square, [square], (square,)):  # one surface, or a list: framed and lit as Scene.build does
+        np.testing.assert_array_equal(bsrt.render(given, width=24, height=16).pixels, built.pixels)
+    assert repr(built).startswith("<RenderResult 24x16, 1 spp, newton, ") and len(repr(built)) < 120
+    with pytest.raises(TypeError, match="cannot make a bsrt.Surface from int"):
         bsrt.render(42)
     with pytest.raises(InputError, match=r"^width: expected a whole number >= 1, got 0$"):
         bsrt.render(bsrt.load(SCENES / "quad.toml"), width=0)
@@ -752,3 +757,35 @@ def test_the_readme_and_docs_examples_run(tmp_path, ctx, monkeypatch):
     assert Image.open(tmp_path / "sphere.png").size == (256, 256)
     assert Image.open(tmp_path / "column.jpg").format == "JPEG"  # the README's: save() by the extension
     assert Image.open(tmp_path / "column.jpg").size == (320, 240)
+
+
+def test_errors_in_pythons_idiom(tmp_path):
+    assert issubclass(bsrt.InputError, ValueError)
+    with pytest.raises(FileNotFoundError, match=r"missing\.toml: no such file$") as missing:
+        bsrt.load(tmp_path / "missing.toml")
+    assert isinstance(missing.value, bsrt.InputError) and missing.value.filename == str(tmp_path / "missing.toml")
+    with pytest.raises(FileNotFoundError):
+        bsrt.load(tmp_path / "missing.step")
+    with pytest.raises(ValueError, match=r"^<python>: camera: expected a mapping \(a dict\) or the bsrt object$"):
+        bsrt.Scene.build([], camera=5)
+    with pytest.raises(ValueError, match=r"^<python>: no surfaces given \(nothing to render\)$"):
+        bsrt.Scene.build([])
+
+
+def test_save_writes_the_format_its_extension_names_or_nothing(tmp_path):
+    result = bsrt.render(bsrt.load(SCENES / "quad.toml", width=32, height=24))
+    for name, kind in [("a.png", "PNG"), ("b.JPG", "JPEG"), ("c.jpeg", "JPEG"), ("d.webp", "WEBP")]:
+        result.save(tmp_path / name)
+        with Image.open(tmp_path / name) as image:
+            assert (image.format, image.size) == (kind, (32, 24))
+    with Image.open(tmp_path / "d.webp") as image:  # lossless
+        np.testing.assert_array_equal(np.asarray(image.convert("RGB")), result.pixels)
+    np.testing.assert_array_equal(np.asarray(result.to_pil()), result.pixels)
+    for name in ("e.bmp", "f", "g.tiff"):
+        with pytest.raises(ValueError, match="cannot tell the image format"):
+            result.save(tmp_path / name)
+        assert not (tmp_path / name).exists()
+
+
+def test_the_package_ships_its_type_hints():
+    assert (Path(bsrt.__file__).parent / "py.typed").is_file()
