@@ -32,7 +32,6 @@ import numpy as np
 
 from . import __version__
 from . import scene as _scene
-from . import validate
 from .bspline import BSplineSurface
 from .camera import Camera as _Camera
 from .errors import InputError

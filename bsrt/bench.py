@@ -11,7 +11,6 @@ Disagreements are counted against ``newton`` at the same size.
 
 from __future__ import annotations
 
-import json
 import resource
 import statistics
 import time
@@ -20,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .image import write_text
 from .methods import MAP_METHODS, REFERENCE_METHOD
 from .settings import RenderOptions
 from .pipeline import Geometry, render
@@ -211,22 +209,3 @@ def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
         log(f"{Path(path).name:24s} trimmed {row['trimmed']:6.3f} s  trims ignored {row['untrimmed']:6.3f} s  "
             f"ratio {row['ratio']:.2f}  ({row['trimmed_surfaces']} trimmed surfaces)")
     return out
-
-
-def main(args) -> int:
-    if getattr(args, "models", None):
-        results = trim_cost(args.models, args.size, args.repeat, log=lambda text: print(text, flush=True))
-        if args.json:
-            write_text(args.json, json.dumps(results, indent=2))
-        return 0
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    results = run(args.scenes or DEFAULT_SCENES, methods, args.size, args.repeat,
-                  log=lambda text: print(text, flush=True))
-    print()
-    print(format_tables(results))
-    if getattr(args, "full", False):
-        print()
-        print(format_full(results))
-    if args.json:
-        write_text(args.json, json.dumps(results, indent=2))
-    return 0

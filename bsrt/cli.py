@@ -357,7 +357,21 @@ def _cmd_bench(args) -> int:
         raise InputError(f"--methods: names no method (expected a comma-separated list of {', '.join(METHODS)})")
     if args.json:
         _check_output(args.json, ".json")
-    return bench.main(args)
+    log = lambda text: print(text, flush=True)  # noqa: E731
+    if args.models:
+        results = bench.trim_cost(args.models, args.size, args.repeat, log=log)
+    else:
+        results = bench.run(args.scenes or bench.DEFAULT_SCENES, named, args.size, args.repeat, log=log)
+        print()
+        print(bench.format_tables(results))
+        if args.full:
+            print()
+            print(bench.format_full(results))
+    if args.json:
+        from .image import write_text
+
+        write_text(args.json, json.dumps(results, indent=2))
+    return 0
 
 
 def _cmd_preview(args) -> int:
