@@ -14,7 +14,7 @@ The Python API (docs/python-api.md)::
 on Dask, the extra ``bsrt[dask]``). They are imported on first use, so ``import bsrt``
 stays fast (NumPy, OpenGL and the compiled kernels load when needed).
 
-The rendering pipeline itself is ``bsrt.pipeline`` (``render(scene,
+The rendering pipeline itself is ``bsrt.rendering.pipeline`` (``render(scene,
 options)``, ``Geometry``, ``RenderResult``).
 """
 
@@ -24,25 +24,25 @@ import importlib as _importlib
 
 TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (5 ms); checkers know the name
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 _LAZY = {
     "load": "api", "Scene": "api", "Surface": "api", "Camera": "api", "Light": "api", "Material": "api",
     "Film": "api", "RenderSettings": "api", "Import": "api",
     "from_splipy": "api", "from_geomdl": "api",
     "InputError": "errors", "RenderError": "errors",
-    "render": "api", "RenderResult": "pipeline",
-    "batch": "batch_commands", "animate": "batch_commands",
+    "render": "api", "RenderResult": "rendering.pipeline",
+    "batch": "batch.api", "animate": "batch.api",
 }
 
 __all__ = sorted([*_LAZY, "__version__"])
 
 if TYPE_CHECKING:  # what type checkers and IDEs see
-    from .api import (Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, from_geomdl,
+    from bsrt.api import (Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, from_geomdl,
                       from_splipy, load, render)
-    from .batch_commands import animate, batch
-    from .errors import InputError, RenderError
-    from .pipeline import RenderResult
+    from bsrt.batch.api import animate, batch
+    from bsrt.errors import InputError, RenderError
+    from bsrt.rendering.pipeline import RenderResult
 
 
 def __getattr__(name: str):

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
+from bsrt.errors import InputError
 
 
 def splipy_fields(surface) -> dict:
@@ -73,8 +73,8 @@ def geomdl_fields(surface, trims_given: bool = False) -> dict:
 def object_fields(obj, trims_given: bool = False) -> dict:
     """The Surface fields of what ``obj`` looks like: a bsrt BSplineSurface or SceneSurface (its name
     too), a Splipy or a geomdl surface; a TypeError for anything else."""
-    from .bspline import BSplineSurface
-    from .scene import SceneSurface
+    from bsrt.geometry.bspline import BSplineSurface
+    from bsrt.scene import SceneSurface
 
     if isinstance(obj, SceneSurface):
         return {"name": obj.name, **object_fields(obj.geometry)}

@@ -2,8 +2,6 @@
 
 Everything here is re-exported from the package (``bsrt.load``,
 ``bsrt.Scene``, ``bsrt.render``, ...); ``docs/python-api.md`` is the guide.
-(Over 500 lines on purpose: the whole public surface in one module, so that
-its signatures, docstrings and keyword checks read as one page.)
 
 One rule keeps the API and the scene files in step: a scene built in Python
 is turned into the same document a TOML file gives (tables, lists and
@@ -13,15 +11,13 @@ message is the scene format's own (``<python>: surface[0].knots_u: expected
 12 values (8 points + degree 3 + 1), got 11``). Values the API does not
 recognise are passed through unchanged, so they meet the same checks a
 wrong value in a file would. :meth:`Scene.to_toml` writes the other way: a
-file that :func:`load` reads back to the same scene, bit for bit.
+file that :func:`load` reads back to the same scene, bit for bit. The
+document's two directions live in :mod:`bsrt.scene.document`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import math
 import os
-import re
 import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, fields, replace
@@ -30,16 +26,27 @@ from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 
-from . import __version__
-from . import scene as _scene
-from .bspline import BSplineSurface
-from .camera import Camera as _Camera
-from .errors import InputError
-from .scene import Material
-from .settings import Film, RenderSettings, checked_overrides, with_settings
+from bsrt import scene as _scene
+from bsrt.errors import InputError
+from bsrt.geometry.bspline import BSplineSurface
+from bsrt.scene import Material
+from bsrt.scene.camera import Camera as _Camera
+from bsrt.scene.document import (
+    camera_doc,
+    dumps_toml,
+    header,
+    import_doc,
+    is_array_like,
+    light_doc,
+    plain,
+    python_words,
+    scene_document,
+    surface_doc,
+)
+from bsrt.settings import Film, RenderSettings, checked_overrides, with_settings
 
 if TYPE_CHECKING:
-    from .pipeline import RenderResult
+    from bsrt.rendering.pipeline import RenderResult
 
 __all__ = ["Camera", "Film", "Import", "Light", "Material", "RenderSettings", "Scene", "Surface", "from_geomdl",
            "from_splipy", "load", "render"]
@@ -121,7 +128,7 @@ class Surface:
     trims: trim loops in the surface's (u, v) domain, each a sequence of
       curves ``{"degree": p, "knots": (n + p + 1,), "points": (n, 2),
       "weights": (n,) or None}`` (mappings, or objects with those
-      attributes, such as :class:`bsrt.trim.TrimCurve`); see docs/scene-format.md,
+      attributes, such as :class:`bsrt.geometry.trim.TrimCurve`); see docs/scene-format.md,
       "Trimmed surfaces" (even-odd rule).
     transform: ``{"scale": s or (3,), "rotate": (ax, ay, az, degrees),
       "translate": (3,)}``, applied in that order.
@@ -144,13 +151,13 @@ class Surface:
     @classmethod
     def from_object(cls, obj, **kwargs) -> Surface:
         """A Surface from a Splipy ``Surface`` (``TrimmedSurface``: with its loops),
-        a geomdl ``BSpline.Surface`` / ``NURBS.Surface``, a :class:`bsrt.bspline.BSplineSurface`
+        a geomdl ``BSpline.Surface`` / ``NURBS.Surface``, a :class:`bsrt.geometry.bspline.BSplineSurface`
         or a scene's :class:`bsrt.scene.SceneSurface` (its geometry and name; its
         material is an index into its own scene's materials, so give
         ``material=``); recognised by their attributes (neither library is
         imported). kwargs: the other fields (material, color, name,
         transform, trims)."""
-        from .adapters import object_fields
+        from bsrt.adapters import object_fields
 
         if isinstance(obj, Surface):
             return replace(obj, **kwargs)
@@ -159,16 +166,16 @@ class Surface:
     def geometry(self) -> BSplineSurface:
         """The checked surface (transform applied, trims attached), as the
         renderer holds it; errors are the scene format's, for ``surface[0]``."""
-        table = {k: v for k, v in _surface_doc(self, []).items() if k not in ("material", "color")}
+        table = {k: v for k, v in surface_doc(self, []).items() if k not in ("material", "color")}
         probe = {"camera": _PROBE_CAMERA, "surface": [table]}
         return _scene.parse_scene(probe, WHERE).surfaces[0].geometry
 
     def __repr__(self) -> str:
-        shape = np.shape(self.points) if _is_array_like(self.points) else "?"
+        shape = np.shape(self.points) if is_array_like(self.points) else "?"
         extra = "".join([", rational" if self.weights is not None else "",
                          f", {len(self.trims)} trim loop(s)" if self.trims else "",
                          f", name={self.name!r}" if self.name is not None else ""])
-        degree = tuple(self.degree) if _is_array_like(self.degree) else self.degree
+        degree = tuple(self.degree) if is_array_like(self.degree) else self.degree
         return f"Surface(degree={degree!r}, points {shape}{extra})"
 
 
@@ -187,7 +194,7 @@ class Import:
 def from_splipy(surface, **kwargs) -> Surface:
     """A :class:`Surface` from a Splipy ``Surface`` or ``TrimmedSurface`` (its loops as trims).
     kwargs: the other Surface fields (material, color, name, transform, trims to replace the loops)."""
-    from .adapters import splipy_fields
+    from bsrt.adapters import splipy_fields
 
     return Surface(**{**splipy_fields(surface), **kwargs})
 
@@ -195,7 +202,7 @@ def from_splipy(surface, **kwargs) -> Surface:
 def from_geomdl(surface, **kwargs) -> Surface:
     """A :class:`Surface` from a geomdl ``BSpline.Surface`` or ``NURBS.Surface``.
     kwargs: the other Surface fields (material, color, name, transform, trims)."""
-    from .adapters import geomdl_fields
+    from bsrt.adapters import geomdl_fields
 
     return Surface(**{**geomdl_fields(surface, trims_given="trims" in kwargs), **kwargs})
 
@@ -208,7 +215,7 @@ class Scene(_scene.Scene):
     """A checked scene, ready to render: a :class:`bsrt.scene.Scene` (frozen) with
     constructors and writers.
 
-    Fields: film (Film), camera (:class:`bsrt.camera.Camera`), render
+    Fields: film (Film), camera (:class:`bsrt.scene.camera.Camera`), render
     (RenderSettings), materials, lights, surfaces (SceneSurface: geometry in
     world space, material index, name), path (the file or label), notes.
     Make one with :func:`load` or :meth:`build`; change one with
@@ -248,7 +255,7 @@ class Scene(_scene.Scene):
         ``<python>: surface[0].knots_u: expected 6 values (3 points + degree 2 + 1), got 5``.
         """
         data, order = _document(list(surfaces), camera, lights, materials, film, render)
-        with _python_words():
+        with python_words():
             scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order, cache=cache)
         if camera is None or lights is None:
             scene = _automatic(scene, camera is None, lights is None)
@@ -266,11 +273,11 @@ class Scene(_scene.Scene):
         expanded), floats with ``repr`` (so every array comes back bit for
         bit), every material by name; notes become comments.
         """
-        return dumps_toml(scene_document(self), header=_header(self))
+        return dumps_toml(scene_document(self), header=header(self))
 
     def save(self, path: str | os.PathLike) -> None:
         """Write :meth:`to_toml` to ``path`` (``.toml``), atomically."""
-        from .image import write_text
+        from bsrt.rendering.image import write_text
 
         path = Path(path)
         if path.suffix.lower() != ".toml":
@@ -284,28 +291,6 @@ class Scene(_scene.Scene):
         return (f"Scene({self.path!r}, {n} surface{'s' if n != 1 else ''}, {len(self.lights)} light"
                 f"{'s' if len(self.lights) != 1 else ''}, {self.film.width}x{self.film.height}, "
                 f"{self.render.method}, spp={self.render.spp})")
-
-
-_TOML_WORDS = ((re.compile(r"expected a table$"), "expected a mapping (a dict) or the bsrt object"),
-               (re.compile(r"expected an array of tables \[\[\w+\]\]"), "expected a list"),
-               (re.compile(r"missing table \[(\w+)\]"), r"missing (\1= is required)"),
-               (re.compile(r"the scene has no \[\[surface\]\] or \[\[import\]\] \(nothing to render\)"),
-                "no surfaces given (nothing to render)"))
-
-
-@contextlib.contextmanager
-def _python_words():
-    """The scene format's messages about its tables, said in Python's words for a scene built in Python
-    (keys and values keep their names: they are the keyword and field names)."""
-    try:
-        yield
-    except InputError as exc:
-        message = str(exc)
-        for pattern, words in _TOML_WORDS:
-            message = pattern.sub(words, message)
-        if message == str(exc):
-            raise
-        raise type(exc)(message) from None
 
 
 def _wrap(scene: _scene.Scene) -> Scene:
@@ -354,7 +339,7 @@ def load(
 
     Raises InputError naming the file, table and key (or the override).
     """
-    from .loading import CameraOverrides, load_input
+    from bsrt.scene.loading import CameraOverrides, load_input
 
     settings = checked_overrides(dict(width=width, height=height, method=method, spp=spp, map=map,
                                       tolerance=tolerance, max_iterations=max_iterations, max_depth=max_depth,
@@ -400,18 +385,18 @@ def render(
     (lines when stderr is not a terminal) ended by a one-line summary.
     cache: given a file, False loads it without the converted-model cache.
 
-    Returns a :class:`bsrt.pipeline.RenderResult`: ``pixels`` (H, W, 3) uint8
+    Returns a :class:`bsrt.rendering.pipeline.RenderResult`: ``pixels`` (H, W, 3) uint8
     sRGB, ``linear`` (H, W, 3) float64, ``aovs()`` (the per-pixel arrays of
     ``--aov``: hit, t, surface, u, v, position, normal, iterations,
     residual), ``stats`` (timings and counters), ``save(path)`` (PNG, JPEG
     or WebP by the extension), ``to_pil()``; a notebook shows it as an image.
     """
-    from .pipeline import render as pipeline
-    from .settings import RenderOptions
+    from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import render as pipeline
 
     bar = None
     if progress is True:
-        from .progress import wanted
+        from bsrt.progress import wanted
 
         bar = report = wanted(sys.stderr, True)
     elif progress in (None, False):
@@ -451,8 +436,8 @@ _PROBE_SURFACE = {"degree": [1, 1], "knots_u": [0.0, 0.0, 1.0, 1.0], "knots_v": 
 
 def _checked_camera(camera) -> _Camera:
     """A camera checked as a [camera] table (the messages of a scene file)."""
-    probe = {"camera": _camera_doc(camera), "surface": [_PROBE_SURFACE]}
-    with _python_words():
+    probe = {"camera": camera_doc(camera), "surface": [_PROBE_SURFACE]}
+    with python_words():
         return _scene.parse_scene(probe, WHERE).camera
 
 
@@ -462,120 +447,28 @@ def _checked_camera(camera) -> _Camera:
 
 def _document(surfaces: list, camera, lights, materials, film, render) -> tuple[dict, list]:
     mats = list(materials)
-    data: dict[str, Any] = {"camera": _PROBE_CAMERA if camera is None else _camera_doc(camera)}
+    data: dict[str, Any] = {"camera": _PROBE_CAMERA if camera is None else camera_doc(camera)}
     if film is not None:
-        data["film"] = _plain(asdict(film)) if isinstance(film, Film) else _plain(film)
+        data["film"] = plain(asdict(film)) if isinstance(film, Film) else plain(film)
     if render is not None:
-        data["render"] = _plain(asdict(render)) if isinstance(render, RenderSettings) else _plain(render)
-    data["light"] = [_light_doc(light) for light in (lights or ())]
+        data["render"] = plain(asdict(render)) if isinstance(render, RenderSettings) else plain(render)
+    data["light"] = [light_doc(light) for light in (lights or ())]
     tables = {"surface": [], "import": []}
     order = []
     for item in surfaces:
         if isinstance(item, Import):
-            kind, doc = "import", _import_doc(item, mats)
+            kind, doc = "import", import_doc(item, mats)
         elif isinstance(item, Surface):
-            kind, doc = "surface", _surface_doc(item, mats)
+            kind, doc = "surface", surface_doc(item, mats)
         elif isinstance(item, Mapping):
-            kind, doc = "surface", _plain(item)
+            kind, doc = "surface", plain(item)
         else:
-            kind, doc = "surface", _surface_doc(Surface.from_object(item), mats)
+            kind, doc = "surface", surface_doc(Surface.from_object(item), mats)
         tables[kind].append(doc)
         order.append(kind)
-    data["material"] = [_plain(asdict(m)) if isinstance(m, Material) else _plain(m) for m in mats]
+    data["material"] = [plain(asdict(m)) if isinstance(m, Material) else plain(m) for m in mats]
     data.update({k: v for k, v in tables.items() if v})
     return data, order
-
-
-def _camera_doc(camera) -> dict:
-    if isinstance(camera, _Camera):
-        return {"eye": _plain(camera.eye), "look_at": _plain(camera.look_at), "up": _plain(camera.up),
-                "fov": _plain(camera.fov), "fov_axis": camera.fov_axis}
-    return _plain(camera)
-
-
-def _light_doc(light) -> dict:
-    if isinstance(light, _scene.Light):
-        doc = {"kind": light.kind, "color": light.color, "intensity": light.intensity}
-        if light.position is not None:
-            doc["position"] = light.position
-        if light.direction is not None:
-            doc["direction"] = light.direction
-        return _plain(doc)
-    return _plain(light)
-
-
-def _material_ref(material, mats: list):
-    """A surface's material as the document holds it: a name (a Material object joins ``mats``)."""
-    if isinstance(material, Material):
-        if not any(m is material or m == material for m in mats):
-            mats.append(material)
-        return material.name
-    return _plain(material)
-
-
-def _surface_doc(s: Surface, mats: list) -> dict:
-    doc = {"degree": _plain(s.degree), "knots_u": _plain(s.knots_u), "knots_v": _plain(s.knots_v),
-           "points": _plain(s.points)}
-    if s.weights is not None:
-        doc["weights"] = _plain(s.weights)
-    if s.name is not None:
-        doc["name"] = s.name
-    if s.material is not None:
-        doc["material"] = _material_ref(s.material, mats)
-    if s.color is not None:
-        doc["color"] = _plain(s.color)
-    if s.trims is not None and (not _is_array_like(s.trims) or len(s.trims)):
-        doc["trim"] = [_loop_doc(loop) for loop in s.trims] if _is_array_like(s.trims) else _plain(s.trims)
-    if s.transform is not None:
-        doc["transform"] = _plain(s.transform)
-    return doc
-
-
-def _loop_doc(loop):
-    if isinstance(loop, Mapping):
-        return _plain(loop)
-    curves = getattr(loop, "curves", loop)  # a TrimLoop, or a sequence of curves
-    return {"curves": [_curve_doc(c) for c in curves] if _is_array_like(curves) else _plain(curves)}
-
-
-def _curve_doc(curve):
-    if isinstance(curve, Mapping):
-        doc = dict(curve)
-        if doc.get("weights", 0) is None:
-            del doc["weights"]
-        return _plain(doc)
-    if all(hasattr(curve, k) for k in ("degree", "knots", "points")):
-        doc = {"degree": curve.degree, "knots": curve.knots, "points": curve.points}
-        if getattr(curve, "weights", None) is not None:
-            doc["weights"] = curve.weights
-        return _plain(doc)
-    return _plain(curve)
-
-
-def _import_doc(item: Import, mats: list) -> dict:
-    doc = {"file": os.fspath(item.file), "format": item.format}
-    if item.material is not None:
-        doc["material"] = _material_ref(item.material, mats)
-    if item.transform is not None:
-        doc["transform"] = _plain(item.transform)
-    return doc
-
-
-def _plain(value):
-    """NumPy arrays and scalars, tuples and mappings as the lists, numbers and dicts of a TOML document."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Mapping):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value
-
-
-def _is_array_like(value) -> bool:
-    return isinstance(value, (list, tuple, np.ndarray))
 
 
 def _as_vector3(value):
@@ -595,121 +488,9 @@ def _as_tuple(value):
 
 def _automatic(scene: _scene.Scene, camera: bool, lights: bool) -> _scene.Scene:
     """The model files' automatic camera and/or lights for a built scene."""
-    from .io import Model
+    from bsrt.io import Model
 
     model = Model(scene.path, [s.geometry for s in scene.surfaces], [s.name for s in scene.surfaces])
     auto = _scene.scene_for_model(model, scene.film.width, scene.film.height)
     return replace(scene, camera=auto.camera if camera else scene.camera,
                    lights=auto.lights if lights else scene.lights)
-
-
-# ---------------------------------------------------------------------------
-# A scene -> a scene file
-
-
-def scene_document(scene: _scene.Scene) -> dict:
-    """The document (tables, lists, numbers) of a scene file for ``scene``:
-    surfaces in world space with their trims, materials by (unique) name."""
-    names, used = [], set()
-    for i, m in enumerate(scene.materials):
-        name = m.name
-        while name in used:  # a material called "default" beside the automatic one
-            name = f"{m.name}-{i}"
-            i += 1
-        used.add(name)
-        names.append(name)
-    doc: dict[str, Any] = {
-        "film": {"width": scene.film.width, "height": scene.film.height, "background": list(scene.film.background)},
-        "camera": _camera_doc(scene.camera),
-        "render": asdict(scene.render),
-        "material": [{**asdict(m), "name": n} for m, n in zip(scene.materials, names)],
-        "light": [_light_doc(light) for light in scene.lights],
-        "surface": [],
-    }
-    for s in scene.surfaces:
-        g = s.geometry
-        table = {"name": s.name, "material": names[s.material], "degree": list(g.degree), "knots_u": g.knots_u,
-                 "knots_v": g.knots_v, "points": g.points}
-        if g.weights is not None:
-            table["weights"] = g.weights
-        if g.trims:
-            table["trim"] = [_loop_doc(loop) for loop in g.trims]
-        doc["surface"].append(_plain(table))
-    return _plain(doc)
-
-
-def _header(scene: _scene.Scene) -> str:
-    lines = [f"Scene file (bsrt scene format version 1), written by bsrt {__version__} from {scene.path}."]
-    lines += [f"note: {n}" for n in scene.notes]
-    return "\n".join(lines)
-
-
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
-
-
-def dumps_toml(doc: Mapping, header: str = "") -> str:
-    """A scene document as TOML text: top-level tables, then arrays of tables
-    (``[[surface]]`` with its ``[[surface.trim]]`` loops). Floats are written
-    with ``repr``, which tomllib reads back to the same float64."""
-    out = [f"# {line}".rstrip() for line in header.splitlines()]
-    for key, value in doc.items():
-        if isinstance(value, Mapping):
-            out += ["", f"[{_key(key)}]"] + _table_body(value)
-        elif isinstance(value, list) and value and all(isinstance(v, Mapping) for v in value):
-            for item in value:
-                subtables = {k: v for k, v in item.items() if isinstance(v, list) and v
-                             and all(isinstance(x, Mapping) for x in v)}
-                out += ["", f"[[{_key(key)}]]"] + _table_body({k: v for k, v in item.items() if k not in subtables})
-                for sub, loops in subtables.items():
-                    for loop in loops:
-                        out += [f"[[{_key(key)}.{_key(sub)}]]"] + _table_body(loop)
-        elif not (isinstance(value, list) and not value):
-            out.append(f"{_key(key)} = {_value(value)}")
-    return "\n".join(out).lstrip("\n") + "\n"
-
-
-def _table_body(table: Mapping) -> list[str]:
-    lines = []
-    for key, value in table.items():
-        if isinstance(value, list) and value and isinstance(value[0], (list, Mapping)):
-            # one element per line: rows of points, the curves of a loop
-            lines.append(f"{_key(key)} = [")
-            lines += [f"  {_value(v)}," for v in value]
-            lines.append("]")
-        else:
-            lines.append(f"{_key(key)} = {_value(value)}")
-    return lines
-
-
-def _key(key: str) -> str:
-    return key if _BARE_KEY.fullmatch(key) else _string(key)
-
-
-def _value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return repr(value)
-    if isinstance(value, str):
-        return _string(value)
-    if isinstance(value, Mapping):
-        return "{ " + ", ".join(f"{_key(k)} = {_value(v)}" for k, v in value.items()) + " }" if value else "{}"
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {type(value).__name__} to TOML")
-
-
-_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
-
-
-def _string(text: str) -> str:
-    """A TOML basic string: quotes, backslashes and control characters escaped."""
-    return '"' + "".join(
-        _ESCAPES.get(c) or (f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c) for c in text
-    ) + '"'

@@ -14,7 +14,7 @@ from pathlib import Path
 
 
 def _methods() -> str:
-    from .methods import DEFAULT_METHOD, METHODS
+    from bsrt.methods import DEFAULT_METHOD, METHODS
 
     rows = ["| method | seeded by the map | what it does |", "|---|---|---|"]
     for m in METHODS.values():
@@ -24,13 +24,13 @@ def _methods() -> str:
 
 
 def _settings() -> str:
-    from .settings import markdown_table
+    from bsrt.settings import markdown_table
 
     return markdown_table()
 
 
 def _formats() -> str:
-    from .io.formats import markdown_table
+    from bsrt.io.formats import markdown_table
 
     return markdown_table()
 

@@ -11,7 +11,7 @@ import os
 import stat
 from pathlib import Path
 
-from .errors import InputError, MissingFileError
+from bsrt.errors import InputError, MissingFileError
 
 _KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))

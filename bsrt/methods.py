@@ -5,14 +5,14 @@ preview's number keys and the docs list them. The CLI's ``--method``
 choices, the scene's ``render.method``, the API's checks, the preview's keys
 and the benchmark read it. The per-ray loops are in
 :mod:`bsrt.kernels.roots` (seeded methods, by ``kernel_id``) and
-:mod:`bsrt.trace` (the hierarchy).
+:mod:`bsrt.rendering.trace` (the hierarchy).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .kernels.method_ids import FAST, GRADIENT, NEWTON
+from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 
 
 @dataclass(frozen=True)

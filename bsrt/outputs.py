@@ -21,8 +21,8 @@ import os
 import secrets
 from pathlib import Path
 
-from . import interrupts
-from .errors import OutputError
+from bsrt import interrupts
+from bsrt.errors import OutputError
 
 __all__ = ["OutputError", "Outputs", "write_file"]
 

@@ -1,7 +1,7 @@
 """Render progress on a terminal: a bar with percentage and time left, then one summary line.
 
 ``Progress`` is the ``progress(stage, fraction)`` callback of
-:func:`bsrt.pipeline.render` (stage "map", "solve", "shade", "aov" or "done";
+:func:`bsrt.rendering.pipeline.render` (stage "map", "solve", "shade", "aov" or "done";
 fraction 0..1 of the whole render; its callers report "setup" at 0 before
 it starts, since loading the kernels can take a while). Before that, the
 model load reports stage "load" with its own fraction, the faces converted

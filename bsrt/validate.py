@@ -14,7 +14,7 @@ import os
 
 import numpy as np
 
-from .errors import InputError
+from bsrt.errors import InputError
 
 # The limits (docs/scene-format.md, "Limits"), each with its reason there.
 MAX_COORDINATE = 1e15  # |x|, |y|, |z| of points, eye, look_at, lights, translations
@@ -199,8 +199,8 @@ def evaluation_error(surface, samples: int = 4) -> float:
     reference (de Boor) evaluator, on a samples x samples grid inside each of the
     surface's Bezier patches. The power basis loses digits as about 3^degree,
     so above CHECKED_DEGREE this is measured, not assumed."""
-    from .bspline import evaluate
-    from .patches import PatchSet
+    from bsrt.geometry.bspline import evaluate
+    from bsrt.geometry.patches import PatchSet
 
     patches = PatchSet([surface])
     b = patches.bounds  # (P, 4): u0, u1, v0, v1

@@ -542,7 +542,7 @@ def boundary_edges(surf, evaluate, samples: int = 41):
 
 
 def check(path: Path) -> bool:
-    from bsrt.bspline import evaluate, make_surface
+    from bsrt.geometry.bspline import evaluate, make_surface
 
     with open(path, "rb") as fh:
         doc = tomllib.load(fh)

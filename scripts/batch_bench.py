@@ -63,8 +63,8 @@ def overhead(files, out: Path) -> tuple[float, float]:
     from distributed import Client, LocalCluster
 
     import bsrt
-    from bsrt.pipeline import render
-    from bsrt.settings import RenderOptions
+    from bsrt.rendering.pipeline import render
+    from bsrt.rendering.options import RenderOptions
 
     warm = bsrt.load(files[0], width=8, height=8)
     render(warm, RenderOptions.resolve(warm))  # this process's kernels and GL loaded, as the worker's will be

@@ -34,9 +34,9 @@ print(json.dumps({"code": run.returncode, "peak_mb": peak, "stderr": run.stderr[
 
 def timed_rounds(scene_path: Path, sizes: list[int], rounds: int) -> dict[int, list[float]]:
     """Whole-render seconds per size, rendered in alternating rounds in this process."""
-    from bsrt.pipeline import Geometry, render
+    from bsrt.rendering.pipeline import Geometry, render
     from bsrt.scene import load_scene
-    from bsrt.settings import RenderOptions
+    from bsrt.rendering.options import RenderOptions
 
     scene = load_scene(scene_path)
     geometry = Geometry(scene)

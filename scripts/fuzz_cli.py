@@ -215,7 +215,7 @@ def run_case(number: int, seed: int, files: list[Path], work: Path, timeout: flo
     target.write_bytes(data)
     case = Case(number, str(source.relative_to(ROOT)), mutation)
     env = dict(os.environ, PYTHONPATH=str(ROOT), BSRT_DEBUG="")
-    command = [sys.executable, "-c", _LAUNCH, str(memory), "-m", "bsrt.cli", "render", str(target),
+    command = [sys.executable, "-c", _LAUNCH, str(memory), "-m", "bsrt", "render", str(target),
                "-o", str(out / "image.png"), "--width", str(SIZE), "--height", str(SIZE), "--no-progress"]
     err_path = folder / "stderr.txt"
     clock = time.perf_counter()

@@ -25,7 +25,7 @@ import tempfile
 
 _BSRT = """
 import sys, time
-import bsrt.io, bsrt.io.iges, bsrt.io.iges_topology, bsrt.io.iges_seams
+import bsrt.io, bsrt.io.iges, bsrt.io.iges.topology, bsrt.io.iges.seams
 path = sys.argv[1]
 t = time.perf_counter()
 m = bsrt.io.load_model(path)

@@ -364,9 +364,9 @@ def decide(kind, d_b, d_o, t_b, t_o, tol):
 def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> dict:
     import numpy as np
 
-    from bsrt.camera import pixel_rays
+    from bsrt.scene.camera import pixel_rays
     from bsrt.io import load_model
-    from bsrt.pipeline import render
+    from bsrt.rendering.pipeline import render
     from bsrt.scene import model_box, scene_for_model
 
     out: dict = {"file": str(path), "bytes": path.stat().st_size, "kind": kind_of(path), "size": size,

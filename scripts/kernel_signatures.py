@@ -2,7 +2,7 @@
 
     python scripts/kernel_signatures.py [--size 64] [--json FILE]
 
-Runs ``bsrt.kernels.compile.warm_up`` (what ``bsrt doctor`` runs), then
+Runs ``bsrt.rendering.warm_up.warm_up`` (what ``bsrt doctor`` runs), then
 renders every bundled scene (scenes/*.toml) and a trimmed IGES model with
 every method (the scenes have shadows and mirrors), and prints, per numba
 dispatcher in ``bsrt.kernels``, the signatures it compiled. Run it with an
@@ -47,9 +47,10 @@ def signatures() -> dict[str, list[str]]:
 
 def render_everything(size: int) -> None:
     """Every bundled scene and a trimmed model, with every method, at size x size."""
-    from bsrt.loading import load_input
-    from bsrt.pipeline import render
-    from bsrt.settings import METHODS, RenderOptions
+    from bsrt.scene.loading import load_input
+    from bsrt.rendering.pipeline import render
+    from bsrt.settings import METHODS
+    from bsrt.rendering.options import RenderOptions
 
     inputs = sorted((ROOT / "scenes").glob("*.toml")) + [TRIMMED_MODEL]
     for path in inputs:
@@ -63,7 +64,7 @@ def main(argv=None) -> int:
     parser.add_argument("--size", type=int, default=64, help="film width and height (default 64)")
     parser.add_argument("--json", help="also write {warm_up, renders: {kernel: [signatures]}} here")
     args = parser.parse_args(argv)
-    from bsrt.kernels.compile import warm_up
+    from bsrt.rendering.warm_up import warm_up
 
     clock = time.perf_counter()
     warm_up()

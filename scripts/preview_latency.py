@@ -54,7 +54,7 @@ def main() -> int:
     for run in range(a.runs):
         with tempfile.TemporaryDirectory() as tmp:
             log_path = Path(tmp) / "log.json"
-            cmd = [sys.executable, "-m", "bsrt.cli", "preview", a.scene, "--width", width, "--height", height,
+            cmd = [sys.executable, "-m", "bsrt", "preview", a.scene, "--width", width, "--height", height,
                    "--events", events, "--frame-log", str(log_path)]
             result = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
             if result.returncode != 0:

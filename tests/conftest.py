@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsrt import gl
-
+from bsrt.rendering import gl
 # The converted-model cache (bsrt/io/cache.py) of this test session: a fresh
 # temporary folder, never the user's ~/.cache. Set at import, so the CLI's
 # child processes inherit it; removed when the session ends.

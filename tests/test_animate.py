@@ -14,9 +14,10 @@ from distributed import LocalCluster
 from PIL import Image
 
 import bsrt
-from bsrt.kernels import compile as kernels
-from bsrt.camera import Camera
-from bsrt.camera_path import Keyframe, frame_cameras, keyframe_camera, orbit_camera
+from bsrt.rendering.warm_up import warm_up
+from bsrt.scene.camera import Camera
+from bsrt.batch.animation import frame_cameras, orbit_camera
+from bsrt.scene.keyframes import Keyframe, keyframe_camera
 from bsrt.errors import InputError
 from bsrt.scene import load_scene
 
@@ -26,7 +27,7 @@ SCENES = Path(__file__).resolve().parent.parent / "scenes"
 @pytest.fixture(scope="module")
 def cluster():
     """One local cluster (2 worker processes, 1 thread each) for the module's tests."""
-    kernels.warm_up()  # compiled once here (a fresh install), not by every worker at once: they load the cache
+    warm_up()  # compiled once here (a fresh install), not by every worker at once: they load the cache
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         yield c
 

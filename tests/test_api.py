@@ -18,7 +18,7 @@ import pytest
 from PIL import Image
 
 import bsrt
-from bsrt.bspline import evaluate
+from bsrt.geometry.bspline import evaluate
 from bsrt.errors import InputError
 from bsrt.io import load_model
 from bsrt.scene import scene_for_model
@@ -113,8 +113,8 @@ def test_the_api_names():
 
 
 def test_bsrt_render_is_the_api_and_the_pipeline_is_its_own_module():
-    """bsrt.render(scene, ...) is the API's render; the pipeline is bsrt.pipeline."""
-    import bsrt.pipeline as module
+    """bsrt.render(scene, ...) is the API's render; the pipeline is bsrt.rendering.pipeline."""
+    import bsrt.rendering.pipeline as module
     from bsrt import api
 
     assert bsrt.render is api.render and module.Geometry.__name__ == "Geometry" and callable(module.render)
@@ -699,7 +699,7 @@ def test_splipy_trimmed_surface_brings_its_loops():
                              loops=[outer, hole])
     surface = bsrt.from_splipy(trimmed).geometry()
     assert len(surface.trims) == 2 and [len(loop.curves) for loop in surface.trims] == [4, 4]
-    from bsrt.trim import kept
+    from bsrt.geometry.trim import kept
 
     keep = kept(surface, np.array([0.1, 0.5, 0.9, 0.5]), np.array([0.5, 0.5, 0.5, 0.1]))
     assert keep.tolist() == [True, False, True, True]

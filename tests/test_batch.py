@@ -18,8 +18,8 @@ import pytest
 from distributed import Client, LocalCluster
 
 import bsrt
-from bsrt.kernels import compile as kernels
-from bsrt import batching
+from bsrt.rendering.warm_up import warm_up
+from bsrt.batch import engine as batching
 from bsrt.errors import InputError
 
 from conftest import MODELS
@@ -32,7 +32,7 @@ SPHERE = MODELS / "nurbs" / "splipy" / "sphere.g2"
 @pytest.fixture(scope="module")
 def cluster():
     """One local cluster (2 worker processes, 1 thread each) for the module's tests."""
-    kernels.warm_up()  # compiled once here (a fresh install), not by every worker at once: they load the cache
+    warm_up()  # compiled once here (a fresh install), not by every worker at once: they load the cache
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as c:
         yield c
 

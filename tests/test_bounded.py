@@ -16,14 +16,15 @@ import numpy as np
 import pytest
 
 import bsrt
-from bsrt import prelim, validate
-from bsrt.bspline import evaluate, make_surface
-from bsrt.bvh import padded_nets
-from bsrt.camera import pixel_rays
-from bsrt.patches import PatchSet
-from bsrt.pipeline import render, sample_grid
-from bsrt.settings import RenderOptions
-from bsrt.solve import Rays, find_roots
+from bsrt.rendering import prelim
+from bsrt import validate
+from bsrt.geometry.bspline import evaluate, make_surface
+from bsrt.rendering.bvh import padded_nets
+from bsrt.scene.camera import pixel_rays
+from bsrt.geometry.patches import PatchSet
+from bsrt.rendering.pipeline import render, sample_grid
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.solve import Rays, find_roots
 
 ROOT = Path(__file__).resolve().parent.parent
 EYE = (0.5, 0.5, 2.0)  # above the plane z = 0, looking straight down
@@ -145,8 +146,7 @@ def test_a_band_ending_inside_a_pixel_row_gives_the_same_image(monkeypatch):
     plane = ROOT / "scenes" / "quad.toml"
     scene = bsrt.load(plane, width=20, height=10)
     whole = render(scene, RenderOptions.resolve(scene, spp=7)).linear
-    from bsrt import pipeline
-
+    from bsrt.rendering import pipeline
     monkeypatch.setattr(pipeline, "MAX_BAND_SAMPLES", 20 * 3)  # 3 of each pixel row's 7 sample rows per band
     banded = render(scene, RenderOptions.resolve(scene, spp=7)).linear
     np.testing.assert_allclose(banded, whole, rtol=0, atol=1e-8)  # roots agree to the tolerance
@@ -196,7 +196,7 @@ def test_a_map_drawn_in_tiles_is_the_map_drawn_at_once(monkeypatch):
 
 
 def test_a_film_wider_than_the_gl_limit_renders_through_tiles(tmp_path):
-    import bsrt.gl as gl
+    import bsrt.rendering.gl as gl
 
     limit = gl.max_framebuffer_side(gl.headless_context())
     width = limit + 1
@@ -291,8 +291,7 @@ def test_leaf_budget_lowers_the_depth_and_the_retries_keep_the_hits(tmp_path, mo
     """A bumpy degree-10 patch cut under a budget of 16 leaf nets: flatten
     lowers max_depth until the leaves fit, and the per-ray retries (quarters
     of a curved leaf) still find the same nearest roots as the full cut."""
-    from bsrt import bvh as bvh_module
-
+    from bsrt.rendering import bvh as bvh_module
     path = write_plane(tmp_path / "bumpy10.bpt", 10, wavy=0.3)
     scene = bsrt.load(path, width=24, height=24, fov=40, **VIEW)
     patches = PatchSet([s.geometry for s in scene.surfaces])

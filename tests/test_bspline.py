@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bsrt.bspline import (
+from bsrt.geometry.bspline import (
     basis_functions,
     bezier_patches,
     evaluate,
@@ -16,7 +16,7 @@ from bsrt.bspline import (
     make_surface,
 )
 from bsrt.errors import InputError
-from bsrt.patches import PatchSet
+from bsrt.geometry.patches import PatchSet
 
 
 @st.composite

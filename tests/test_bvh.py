@@ -1,13 +1,13 @@
-"""Tests of bsrt.bvh: flattening, the tree, and the intersector against references."""
+"""Tests of bsrt.rendering.bvh: flattening, the tree, and the intersector against references."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bsrt.bspline import evaluate, make_surface
-from bsrt.bvh import build_bvh, intersect
-from bsrt.patches import PatchSet
+from bsrt.geometry.bspline import evaluate, make_surface
+from bsrt.rendering.bvh import build_bvh, intersect
+from bsrt.geometry.patches import PatchSet
 
 
 # ---------------------------------------------------------------------------

@@ -324,7 +324,7 @@ def test_the_load_stage_in_the_progress(folder, step):
     bsrt.load(step, progress=lambda stage, fraction: seen.append((stage, fraction)))
     assert seen and {s for s, _ in seen} == {"load"} and seen[-1][1] == 1.0
     assert [f for _, f in seen] == sorted(f for _, f in seen)
-    from bsrt.loading import load_input
+    from bsrt.scene.loading import load_input
 
     stream = StringIO()
     load_input(step, cache=False, progress=Progress(stream, lines=True))

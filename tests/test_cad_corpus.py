@@ -49,9 +49,9 @@ from OCP.BRepBndLib import BRepBndLib
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.STEPControl import STEPControl_Reader
 
-from bsrt.camera import pixel_rays
+from bsrt.scene.camera import pixel_rays
 from bsrt.io import load_model
-from bsrt.pipeline import render
+from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
 
 TOL = 1e-6  # of the model's diagonal: |dt|, and a hit's distance to the shape

@@ -1,11 +1,11 @@
-"""The preview's camera moves (bsrt/camera.py): orbit, pan, zoom, on exact
+"""The preview's camera moves (bsrt/scene/camera.py): orbit, pan, zoom, on exact
 values worked by hand."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from bsrt.camera import Camera, orbit, pan, zoom
+from bsrt.scene.camera import Camera, orbit, pan, zoom
 
 
 def _camera(eye=(1.0, 0.0, 0.0), look_at=(0.0, 0.0, 0.0), fov=90.0):

@@ -115,12 +115,12 @@ def test_usage_errors_exit_2(tmp_path, capsys):
 def test_console_script_runs_in_a_fresh_process(tmp_path):
     """The installed entry point, stderr quiet when not a terminal, no traceback on errors."""
     out = tmp_path / "q.png"
-    ok = subprocess.run([sys.executable, "-m", "bsrt.cli", "render", str(SCENES / "quad.toml"), "-o", str(out)],
+    ok = subprocess.run([sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out)],
                         capture_output=True, text=True, timeout=120)
     assert ok.returncode == 0, ok.stderr
     assert ok.stderr == "" and out.exists()
     bad = _write(tmp_path, "[camera]\neye = [0, 0, 0]\n")
-    fail = subprocess.run([sys.executable, "-m", "bsrt.cli", "render", str(bad), "-o", str(tmp_path / "b.png")],
+    fail = subprocess.run([sys.executable, "-m", "bsrt", "render", str(bad), "-o", str(tmp_path / "b.png")],
                           capture_output=True, text=True, timeout=120)
     assert fail.returncode == 2
     assert fail.stderr.startswith("bsrt: error: bad.toml: camera.look_at: missing")
@@ -215,10 +215,10 @@ def test_negative_values_are_joined_only_to_a_preceding_long_option():
 def test_negative_vectors_in_a_fresh_process(tmp_path):
     """The console entry point (sys.argv, not an argument list) joins them too."""
     out = tmp_path / "q.png"
-    run = subprocess.run([sys.executable, "-m", "bsrt.cli", "render", str(SCENES / "quad.toml"), "-o", str(out),
+    run = subprocess.run([sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out),
                           "--camera-look-at", "-4281,19153,5738", "--camera-eye", "-4281,19149,5738"],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert out.exists()
-    version = subprocess.run([sys.executable, "-m", "bsrt.cli", "--version"], capture_output=True, text=True, timeout=60)
+    version = subprocess.run([sys.executable, "-m", "bsrt", "--version"], capture_output=True, text=True, timeout=60)
     assert version.returncode == 0 and version.stdout.startswith("bsrt ")

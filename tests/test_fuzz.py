@@ -25,7 +25,7 @@ from bsrt import validate
 from bsrt.errors import InputError
 from bsrt.io import load_model
 from bsrt.scene import parse_scene
-from bsrt.settings import RenderOptions
+from bsrt.rendering.options import RenderOptions
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"

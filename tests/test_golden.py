@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from bsrt.image import write_png
-from bsrt.settings import RenderOptions
-from bsrt.pipeline import render
+from bsrt.rendering.image import write_png
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import render
 from bsrt.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -38,9 +38,9 @@ from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
 from occ_reference import distance, interior, occt_hits
 
-from bsrt.camera import pixel_rays
+from bsrt.scene.camera import pixel_rays
 from bsrt.io import load_model
-from bsrt.pipeline import render
+from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
 
 MODELS = Path(__file__).resolve().parent / "data" / "models" / "iges"

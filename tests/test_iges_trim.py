@@ -16,14 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsrt.bspline import evaluate
+from bsrt.geometry.bspline import evaluate
 from bsrt.cli import main
 from bsrt.errors import InputError
 from bsrt.io import load_model
-from bsrt.io.iges import IgesFile
-from bsrt.io.iges_bspline import ParamMap, arc_curve, evaluate as curve_eval, reverse
-from bsrt.io.iges_curves import curve
-from bsrt.trim import check_loops
+from bsrt.io.iges.records import IgesFile
+from bsrt.io.iges.bspline import ParamMap, arc_curve, evaluate as curve_eval, reverse
+from bsrt.io.iges.curves import curve
+from bsrt.geometry.trim import check_loops
 
 HERE = Path(__file__).parent / "data" / "iges"
 MODELS = Path(__file__).parent / "data" / "models" / "iges"
@@ -453,7 +453,7 @@ def test_hammer_loops_lie_on_their_model_space_curves():
     model = load_model(path)
     f = IgesFile(str(path))
     by_name = dict(zip(model.names, model.surfaces))
-    from bsrt.io.iges_curves import pieces
+    from bsrt.io.iges.curves import pieces
 
     worst = 0.0
     for e in f.entities.values():
@@ -537,7 +537,7 @@ def test_508_loop_that_does_not_close(tmp_path, capsys):
 def _kept_against(s, inside, boundary, n: int = 241) -> None:
     """Over an n x n grid of s's domain: kept by the trims exactly where the closed form
     says inside (points within 1e-6 of the region's boundary, by ``boundary``, excepted)."""
-    from bsrt.trim import kept
+    from bsrt.geometry.trim import kept
 
     mid = (np.arange(n) + 0.5) / n  # cell centres: not on the domain's edges (a seam lies there)
     (u0, u1), (v0, v1) = s.domain_u, s.domain_v
@@ -689,7 +689,7 @@ def test_144_whose_parameter_space_loop_does_not_close_is_trimmed_by_its_model_s
     bug22566_test_Bad.igs): the 142's parameter-space loop, in the writer's arc parameter (from 0
     at the arc's start), does not close in IGES's; its model-space loop does and bounds the
     quarter of the unit sphere with y <= 0 and z >= 0 (area pi), which is drawn, with a warning."""
-    from bsrt.trim import kept
+    from bsrt.geometry.trim import kept
 
     model = load_model(HERE / "sphere_120_shifted_pcurve.igs")
     (s,) = model.surfaces
@@ -731,7 +731,7 @@ def test_invert_beyond_the_domain_edge_and_far_from_the_surface():
     assert np.all(end <= start * (1 + 1e-12))
     # a sheared plane S(u, v) = (u + v, v, 0) on [0, 1]^2 (S_u . S_v != 0): (1.5, 1.5, 0) is
     # nearest (0, 1.5) unconstrained, v beyond the edge; with v held at 1, u + 1 = 1.5
-    from bsrt.bspline import BSplineSurface
+    from bsrt.geometry.bspline import BSplineSurface
 
     plane = BSplineSurface((1, 1), np.array([0.0, 0, 1, 1]), np.array([0.0, 0, 1, 1]),
                            np.array([[[0.0, 0, 0], [1, 1, 0]], [[1, 0, 0], [2, 1, 0]]]))

@@ -14,7 +14,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bsrt.bspline import evaluate, make_surface
+from bsrt.geometry.bspline import evaluate, make_surface
 from bsrt.errors import InputError
 from bsrt.io import FORMATS, Model, load_model, restrict
 from bsrt.io.bez import newell_from_qt3d

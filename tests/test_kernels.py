@@ -7,11 +7,12 @@ import os
 import numpy as np
 
 from bsrt.kernels import compile as kernels
+from bsrt.rendering.warm_up import warm_up
 from bsrt.kernels.threads import run_chunks
 
 
 def test_warm_up_leaves_every_entry_kernel_cached(ctx):
-    seconds = kernels.warm_up()
+    seconds = warm_up()
     assert seconds > 0
     assert kernels.is_cached()
     folder = kernels.cache_folder()

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.camera import pixel_rays
-from bsrt.settings import RenderOptions
-from bsrt.pipeline import render
+from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import render
 from bsrt.scene import parse_scene
-from bsrt.shade import shade
+from bsrt.rendering.shade import shade
 
 from conftest import flat_patch
 from test_models import exact_sphere

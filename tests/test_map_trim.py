@@ -12,10 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsrt import api, prelim
-from bsrt.camera import pixel_rays
-from bsrt.pipeline import Geometry, render
-from bsrt.settings import RenderOptions
+from bsrt import api
+
+from bsrt.rendering import prelim
+from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.pipeline import Geometry, render
+from bsrt.rendering.options import RenderOptions
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).resolve().parent / "data"

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from bsrt.bspline import make_surface
+from bsrt.geometry.bspline import make_surface
 from bsrt.cli import main
 from bsrt.errors import InputError
 from bsrt.io import Model, load_model
 from bsrt.io.bez import newell_from_qt3d
-from bsrt.pipeline import render
+from bsrt.rendering.pipeline import render
 from bsrt.scene import load_scene, scene_for_model
 
 from conftest import MODELS as DATA

@@ -57,13 +57,13 @@ from PIL import Image
 
 from occ_reference import interior, occt_hits
 
-from bsrt.bspline import basis_functions, evaluate, find_span
-from bsrt.camera import pixel_rays
+from bsrt.geometry.bspline import basis_functions, evaluate, find_span
+from bsrt.scene.camera import pixel_rays
 from bsrt.cli import main
 from bsrt.errors import InputError
 from bsrt.io import Model, load_model, occt
 from bsrt.io.occt import reading as _occt_reading  # noqa: F401  (occt.reading below)
-from bsrt.pipeline import render
+from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
 
 MODELS = Path(__file__).resolve().parent / "data" / "models"
@@ -603,7 +603,7 @@ def test_step_and_iges_through_bsrts_own_reader_render_the_same_hits(tmp_path, b
     """The box with a filleted hole written as STEP (read through OpenCASCADE) and as IGES
     (faces, or B-rep mode 186/514/510, read by bsrt's own IGES reader): the same hits."""
     from bsrt.scene import scene_for_model
-    from bsrt.settings import RenderOptions
+    from bsrt.rendering.options import RenderOptions
 
     shape = box_with_filleted_hole()
     step = load_model(write_step(shape, tmp_path / "part.step"))

@@ -16,7 +16,7 @@ closed form of the shape, never against OpenCASCADE's own answers:
   lies in a kept region of some face; bsrt's rays (``Geometry.intersect``
   of the pipeline, trims included) must hit exactly those rays, at that t
   to within 1e-7 of the model's size;
-* ``bsrt.trim.kept`` at points of the converted surfaces (``evaluate``)
+* ``bsrt.geometry.trim.kept`` at points of the converted surfaces (``evaluate``)
   must agree with the kept regions, and the points must lie on the closed
   form surfaces to 1e-7 of the size.
 
@@ -89,11 +89,11 @@ from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Compound, TopoDS_Face, TopoDS_Wire
 
-from bsrt.bspline import evaluate
+from bsrt.geometry.bspline import evaluate
 from bsrt.io import load_model
-from bsrt.pipeline import Geometry
+from bsrt.rendering.pipeline import Geometry
 from bsrt.scene import scene_for_model
-from bsrt.trim import kept
+from bsrt.geometry.trim import kept
 
 TOL = 1e-7  # of the model's size: how close hits and surfaces must be
 MARGIN = 1e-6  # of the model's size: rays and points this close to a face's boundary are left out
@@ -333,7 +333,7 @@ def check_rays(model, faces, origins, directions, size, min_hits=50, min_misses=
 
 def check_surfaces(model, faces, size, n=24, seed=0):
     """Every converted surface lies on one of the closed-form surfaces (to 1e-7 of
-    the size) and bsrt.trim.kept agrees with that face's kept region, at the
+    the size) and bsrt.geometry.trim.kept agrees with that face's kept region, at the
     centres of an n x n grid of cells of its (u, v) domain plus random points (those within MARGIN of
     the region's boundary left out). Returns the faces matched, in model order."""
     rng = np.random.default_rng(seed)
@@ -964,11 +964,11 @@ def test_chains_once_round_are_closed_into_the_band_between_them(flip):
     along v = 0 (the face above it, on its left), one running -u along v = 1 (the face below it). Closed
     along the domain's edge they keep exactly 0 < v < 1, for every u of the period, whichever way the
     chains start; reversed (flip: the face outside the band) they keep the rest."""
-    from bsrt.bspline import make_surface
+    from bsrt.geometry.bspline import make_surface
     from bsrt.io.occt.curves import segment
     from bsrt.io.occt.surfaces import AxisMap, ParamMap
     from bsrt.io.occt.topology import _close, _closed_around
-    from bsrt.trim import TrimLoop, kept
+    from bsrt.geometry.trim import TrimLoop, kept
 
     period = 2 * math.pi
     identity = AxisMap("identity", np.array([0.0, period]))

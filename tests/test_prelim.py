@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsrt.bspline import make_surface
-from bsrt.camera import Camera, pixel_rays
+from bsrt.geometry.bspline import make_surface
+from bsrt.scene.camera import Camera, pixel_rays
 from bsrt.errors import InputError
-from bsrt.patches import PatchSet
-from bsrt.prelim import render_map
+from bsrt.geometry.patches import PatchSet
+from bsrt.rendering.prelim import render_map
 
 
 def _flat(x0, x1, z0, z1, y=0.0):

@@ -4,14 +4,14 @@ the NumPy expressions they replace, which must agree bit for bit."""
 import numpy as np
 import pytest
 
-from bsrt import gl, prelim
-from bsrt.camera import Camera, pixel_rays
-from bsrt.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, suspect_pixels
-from bsrt.hits import Hits
+from bsrt.rendering import gl, prelim
+from bsrt.scene.camera import Camera, pixel_rays
+from bsrt.rendering.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, suspect_pixels
+from bsrt.rendering.hits import Hits
 from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
-from bsrt.patches import PatchSet
+from bsrt.geometry.patches import PatchSet
 from bsrt.scene import parse_scene
-from bsrt.solve import Rays
+from bsrt.rendering.solve import Rays
 
 DOMAIN = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
 
@@ -232,8 +232,8 @@ def test_map_framebuffers_are_reused_and_give_the_same_map(mode):
 
 
 def test_seeded_hits_are_as_hits_put_at_the_covered_pixels():
-    from bsrt.solve import RootResult
-    from bsrt.trace import _seeded_hits
+    from bsrt.rendering.solve import RootResult
+    from bsrt.rendering.trace import _seeded_hits
 
     rng = np.random.default_rng(9)
     n, patch_surface = 5000, np.array([0, 0, 1, 2, 2])

@@ -22,12 +22,13 @@ import pytest
 from PIL import Image
 
 from bsrt import preview
-from bsrt.camera import Camera, camera_toml, orbit, pan, zoom
+from bsrt.scene.camera import Camera, orbit, pan, zoom
+from bsrt.scene.document import camera_toml
 from bsrt.preview import refine, script, solver as solver_module
 from bsrt.preview.bindings import ZOOM_STEP
 from bsrt.errors import InputError
-from bsrt.settings import RenderOptions
-from bsrt.pipeline import Geometry, render
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -74,7 +75,7 @@ def run_preview(display, scene, *args, cwd=None, env_display=True):
         env.pop("DISPLAY", None)
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
     return subprocess.run(
-        [sys.executable, "-m", "bsrt.cli", "preview", str(scene), *map(str, args)],
+        [sys.executable, "-m", "bsrt", "preview", str(scene), *map(str, args)],
         capture_output=True, text=True, timeout=TIMEOUT, env=env, cwd=cwd,
     )
 
@@ -101,7 +102,7 @@ def assert_same_image(got: np.ndarray, want: np.ndarray, what: str) -> None:
 
 
 def foreground(image: np.ndarray, background) -> np.ndarray:
-    from bsrt.image import srgb_encode
+    from bsrt.rendering.image import srgb_encode
 
     bg = srgb_encode(np.asarray(background, dtype=np.float64)).astype(np.int16)
     return np.abs(image.astype(np.int16) - bg).max(axis=-1) > 8
@@ -275,7 +276,7 @@ def test_martin_method_then_back_to_newton(display, tmp_path):
 
 def test_camera_overrides_and_format_like_bsrt_render(display, tmp_path):
     """--camera-eye/--camera-look-at/--camera-up/--fov and --format, loaded by
-    bsrt/loading.py as `bsrt render` does: the window starts at that camera."""
+    bsrt/scene/loading.py as `bsrt render` does: the window starts at that camera."""
     result = run_preview(display, SCENES / "quad.toml", "--width", 40, "--height", 30, "--camera-eye", "0,-6,1",
                          "--camera-look-at", "0,0,1", "--camera-up", "0,0,1", "--fov", "25", "--events", "camera; quit",
                          cwd=tmp_path)
@@ -363,7 +364,7 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
     """A camera move while a long solve runs: the warm spare process takes over."""
     import time
 
-    from bsrt.prelim import render_map
+    from bsrt.rendering.prelim import render_map
 
     scene = load_scene(SCENES / "column.toml")
     patches = Geometry(scene).patches
@@ -454,7 +455,7 @@ def test_parse_script():
 def test_map_bands_stitch_to_the_whole_map(ctx):
     scene = load_scene(SCENES / "column.toml")
     patches = Geometry(scene).patches
-    from bsrt.prelim import render_map
+    from bsrt.rendering.prelim import render_map
 
     width, height = 120, 90
     whole = render_map(patches, scene.camera, width, height, ctx=ctx)

@@ -93,7 +93,7 @@ def test_cancelling_forgets_queued_map_bands_and_failures():
 
 
 def test_bands_top_to_bottom_then_stitched():
-    from bsrt.prelim import PrelimMap
+    from bsrt.rendering.prelim import PrelimMap
     from dataclasses import fields
 
     def part(first, stop):

@@ -13,13 +13,14 @@ import pytest
 
 import bsrt
 from bsrt import api, doc_tables
-from bsrt.batch_commands import animate, batch
+from bsrt.batch.api import animate, batch
 from bsrt.cli import _parser
 from bsrt.errors import InputError
 from bsrt.io.formats import BY_EXTENSION, READERS, format_choices
 from bsrt.methods import METHODS
 from bsrt.scene import parse_scene
-from bsrt.settings import SETTINGS, Film, RenderOptions, RenderSettings
+from bsrt.settings import SETTINGS, Film, RenderSettings
+from bsrt.rendering.options import RenderOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 SQUARE = {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsrt.camera import pixel_rays
-from bsrt.settings import RenderOptions
-from bsrt.pipeline import render
+from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import render
 from bsrt.scene import load_scene, parse_scene
 
 from conftest import flat_patch, scene_dict
@@ -155,7 +155,7 @@ def test_aovs_follow_the_scene_format(ctx):
 def test_bands_and_a_given_map_give_the_same_hits(ctx, monkeypatch):
     """A film traced in bands of 8 rows (each with its own map and a row of margin), or from a
     whole-film map given by the caller (the preview window), hits exactly as in one band."""
-    import bsrt.pipeline as render_module
+    import bsrt.rendering.pipeline as render_module
 
     scene = load_scene(SCENES / "water-lily.toml")
     one = render(scene, RenderOptions.resolve(scene, width=64, height=48), ctx=ctx)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsrt.bspline import evaluate, make_surface
-from bsrt.patches import PatchSet
+from bsrt.geometry.bspline import evaluate, make_surface
+from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.roots import ray_frame
-from bsrt.solve import METHODS, Rays, find_roots
+from bsrt.rendering.solve import METHODS, Rays, find_roots
 
 np.seterr(all="raise", under="ignore")
 

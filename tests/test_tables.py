@@ -1,16 +1,16 @@
 """Building the big tables: exact weights of polynomial patches, the compiled
 power-basis conversion, in-place reordering, and leaves that share their
-patch's net (bsrt/kernels/tables.py, bsrt/bvh.py)."""
+patch's net (bsrt/kernels/tables.py, bsrt/rendering/bvh.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bsrt.bspline import bezier_patches, evaluate, make_surface
-from bsrt.bvh import build_bvh
+from bsrt.geometry.bspline import bezier_patches, evaluate, make_surface
+from bsrt.rendering.bvh import build_bvh
 from bsrt.kernels.tables import permute_rows
-from bsrt.patches import PatchSet, power_from_bernstein
+from bsrt.geometry.patches import PatchSet, power_from_bernstein
 
 from test_bvh import rational_bowl, wavy_surface
 

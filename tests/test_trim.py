@@ -1,4 +1,4 @@
-"""The trim test "is (u, v) kept?" (bsrt/trim.py, bsrt/kernels/trim.py), against answers worked out
+"""The trim test "is (u, v) kept?" (bsrt/geometry/trim.py, bsrt/kernels/trim.py), against answers worked out
 independently: distances to exact (rational) circles, point-in-polygon in exact rational arithmetic
 (fractions), and the sides of a closed cubic B-spline evaluated by the reference Cox-de Boor code.
 
@@ -17,10 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numba import njit
 
-from bsrt.bspline import make_surface
+from bsrt.geometry.bspline import make_surface
 from bsrt.errors import InputError
 from bsrt.kernels import trim as K
-from bsrt.trim import TrimCurve, TrimLoop, build_trim_table, check_loops, kept, make_trim_curve
+from bsrt.kernels import trim_pieces as P
+from bsrt.geometry.trim import TrimCurve, TrimLoop, build_trim_table, check_loops, kept, make_trim_curve
 
 W = math.sqrt(0.5)
 UNIT = (0.0, 1.0, 0.0, 1.0)
@@ -359,13 +360,13 @@ def test_the_table_layout():
 
 def test_bezier_spans_match_boehm_knot_insertion():
     """The spans' nets (blossoms) are the control points knot insertion to full multiplicity gives."""
-    from bsrt.bspline import insert_knot
+    from bsrt.geometry.bspline import insert_knot
 
     rng = np.random.default_rng(13)
     for p, n in ((1, 5), (2, 7), (3, 9), (4, 8)):
         knots = np.sort(np.concatenate([rng.uniform(0, 1, n + p - 1), [0.5, 0.5]]))[: n + p + 1]  # unclamped
         ctrl = np.concatenate([rng.random((n, 2)) * (w := rng.uniform(0.5, 2.0, n))[:, None], w[:, None]], axis=1)
-        nets = K.bezier_spans(knots, ctrl, p)
+        nets = P.bezier_spans(knots, ctrl, p)
         k, c = knots, ctrl
         for x in np.unique(knots[p: n + 1]):
             while np.count_nonzero(k == x) < p:
@@ -378,16 +379,16 @@ def test_bezier_spans_match_boehm_knot_insertion():
 
 def test_a_turning_point_is_cut_exactly_and_the_depth_cap_leaves_a_chord():
     arc = np.array([[[1.0, 0.0, 1.0], [2.0, 1.0, 1.0], [-1.0, 1.0, 1.0]]])  # u turns back at s = 1/4
-    pieces, degree, src = K.monotone_pieces(arc, np.array([2]), 48)
+    pieces, degree, src = P.monotone_pieces(arc, np.array([2]), 48)
     assert degree.tolist() == [2, 2] and src.tolist() == [0, 0]
     turn = pieces[0, 2, :2] / pieces[0, 2, 2]  # u(s) = 1 + 2 s - 4 s^2 has its top, 1.25, at s = 1/4
     assert np.array_equal(turn, pieces[1, 0, :2] / pieces[1, 0, 2]) and abs(turn[0] - 1.25) < 1e-15
     assert abs(turn[1] - (2 * 0.25 * 0.75 + 0.25 ** 2)) < 1e-15
-    pieces, degree, src = K.monotone_pieces(arc, np.array([2]), 0)
+    pieces, degree, src = P.monotone_pieces(arc, np.array([2]), 0)
     assert degree.tolist() == [1] and np.array_equal(pieces[0, :2], arc[0, [0, 2]]) and not pieces[0, 2].any()
     # a repeated first point (no slope there) and weights: still one exact cut, u(s) largest there
     cusp = np.array([[[0.0, 0.0, 1.0], [0.0, 0.0, 2.0], [2.0, 1.0, 2.0], [-1.0, 1.0, 1.0]]])
-    pieces, degree, src = K.monotone_pieces(cusp, np.array([3]), 48)
+    pieces, degree, src = P.monotone_pieces(cusp, np.array([3]), 48)
     assert degree.tolist() == [3, 3]
     s = np.linspace(0, 1, 100001)
     b = np.stack([(1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s ** 2 * (1 - s), s ** 3], axis=1) @ cusp[0]

@@ -1,4 +1,4 @@
-"""The trim test in GLSL (shaders/trim.glsl, uploaded by bsrt.trim_gl) and the
+"""The trim test in GLSL (shaders/trim.glsl, uploaded by bsrt.rendering.trim_gl) and the
 preview's moving view that uses it, on a real GL context (EGL, llvmpipe in CI).
 
 - the GLSL test against the float64 kernels (``kernels.trim.kept_many``) on
@@ -18,15 +18,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsrt import gl
-from bsrt.camera import pixel_rays
+from bsrt.rendering import gl
+from bsrt.scene.camera import pixel_rays
 from bsrt.io import load_model
 from bsrt.kernels.trim import kept_many
-from bsrt.patches import PatchSet
-from bsrt.pipeline import Geometry
+from bsrt.geometry.patches import PatchSet
+from bsrt.rendering.pipeline import Geometry
 from bsrt.preview.view import View
 from bsrt.scene import parse_scene
-from bsrt.trim_gl import kept_gl
+from bsrt.rendering.trim_gl import kept_gl
 
 HERE = Path(__file__).parent
 IGES = [HERE / "data" / "iges" / name for name in (  # every file there with trimmed surfaces (curves.igs has none)

@@ -13,10 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from bsrt.camera import pixel_rays
-from bsrt.pipeline import Geometry, render
+from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import parse_scene
-from bsrt.settings import METHODS, RenderOptions
+from bsrt.settings import METHODS
+from bsrt.rendering.options import RenderOptions
 
 W = math.sqrt(0.5)
 
@@ -247,7 +248,7 @@ def test_bad_trim_loops_name_the_surface_loop_and_curve(edit, message):
 
 
 def test_info_counts_trimmed_surfaces_and_loops(tmp_path, capsys):
-    from bsrt.api import dumps_toml
+    from bsrt.scene.document import dumps_toml
     from bsrt.cli import main
 
     doc = {"camera": {"eye": [0.5, 0.5, 5.0], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0]},

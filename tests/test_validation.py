@@ -31,7 +31,7 @@ BPT = "1\n1 1\n0 0 0\n0 1 0\n1 0 0\n1 1 0\n"  # the unit square z = 0
 def bsrt_cli(*args, env=None, cwd=None) -> subprocess.CompletedProcess:
     environ = dict(os.environ, PYTHONPATH=str(ROOT))
     environ.update(env or {})
-    return subprocess.run([sys.executable, "-m", "bsrt.cli", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "bsrt", *map(str, args)], capture_output=True, text=True,
                           env=environ, cwd=cwd, timeout=300)
 
 

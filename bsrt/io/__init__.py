@@ -2,7 +2,7 @@
 
 ``load_model(path)`` reads a file of B-spline / Bezier surfaces and returns a
 :class:`Model`. Every reader validates each surface with
-:func:`bsrt.bspline.make_surface` and raises :class:`bsrt.errors.InputError`
+:func:`bsrt.geometry.bspline.make_surface` and raises :class:`bsrt.errors.InputError`
 for any malformed input, with one sentence of the form
 ``FILE:LINE: what is wrong``.
 
@@ -16,7 +16,7 @@ a second load of an unchanged file unpickles the first one's Model.
 This module also holds the small helpers the readers share: decoding the file
 (:func:`read_text`), strict number parsing, error formatting, building a
 surface with a located error (:func:`build_surface`) and cutting a surface to
-a sub-rectangle of its domain (:func:`cut`; :func:`bsrt.bspline.restrict`).
+a sub-rectangle of its domain (:func:`cut`; :func:`bsrt.geometry.bspline.restrict`).
 """
 
 from __future__ import annotations
@@ -29,13 +29,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..bspline import BSplineSurface, make_surface, restrict  # noqa: F401  (restrict: the readers')
-from .. import validate
-from ..errors import InputError
-from ..files import check_input_file
-from .formats import BY_EXTENSION as FORMATS
-from .formats import READERS
-from .model import LoadRecord, Model
+from bsrt.geometry.bspline import BSplineSurface, make_surface, restrict  # noqa: F401  (restrict: the readers')
+from bsrt import validate
+from bsrt.errors import InputError
+from bsrt.files import check_input_file
+from bsrt.io.formats import BY_EXTENSION as FORMATS
+from bsrt.io.formats import READERS
+from bsrt.io.model import LoadRecord, Model
 
 __all__ = ["FORMATS", "READERS", "LoadRecord", "Model", "load_model"]
 
@@ -64,7 +64,7 @@ def load_model(path, format: str = "auto", *, cache: bool = True,
         if progress is not None:
             progress(done, total)
 
-    from . import cache as model_cache
+    from bsrt.io import cache as model_cache
 
     if cache and READERS[format].cached:
         _check_reader(path, format)  # a missing extra or a FIFO: the same message as without the cache
@@ -95,7 +95,7 @@ def _check_reader(path: str, format: str) -> None:
     """InputError if the reader cannot run (the OpenCASCADE extra missing) or the path is not a
     regular file: checked before the cache is asked, so its answer never hides them."""
     if READERS[format].module == "occt":
-        from . import occt
+        from bsrt.io import occt
 
         kind = occt.kind_of(path, format)  # format "occt" with another extension: its own message first
         if not occt.available():
@@ -107,7 +107,7 @@ def _read(path: str, format: str, progress) -> Model:
     """The model, read by its reader (no cache); the new model's ``load`` is None."""
     module = READERS[format].module
     if module == "occt":
-        from . import occt
+        from bsrt.io import occt
 
         if not occt.available():
             raise InputError(occt.needs_message(path, occt.kind_of(path, format)))

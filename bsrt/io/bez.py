@@ -28,7 +28,7 @@ import os
 
 import numpy as np
 
-from . import Model, build_surface, fail, parse_float, parse_int, read_text, split_lines
+from bsrt.io import Model, build_surface, fail, parse_float, parse_int, read_text, split_lines
 
 _KNOTS = np.array([0, 0, 0, 0, 1, 1, 1, 1], dtype=np.float64)
 

@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from . import Model, bezier_knots, build_surface, fail, parse_float, parse_int, read_text, split_lines
+from bsrt.io import Model, bezier_knots, build_surface, fail, parse_float, parse_int, read_text, split_lines
 
 
 def read(path: str) -> Model:

@@ -56,8 +56,7 @@ import sys
 import time
 from pathlib import Path
 
-#: formats whose loads are cached (format names of bsrt.io.load_model, after "auto" is resolved)
-OCCT_KINDS = frozenset({"step", "brep", "occt"})
+from bsrt.io.formats import READERS
 
 FORMAT_VERSION = 1  # of the entry files; part of the key, so a new layout never opens an old file
 MAGIC = b"bsrt model cache\n"
@@ -122,11 +121,11 @@ def load(path: str, format: str, read):
 
 def entry_key(digest: bytes, path: str, format: str) -> bytes:
     """The 32-byte key of a file whose bytes have SHA-256 ``digest``, read as ``format``."""
-    from .. import __version__
+    from bsrt import __version__
 
     h = hashlib.sha256()
     for part in (f"bsrt-model-cache {FORMAT_VERSION}", __version__, format, os.path.basename(path), _code_fingerprint(),
-                 _occt_fingerprint() if format in OCCT_KINDS else ""):
+                 _occt_fingerprint() if READERS[format].module == "occt" else ""):
         data = part.encode("utf-8", "surrogateescape")
         h.update(len(data).to_bytes(8, "big") + data)
     h.update(digest)
@@ -134,12 +133,12 @@ def entry_key(digest: bytes, path: str, format: str) -> bytes:
 
 
 def _code_fingerprint() -> str:
-    """SHA-256 of the readers' source: bsrt/io (all of it) and the geometry modules they build on."""
+    """SHA-256 of the readers' source: bsrt/io and bsrt/geometry (all of them) and the checks they use."""
     global _fingerprint
     if _fingerprint is None:
         package = Path(__file__).resolve().parent.parent
-        files = sorted(p for p in (package / "io").rglob("*.py"))
-        files += [package / name for name in ("bspline.py", "trim.py", "validate.py", "errors.py", "files.py")]
+        files = sorted(p for folder in ("io", "geometry") for p in (package / folder).rglob("*.py"))
+        files += [package / name for name in ("validate.py", "errors.py", "files.py")]
         h = hashlib.sha256()
         for p in files:
             try:
@@ -195,7 +194,7 @@ def _fetch(entry: Path, key: bytes):
 
 def _decode(data: bytes, key: bytes):
     """(problem, model): problem is None and model the Model, or a short reason and None."""
-    from .model import Model
+    from bsrt.io.model import Model
 
     head = len(MAGIC) + _HEADER.size
     if len(data) < head or not data.startswith(MAGIC):
@@ -294,7 +293,7 @@ def _note_once(kind: str, text: str) -> None:
 
 def _note(text: str) -> None:
     """One line on stderr, after erasing a progress bar that may be drawn."""
-    from ..progress import clear_active
+    from bsrt.progress import clear_active
 
     clear_active()
     print(f"bsrt: note: model cache: {text}", file=sys.stderr, flush=True)

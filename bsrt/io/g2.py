@@ -26,7 +26,7 @@ import os
 
 import numpy as np
 
-from . import Model, Tokens, build_surface, fail, read_text
+from bsrt.io import Model, Tokens, build_surface, fail, read_text
 
 _CLASS_NAMES = {
     100: "spline curve", 110: "curve on surface", 120: "line", 130: "circle", 140: "ellipse",

@@ -6,7 +6,7 @@ from collections import Counter
 
 import numpy as np
 
-from . import Model
+from bsrt.io import Model
 
 
 def describe(model: Model) -> str:

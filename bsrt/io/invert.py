@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..bspline import BSplineSurface, evaluate
+from bsrt.geometry.bspline import BSplineSurface, evaluate
 
 _DAMP = 1e-14  # the smallest damping (relative to the normal matrix's diagonal): Gauss-Newton
 

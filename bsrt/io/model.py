@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..bspline import BSplineSurface
+from bsrt.geometry.bspline import BSplineSurface
 
 
 @dataclass(frozen=True)

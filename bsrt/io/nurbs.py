@@ -24,7 +24,7 @@ import os
 
 import numpy as np
 
-from . import Model, Tokens, build_surface, fail, parse_float, read_text, split_lines
+from bsrt.io import Model, Tokens, build_surface, fail, parse_float, read_text, split_lines
 
 _SCALARS = ("uOrder", "vOrder", "uDimension", "vDimension")
 _ARRAYS = ("uKnot", "vKnot", "controlPoint", "weight")

@@ -31,7 +31,7 @@ import os
 
 import numpy as np
 
-from . import Model, bezier_knots, build_surface, cut, fail, parse_float, parse_int, read_text, split_lines
+from bsrt.io import Model, bezier_knots, build_surface, cut, fail, parse_float, parse_int, read_text, split_lines
 
 _IGNORED = {
     "vt", "vn", "vp", "bmat", "step", "con", "g", "o", "s", "mg", "usemtl", "mtllib", "lod", "bevel",

@@ -1,6 +1,6 @@
 """The patch table as flat arrays, and its evaluation inside compiled kernels.
 
-``PatchArrays`` (built by ``bsrt.patches.PatchSet``) holds every Bezier patch
+``PatchArrays`` (built by ``bsrt.geometry.patches.PatchSet``) holds every Bezier patch
 of a scene in the power basis of its local parameters (s, t) in [0, 1]^2:
 
     coef:        (C,) float64, all patches' coefficients; patch k's start at

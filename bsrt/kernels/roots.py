@@ -52,8 +52,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .method_ids import FAST, GRADIENT, NEWTON
-from .patches import clamp, frame, inside_patch, locate, point
+from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
+from bsrt.kernels.patches import clamp, frame, inside_patch, locate, point
 
 MAX_HALVINGS = 60
 STALL_STEPS = 32  # evaluations without halving w: stagnation

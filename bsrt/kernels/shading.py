@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .patches import frame
+from bsrt.kernels.patches import frame
 
 LIGHT_KINDS = {"ambient": 0, "point": 1, "directional": 2}
 POLE_STEPS = (1e-7, 1e-5, 1e-3)

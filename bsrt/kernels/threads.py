@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor, wait
 
-from .. import interrupts
+from bsrt import interrupts
 
 _POOL: ThreadPoolExecutor | None = None
 MIN_CHUNK = 2048

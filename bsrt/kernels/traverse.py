@@ -1,6 +1,6 @@
 """Rays through Martin et al.'s hierarchy of flat pieces, one ray per loop iteration.
 
-``BVHArrays`` (built by ``bsrt.bvh.build_bvh``; L leaves, K nodes, node 0 the root):
+``BVHArrays`` (built by ``bsrt.rendering.bvh.build_bvh``; L leaves, K nodes, node 0 the root):
 
     node_bounds: (K, 6) float64, (min x, y, z, max x, y, z) of each node.
     node_left, node_right: (K,) int64 children, -1 for a tree leaf.
@@ -36,11 +36,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .flatten import copy_net, leaf_net, split_half
-from .patches import frame
-from .method_ids import NEWTON
-from .roots import ray_frame, solve_one
-from .trim import point_kept
+from bsrt.kernels.flatten import copy_net, leaf_net, split_half
+from bsrt.kernels.patches import frame
+from bsrt.kernels.method_ids import NEWTON
+from bsrt.kernels.roots import ray_frame, solve_one
+from bsrt.kernels.trim import point_kept
 
 GRAZING_COSINE = 0.3
 RECT_SLACK = 1e-9

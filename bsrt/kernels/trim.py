@@ -1,12 +1,9 @@
 """Is (u, v) kept? The even-odd test on a surface's trim loops, exact at the curve.
 
-(Over 500 lines: numba compiles a module's kernels together, and the curve
-splitting, the banded table queries and the grid classification share
-inlined helpers here.)
-
-The table is ``bsrt.trim.TrimTable`` (monotone rational Bezier pieces,
-banded over v; its docstring lists the arrays, bsrt/trim.py's module doc
-says why the answer is exact). A horizontal ray from (u, v) toward +u
+The table is :class:`TrimTable` (monotone rational Bezier pieces, banded
+over v; its docstring lists the arrays, bsrt/geometry/trim.py's module doc
+says why the answer is exact; kernels/trim_pieces.py cuts the curves into
+those pieces). A horizontal ray from (u, v) toward +u
 crosses a monotone piece at most once. The piece counts when v lies in its
 half-open v-range [min(v_a, v_b), max(v_a, v_b)) (v_a, v_b its end points:
 a ray through a vertex shared by two pieces then counts it once, or twice
@@ -40,16 +37,71 @@ table's twelve arrays on every call cost twice the scan itself.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
-from .threads import run_chunks
+from bsrt.kernels.threads import run_chunks
+
+
+class TrimTable(NamedTuple):
+    """Every trimmed surface's loops as monotone rational Bezier pieces, in flat arrays.
+
+    One argument for the kernels (numba takes a NamedTuple of arrays). M
+    surfaces (in the order given to build_trim_table), K pieces, D the
+    largest piece degree, B bands in all, E band entries. Every array is
+    C-contiguous; float64 unless said otherwise.
+
+    Per surface:
+      trimmed: (M,) bool, the surface has loops (False: every (u, v) is kept,
+        and the kernels answer at once).
+      band_first: (M,) int64, the surface's first band (an index into
+        band_start); band_count: (M,) int64, its number of bands (>= 1).
+      band_v0: (M,); band_scale: (M,), bands per unit of v: v lies in the
+        surface's band int((v - band_v0) * band_scale), clamped to
+        [0, band_count - 1] (the end bands reach to -inf and +inf).
+      magnitude: (M,), the largest |u| or |v| of the surface's pieces' boxes
+        (0 without pieces): rect_state's margin scales with it.
+    Per piece (a rational Bezier curve monotone in u and in v; the pieces of
+    a loop are consecutive and in order along it):
+      degree: (K,) int64, d >= 1.
+      coef: (K, D + 1, 3), the piece's (w (u - u_a), w (v - v_a), w) in the
+        power basis of its parameter s in [0, 1]: row i multiplies s^i, rows
+        above d are 0. (u_a, v_a) is its start (ends[:, :2]).
+      ends: (K, 4), (u_a, v_a, u_b, v_b): its start and end, exactly the
+        previous piece's end and the next piece's start.
+      box: (K, 4), (u_min, u_max, v_min, v_max) of its control points and
+        ends: it holds the piece.
+    Bands:
+      band_start: (B + 1,) int64, band b's entries are
+        band_start[b] : band_start[b + 1], sorted by decreasing u_max.
+      entry_piece: (E,) int64, the piece of each entry; a piece is listed in
+        every band of its surface its box meets.
+      entry_box: (E, 4), the entry's piece's (u_min, u_max, min(v_a, v_b),
+        max(v_a, v_b)): its u-range and its half-open v-range, copied so a
+        band scan reads memory in order.
+    """
+
+    trimmed: np.ndarray
+    band_first: np.ndarray
+    band_count: np.ndarray
+    band_v0: np.ndarray
+    band_scale: np.ndarray
+    magnitude: np.ndarray
+    degree: np.ndarray
+    coef: np.ndarray
+    ends: np.ndarray
+    box: np.ndarray
+    band_start: np.ndarray
+    entry_piece: np.ndarray
+    entry_box: np.ndarray
+
 
 OUTSIDE, INSIDE, MIXED = 0, 1, 2
 SOLVE_STEPS = 200  # Newton / bisection steps (the bracket halves at least every third step)
 RECT_MARGIN = 1e-12  # rect_state grows the rectangle by this x the coordinates' magnitude
 RECT_DEPTH = 60  # halvings of a piece in rect_state before "it may touch" (MIXED)
-MONOTONE_TOL = 64 * 2.220446049250313e-16  # control-polygon steps below this x the magnitude count as flat
 
 
 # ---------------------------------------------------------------------------
@@ -190,7 +242,7 @@ def _piece_meets(T, k, u0, u1, v0, v1):
     does not: the piece is monotone, so the box of a stretch's two end points holds the stretch;
     a stretch whose box meets the rectangle but whose ends lie outside it is halved, up to
     RECT_DEPTH times. (The caller grows the rectangle to cover rounding and the wobble that
-    MONOTONE_TOL-flat control-polygon steps allow.)"""
+    trim_pieces.MONOTONE_TOL-flat control-polygon steps allow.)"""
     ua, va = T.ends[k, 0], T.ends[k, 1]
     stack = np.empty((RECT_DEPTH + 2, 7))  # per stretch: s0, s1, u(s0), v(s0), u(s1), v(s1), cuts
     for c in range(4):
@@ -313,230 +365,3 @@ def classify_grid(T, m, gu, gv, out):
             stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = i0, i1, j0, mid
             stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = i0, i1, mid, j1
         top += 2
-
-
-# ---------------------------------------------------------------------------
-# Building the table (called by bsrt.trim.build_trim_table)
-
-
-@njit(cache=True, error_model="numpy")
-def bezier_spans(knots, ctrl, p):
-    """The rational Bezier nets (S, p + 1, 3) of a B-spline curve's non-empty spans, in order.
-
-    knots: (n + p + 1,); ctrl: (n, 3) homogeneous (w u, w v, w). Net k of
-    the span [a, b] is the blossom at (a, .., a, b, .., b) (k times b),
-    computed with de Boor's algorithm (any knot vector, clamped or not): the
-    same curve as inserting every knot to full multiplicity (Boehm)."""
-    n = ctrl.shape[0]
-    count = 0
-    for i in range(p, n):
-        if knots[i] < knots[i + 1]:
-            count += 1
-    out = np.empty((count, p + 1, 3))
-    d = np.empty((p + 1, 3))
-    s = 0
-    for i in range(p, n):
-        a, b = knots[i], knots[i + 1]
-        if not a < b:
-            continue
-        for k in range(p + 1):
-            for j in range(p + 1):
-                for c in range(3):
-                    d[j, c] = ctrl[j + i - p, c]
-            for r in range(1, p + 1):
-                x = a if r <= p - k else b
-                for j in range(p, r - 1, -1):
-                    lo, hi = knots[j + i - p], knots[j + 1 + i - r]
-                    alpha = (x - lo) / (hi - lo) if hi > lo else 0.0
-                    for c in range(3):
-                        d[j, c] = (1.0 - alpha) * d[j - 1, c] + alpha * d[j, c]
-            for c in range(3):
-                out[s, k, c] = d[p, c]
-        s += 1
-    return out
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _magnitude(net, d):
-    """The largest |u| or |v| of a net's control points."""
-    mag = 0.0
-    for i in range(d + 1):
-        mag = max(mag, max(abs(net[i, 0] / net[i, 2]), abs(net[i, 1] / net[i, 2])))
-    return mag
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _flaws(net, d, floor):
-    """Which coordinates' control polygon turns back: 0 none, 1 u, 2 v, 3 both (steps within
-    MONOTONE_TOL x max(the coordinates' magnitude, floor) count as flat: rounding, which is
-    relative to the span the net was cut from, its magnitude being floor); -1: the net is one
-    point."""
-    up_u = down_u = up_v = down_v = False
-    tol = MONOTONE_TOL * max(_magnitude(net, d), floor)
-    point = True
-    for i in range(d):
-        du = net[i + 1, 0] / net[i + 1, 2] - net[i, 0] / net[i, 2]
-        dv = net[i + 1, 1] / net[i + 1, 2] - net[i, 1] / net[i, 2]
-        point = point and du == 0.0 and dv == 0.0
-        up_u |= du > tol
-        down_u |= du < -tol
-        up_v |= dv > tol
-        down_v |= dv < -tol
-    if point:
-        return -1
-    return (1 if up_u and down_u else 0) + (2 if up_v and down_v else 0)
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _casteljau(src, d, s, lo, hi, tmp):
-    """Cut net src (d + 1, 3) at s into lo (the part [0, s]) and hi ([s, 1]); tmp (d + 1, 3) scratch.
-    The cut point is written once and copied, so both halves hold the same numbers."""
-    for r in range(d + 1):
-        for c in range(3):
-            tmp[r, c] = src[r, c]
-    for r in range(d + 1):
-        for c in range(3):
-            lo[r, c] = tmp[0, c]
-            hi[d - r, c] = tmp[d - r, c]
-        for i in range(d - r):
-            for c in range(3):
-                tmp[i, c] = (1.0 - s) * tmp[i, c] + s * tmp[i + 1, c]
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _slope_sign(net, d, c, s, tmp):
-    """Sign of d/ds of coordinate c (0: u, 1: v) of net (d + 1, 3) at s: from the two points of
-    de Casteljau's next-to-last level, x1 w0 - x0 w1 (taken about the net's first point)."""
-    o = net[0, c] / net[0, 2]
-    for r in range(d + 1):
-        tmp[r, 0] = net[r, c] - o * net[r, 2]
-        tmp[r, 1] = net[r, 2]
-    for r in range(1, d):
-        for i in range(d - r + 1):
-            tmp[i, 0] = (1.0 - s) * tmp[i, 0] + s * tmp[i + 1, 0]
-            tmp[i, 1] = (1.0 - s) * tmp[i, 1] + s * tmp[i + 1, 1]
-    x = tmp[1, 0] * tmp[0, 1] - tmp[0, 0] * tmp[1, 1]
-    return 1 if x > 0.0 else (-1 if x < 0.0 else 0)
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _cut_at(net, d, flaws, tmp):
-    """Where to cut a net whose polygon turns back (flaws as _flaws): at the turning point of v
-    (else u) when the curve leaves its start and reaches its end in opposite directions in that
-    coordinate, found by bisection on the sign of the slope; else at 1/2. The direction at an
-    end is that of the first control point differing from the end one (the curve's first
-    non-zero term there, weights being positive), so repeated end points do no harm."""
-    for c in (1, 0):
-        if not flaws & (1 << c):
-            continue
-        s0 = s1 = 0
-        for i in range(1, d + 1):
-            x = net[i, c] / net[i, 2] - net[0, c] / net[0, 2]
-            if x != 0.0:
-                s0 = 1 if x > 0.0 else -1
-                break
-        for i in range(d - 1, -1, -1):
-            x = net[d, c] / net[d, 2] - net[i, c] / net[i, 2]
-            if x != 0.0:
-                s1 = 1 if x > 0.0 else -1
-                break
-        if s0 * s1 >= 0:
-            continue
-        a, b = 0.0, 1.0
-        for _ in range(80):
-            mid = 0.5 * (a + b)
-            if not (a < mid < b):
-                break
-            if _slope_sign(net, d, c, mid, tmp) == s0:
-                a = mid
-            else:
-                b = mid
-        s = 0.5 * (a + b)
-        if 1e-9 < s < 1.0 - 1e-9:
-            return s
-    return 0.5
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _emit(cur, d, ok, out, out_degree, k):
-    """Write piece k: net cur (d + 1, 3) if ok, else its chord (degree 1)."""
-    for r in range(out.shape[1]):
-        for c in range(3):
-            out[k, r, c] = 0.0
-    if ok:
-        for r in range(d + 1):
-            for c in range(3):
-                out[k, r, c] = cur[r, c]
-        out_degree[k] = d
-    else:  # a stretch shorter than 2^-max_depth of its span around a turning point: its chord
-        for c in range(3):
-            out[k, 0, c] = cur[0, c]
-            out[k, 1, c] = cur[d, c]
-        out_degree[k] = 1
-
-
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def _split_net(net, d, max_depth, fill, out, out_degree, first):
-    """Cut one net (d + 1, 3) until every piece's polygon is monotone in u and v; with fill, write
-    the pieces, in order along the curve, to out (C, D + 1, 3) / out_degree from index first.
-    Returns the number of pieces. A net that is one point is dropped (it never crosses a ray); a
-    piece still turning back after max_depth cuts is replaced by its chord."""
-    floor = _magnitude(net, d)
-    stack = np.empty((max_depth + 2, d + 1, 3))
-    depth = np.empty(max_depth + 2, dtype=np.int64)
-    tmp = np.empty((d + 1, 3))
-    lo = np.empty((d + 1, 3))
-    hi = np.empty((d + 1, 3))
-    for r in range(d + 1):
-        for c in range(3):
-            stack[0, r, c] = net[r, c]
-    depth[0] = 0
-    top = 1
-    count = 0
-    while top > 0:
-        top -= 1
-        cur = stack[top]
-        flaws = _flaws(cur, d, floor)
-        if flaws == -1:
-            continue
-        if flaws == 0 or depth[top] >= max_depth:
-            if fill:
-                _emit(cur, d, flaws == 0, out, out_degree, first + count)
-            count += 1
-            continue
-        s = _cut_at(cur, d, flaws, tmp)
-        _casteljau(cur, d, s, lo, hi, tmp)
-        for r in range(d + 1):  # the part [0, s] on top: popped first, so the pieces stay in order
-            for c in range(3):
-                stack[top, r, c] = hi[r, c]
-                stack[top + 1, r, c] = lo[r, c]
-        depth[top + 1] = depth[top] + 1
-        depth[top] += 1
-        top += 2
-    return count
-
-
-@njit(cache=True, error_model="numpy")
-def monotone_pieces(nets, degree, max_depth):
-    """Every net (S, D + 1, 3) of degree (S,) cut until its control polygon is monotone in u and
-    in v: (pieces (K, D + 1, 3), their degree (K,), the net each came from (K,)), in order.
-    (Two passes, count then fill; element loops rather than array slices, which numba compiles
-    far more slowly.)"""
-    n = nets.shape[0]
-    starts = np.zeros(n + 1, dtype=np.int64)
-    out = np.empty((0, nets.shape[1], 3))
-    out_degree = np.empty(0, dtype=np.int64)
-    for phase in range(2):  # count, then fill (one specialisation of _split_net: fill is no literal)
-        fill = phase == 1
-        if fill:
-            out = np.empty((starts[n], nets.shape[1], 3))
-            out_degree = np.empty(starts[n], dtype=np.int64)
-        for k in range(n):
-            count = _split_net(nets[k], degree[k], max_depth, fill, out, out_degree, starts[k])
-            if not fill:
-                starts[k + 1] = starts[k] + count
-    owner = np.empty(starts[n], dtype=np.int64)
-    for k in range(n):
-        for i in range(starts[k], starts[k + 1]):
-            owner[i] = k
-    return out, out_degree, owner

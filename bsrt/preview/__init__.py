@@ -1,7 +1,7 @@
 """``bsrt preview``: an interactive window, a fast GL view while the camera
 moves, then the exact image. One module per concern:
 
-- app.py: the application and its frame loop; ``run`` (bsrt/cli.py parses the command line)
+- app.py: the application and its frame loop; ``run`` (bsrt/cli/__init__.py parses the command line)
 - window.py: the glfw window, input callbacks -> named events
 - bindings.py: key names -> actions (data)
 - view.py: the fast GL view, textures, screenshots
@@ -10,6 +10,6 @@ moves, then the exact image. One module per concern:
 - script.py: ``--events`` / ``--script``
 """
 
-from .app import Preview, WindowOptions, run, script_commands
+from bsrt.preview.app import Preview, WindowOptions, run, script_commands
 
 __all__ = ["Preview", "WindowOptions", "run", "script_commands"]

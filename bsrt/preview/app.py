@@ -3,7 +3,7 @@ with the right or middle one, zoom with the wheel; the keys of
 :data:`bindings.BINDINGS`. While the camera moves the window draws the fast
 GL view (view.py); when it stops, the refinement (refine.py) asks for the
 exact ray-traced image, coarse to fine, from the solver processes
-(solver.py), which run the one pipeline, :func:`bsrt.pipeline.render`, on
+(solver.py), which run the one pipeline, :func:`bsrt.rendering.pipeline.render`, on
 maps the window rasterises band by band (one band per frame). The window
 (window.py) turns glfw's input into named events; scripts (script.py) drive
 the same application. The window traces one sample per pixel (spp = 1).
@@ -20,14 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..camera import Camera, camera_toml, orbit, pan, zoom
-from ..errors import InputError, RenderError
-from . import script
-from .bindings import BINDINGS, ORBIT_DEGREES_PER_PIXEL
-from .refine import MAP_BAND_PIXELS, Refinement
-from .solver import Job, Solver
-from .view import View
-from .window import Window
+from bsrt.scene.camera import Camera, orbit, pan, zoom
+from bsrt.scene.document import camera_toml
+from bsrt.errors import InputError, RenderError
+from bsrt.preview import script
+from bsrt.preview.bindings import BINDINGS, ORBIT_DEGREES_PER_PIXEL
+from bsrt.preview.refine import MAP_BAND_PIXELS, Refinement
+from bsrt.preview.solver import Job, Solver
+from bsrt.preview.view import View
+from bsrt.preview.window import Window
 
 
 @dataclass(frozen=True)
@@ -122,7 +123,7 @@ class Preview:
     (``on_*``) or the script; ``self.refine`` decides what to solve next."""
 
     def __init__(self, scene, scene_path: Path, options: WindowOptions):
-        from ..pipeline import Geometry
+        from bsrt.rendering.pipeline import Geometry
 
         self.scene, self.scene_path, self.options = scene, scene_path, options
         self.map_mode = scene.render.map
@@ -282,7 +283,7 @@ class Preview:
         level = self.refine.next_level(now, self.held["orbit"] or self.held["pan"])
         if level is None or min(self.fb_size) < 1:
             return
-        from ..prelim import render_map
+        from bsrt.rendering.prelim import render_map
 
         width, height = self.refine.size(level, self.fb_size)
         prelim = None
@@ -332,7 +333,7 @@ class Preview:
     def _flush_saves(self) -> None:
         if not self.refine.complete:
             return
-        from ..image import write_png
+        from bsrt.rendering.image import write_png
 
         for path in self.pending_saves:
             path = path or self._free_name()
@@ -362,7 +363,7 @@ class Preview:
         """Write pending screenshots, then draw the frame if it differs from
         the one shown (a still frame is not drawn again: llvmpipe's cores are
         the solver's meanwhile). True if the window's buffer changed."""
-        from ..image import write_png
+        from bsrt.rendering.image import write_png
 
         image = self._image(state)
         for path in self.pending_screenshots:

@@ -6,7 +6,7 @@ same names.
 
 from __future__ import annotations
 
-from ..methods import METHODS
+from bsrt.methods import METHODS
 
 ORBIT_DEGREES_PER_PIXEL = 0.4  # mouse drag, screen coordinates
 KEY_ORBIT_DEGREES = 10.0

@@ -43,7 +43,7 @@ def map_bands(width: int, height: int, band_pixels: int = MAP_BAND_PIXELS) -> li
 
 def stitch_maps(parts: list):
     """One PrelimMap from the maps of consecutive bands (top band first)."""
-    from ..prelim import PrelimMap
+    from bsrt.rendering.prelim import PrelimMap
 
     if len(parts) == 1:
         return parts[0]

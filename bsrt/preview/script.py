@@ -11,10 +11,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..camera import camera_toml, orbit, pan, zoom
-from ..errors import InputError, RenderError
-from ..methods import METHODS
-from .bindings import BINDINGS
+from bsrt.scene.camera import orbit, pan, zoom
+from bsrt.scene.document import camera_toml
+from bsrt.errors import InputError, RenderError
+from bsrt.methods import METHODS
+from bsrt.preview.bindings import BINDINGS
 
 RESIZE_SECONDS = 5.0  # how long ``resize`` waits for the window to take the size
 

@@ -9,7 +9,7 @@ stale: queued ones are dropped, a running one stops at render()'s next stage
 (its progress callback raises), or its process is killed when a warm spare
 can take over at once.
 
-Each process keeps one :class:`bsrt.pipeline.Geometry` (patches, hierarchy,
+Each process keeps one :class:`bsrt.rendering.pipeline.Geometry` (patches, hierarchy,
 materials) for its whole life: jobs of the same scene never set it up again.
 """
 
@@ -26,9 +26,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..camera import Camera
-from ..errors import InputError, RenderError
-from ..settings import RenderOptions
+from bsrt.scene.camera import Camera
+from bsrt.errors import InputError, RenderError
+from bsrt.rendering.options import RenderOptions
 
 SOLVER_NICENESS = 10  # os.nice of the solver processes: the window keeps its core
 STARTING, IDLE = -2, -1  # a worker's ``running`` value besides the generation it solves
@@ -68,7 +68,7 @@ class Outcome:
 
 def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     """One job through render(); errors become the outcome's message."""
-    from ..pipeline import render
+    from bsrt.rendering.pipeline import render
 
     def progress(stage, fraction=0.0):
         if job.generation < generation.value:
@@ -100,7 +100,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
     or the generation of the job being solved.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the window's business
-    from ..pipeline import Geometry
+    from bsrt.rendering.pipeline import Geometry
 
     geometry = Geometry(scene)
     try:

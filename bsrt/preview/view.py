@@ -15,9 +15,9 @@ from dataclasses import replace
 import moderngl
 import numpy as np
 
-from .. import gl
-from ..camera import Camera, clip_from_eye
-from ..trim_gl import TrimTextures
+from bsrt.rendering import gl
+from bsrt.scene.camera import Camera, clip_from_eye
+from bsrt.rendering.trim_gl import TrimTextures
 
 MAX_LIGHTS = 8
 # The fast view's mesh is the map's tessellation for a film this fraction of
@@ -45,7 +45,7 @@ def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
     the map needs at this camera and size); normals are the exact S_u x S_v
     at each vertex, or the mesh's area-weighted normal where that vanishes.
     """
-    from ..prelim import segments_per_patch, tessellate
+    from bsrt.rendering.prelim import segments_per_patch, tessellate
 
     patches = geometry.patches
     lo, hi = patches.scene_box()
@@ -99,7 +99,7 @@ def order_by_trims(param: np.ndarray, tris: np.ndarray, surface: np.ndarray, tab
     surface. (Cutting the crossed triangles smaller, so that the test would
     run in a thinner band along the curves, made the frames slower on
     llvmpipe: the triangles' count costs more than the test saves.)"""
-    from ..kernels.trim import INSIDE, rect_states
+    from bsrt.kernels.trim import INSIDE, rect_states
 
     uv = param[tris]  # (T, 3, 2)
     lo, hi = uv.min(axis=1), uv.max(axis=1)
@@ -142,7 +142,7 @@ class View:
     images, textures, screenshots. Main thread only."""
 
     def __init__(self, ctx, scene, geometry, camera: Camera, fb_size: tuple[int, int]):
-        from ..image import srgb_encode
+        from bsrt.rendering.image import srgb_encode
 
         self.ctx, self.scene, self.geometry = ctx, scene, geometry
         self.owned: list = []  # GL objects created here, released at close
@@ -212,7 +212,7 @@ class View:
             self._draw_fast(size, camera)
 
     def _draw_fast(self, size: tuple[int, int], cam: Camera) -> None:
-        from ..prelim import depth_range
+        from bsrt.rendering.prelim import depth_range
 
         ctx = self.ctx
         near, far = depth_range(self.geometry.patches, cam)

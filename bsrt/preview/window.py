@@ -14,8 +14,8 @@ import sys
 
 import glfw
 
-from .. import gl
-from ..errors import InputError, RenderError
+from bsrt.rendering import gl
+from bsrt.errors import InputError, RenderError
 
 # glfw key -> the name the application binds (and the script's ``key NAME``).
 # Keys in REPEATING also act on auto-repeat; the others once per press.

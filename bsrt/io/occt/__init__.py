@@ -3,7 +3,7 @@
 This package is the only code that imports OpenCASCADE (the ``OCP``
 bindings of ``cadquery-ocp-novtk``), and it does so inside functions (its
 modules import without it), so the rest of bsrt never needs it. ``read(path, format)`` turns every face of the
-file into one trimmed :class:`~bsrt.bspline.BSplineSurface`. One module per
+file into one trimmed :class:`~bsrt.geometry.bspline.BSplineSurface`. One module per
 concern:
 
 - :mod:`.reading`: the file, its assembly tree, placements and colours;
@@ -30,13 +30,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...bspline import BSplineSurface
-from ...errors import InputError
-from ...files import check_input_file
-from .curves import TrimError
-from .reading import ShapeKey, cast, count_free_edges, diagonal, faces, read_leaves
-from .surfaces import EXACT_TOLERANCE, FaceError, convert_surface
-from .topology import face_loops
+from bsrt.geometry.bspline import BSplineSurface
+from bsrt.errors import InputError
+from bsrt.files import check_input_file
+from bsrt.io.occt.curves import TrimError
+from bsrt.io.occt.reading import ShapeKey, cast, count_free_edges, diagonal, faces, read_leaves
+from bsrt.io.occt.surfaces import EXACT_TOLERANCE, FaceError, convert_surface
+from bsrt.io.occt.topology import face_loops
 
 #: format name -> the extensions it reads (lower case, with the dot)
 EXTENSIONS = {
@@ -154,7 +154,7 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
     converted. Raises InputError (one sentence naming the file) if OpenCASCADE
     is missing or cannot read the file.
     """
-    from ..model import Model
+    from bsrt.io.model import Model
 
     path = os.fspath(path)
     kind = kind_of(path, format)

@@ -24,10 +24,10 @@ from math import comb
 
 import numpy as np
 
-from ...bspline import BSplineSurface
-from ...errors import InputError
-from ...trim import TrimCurve, make_trim_curve
-from .surfaces import ParamMap, flat_knots
+from bsrt.geometry.bspline import BSplineSurface
+from bsrt.errors import InputError
+from bsrt.geometry.trim import TrimCurve, make_trim_curve
+from bsrt.io.occt.surfaces import ParamMap, flat_knots
 
 FIT_DEGREE = 7
 FIT_TOLERANCE = 1e-10  # fitted pcurves: largest 3-D error, as a fraction of the model's size

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import InputError
+from bsrt.errors import InputError
 
 
 def read_leaves(path: str, kind: str) -> list["Leaf"]:

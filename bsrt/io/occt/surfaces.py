@@ -47,9 +47,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...bspline import BSplineSurface, evaluate, insert_knot, make_surface
-from ...errors import InputError
-from ..invert import invert
+from bsrt.geometry.bspline import BSplineSurface, evaluate, insert_knot, make_surface
+from bsrt.errors import InputError
+from bsrt.io.invert import invert
 
 EXACT_TOLERANCE = 1e-9  # the conversion counts as exact below this, as a fraction of the model's size
 OFFSET_TOLERANCE = 1e-8  # approximated offsets: the requested tolerance, as a fraction of the model's size
@@ -401,7 +401,7 @@ def _rotated(surface: BSplineSurface, axis: int, start: float) -> BSplineSurface
 
 def _restricted(surface: BSplineSurface, axis: int, a: float, b: float) -> BSplineSurface:
     """The surface cut to [a, b] in ``axis`` where that is inside its domain (knot insertion)."""
-    from ...bspline import restrict
+    from bsrt.geometry.bspline import restrict
 
     lo, hi = surface.domain_u if axis == 0 else surface.domain_v
     tol = 1e-12 * max(1.0, abs(lo), abs(hi))

@@ -1,7 +1,7 @@
 """A face's wires as closed trim loops in its B-spline's domain.
 
 Every wire of the face (outer and inner alike: bsrt's rule is even-odd)
-becomes one or more :class:`~bsrt.trim.TrimLoop`, in steps:
+becomes one or more :class:`~bsrt.geometry.trim.TrimLoop`, in steps:
 
 1. **Edges in order** along the wire (``BRepTools_WireExplorer``, else as
    stored, chained greedily), each edge's pcurve in the original (u, v)
@@ -33,11 +33,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...bspline import BSplineSurface, insert_knot
-from ...trim import TrimCurve, TrimLoop, point_outside
-from .curves import TrimError, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
-from .reading import cast
-from .surfaces import ParamMap
+from bsrt.geometry.bspline import BSplineSurface, insert_knot
+from bsrt.geometry.trim import TrimCurve, TrimLoop, point_outside
+from bsrt.io.occt.curves import TrimError, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
+from bsrt.io.occt.reading import cast
+from bsrt.io.occt.surfaces import ParamMap
 
 _MEET = 1e-7  # ends closer than this (a fraction of the model's size) meet, in space
 
@@ -67,7 +67,7 @@ def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: floa
     if around:
         loops.extend(_closed_around(around, pmap))
     lu, lv = derivative_bounds(local)
-    from .curves import FIT_TOLERANCE
+    from bsrt.io.occt.curves import FIT_TOLERANCE
 
     tol = FIT_TOLERANCE * size
     tolerance = (tol / max(lu, 1e-300), tol / max(lv, 1e-300))
@@ -333,7 +333,7 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     outside it), so each excursion is cut off exactly (its ends found by
     bisection, the curve split there by knot insertion) and its control
     points clipped onto the domain's edge. If the curve still leaves the
-    domain (:func:`~bsrt.trim.point_outside`, exact), it weaves along
+    domain (:func:`~bsrt.geometry.trim.point_outside`, exact), it weaves along
     the edge between the samples, by about the file's tolerance: its
     control points outside are clipped too.
     """

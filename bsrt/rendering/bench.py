@@ -1,0 +1,211 @@
+"""``bsrt bench``: time every method on the paper's scenes, shaped like its tables.
+
+Each method is rendered once untimed (the GL context, caches), then
+``repeat`` rounds render every method once each, so that all methods see the
+same machine load; the median of each stage is reported, and Table 2 gives
+the median over rounds of each round's ratio. All methods run to the scene's tolerance (default 1e-9 of the scene
+diagonal), so they do the same job: the paper's eps is not given, and a
+looser one would favour gradient descent, which converges linearly.
+Disagreements are counted against ``newton`` at the same size.
+"""
+
+from __future__ import annotations
+
+import resource
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from bsrt.errors import InputError
+from bsrt.methods import MAP_METHODS, REFERENCE_METHOD
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import Geometry, render
+from bsrt.scene import load_scene
+
+PAPER = {  # Sisojevs & Glazs, 512x512, 1 ray/pixel, 3.2 GHz Xeon: seconds
+    "column": {"gradient": 74.9, "fast": 31.2, "martin": 60.8},
+    "water-lily": {"gradient": 180.2, "fast": 98.3, "martin": 205.6},
+}
+DEFAULT_SCENES = ("column", "water-lily")
+DEFAULT_METHODS = MAP_METHODS
+
+
+def scene_path(name: str) -> Path:
+    """A bundled scene name (scenes/NAME.toml under the current folder) or a path."""
+    path = Path(name)
+    if path.suffix == ".toml" or path.exists():
+        return path
+    bundled = Path("scenes") / f"{name}.toml"
+    if not bundled.exists():
+        raise InputError(f"{name}: no such scene (looked for {bundled}; run bsrt bench from the repository root or give a path)")
+    return bundled
+
+
+def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=print) -> dict:
+    """Benchmark; returns a JSON-serialisable dict (see format_tables)."""
+    results = {"size": size, "repeat": repeat, "scenes": {}}
+    for name in scenes:
+        path = scene_path(name)
+        scene = load_scene(path)
+        builds = []
+        for _ in range(repeat):  # set-up: the patch table and the hierarchy
+            clock = time.perf_counter()
+            geometry = Geometry(scene)
+            _ = geometry.bvh
+            builds.append(time.perf_counter() - clock)
+        setup = statistics.median(builds)
+        label = path.stem
+        entry = {"surfaces": len(scene.surfaces), "patches": geometry.patches.size, "setup_seconds": setup, "methods": {}}
+        order = sorted(methods, key=lambda m: m != REFERENCE_METHOD)
+        options = {m: RenderOptions.resolve(scene, method=m, width=size, height=size) for m in order}
+        for method in order:
+            render(scene, options[method], geometry=geometry)  # warm-up
+        runs = {m: [] for m in order}
+        last = {}
+        for _ in range(repeat):  # rounds: every method once per round, so all see the same machine load
+            for method in order:
+                clock = time.perf_counter()
+                last[method] = render(scene, options[method], geometry=geometry)
+                runs[method].append((last[method].stats["seconds"], time.perf_counter() - clock))
+        for method in order:
+            entry["methods"][method] = _row(method, runs[method], last[method], last.get(REFERENCE_METHOD), scene, geometry)
+            med = entry["methods"][method]["seconds"]
+            log(f"{label:12s} {method:9s} map+solve {med['map+solve']:7.3f} s  total {med['total']:7.3f} s")
+        results["scenes"][label] = entry
+    results["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return results
+
+
+def _row(method, runs, res, reference, scene, geometry) -> dict:
+    """One method's medians over its runs [(stats seconds, wall seconds)] and its last render's counters;
+    disagreements with the reference (newton's last render) where it was run."""
+    med = {k: statistics.median(r[0][k] for r in runs) for k in runs[0][0]}
+    med["map+solve"] = statistics.median(r[0]["map"] + r[0]["solve"] for r in runs)
+    med["total"] = statistics.median(r[1] for r in runs)
+    hits = res.hits
+    rounds = [r[0]["map"] + r[0]["solve"] for r in runs]
+    work = hits.iterations[hits.iterations > 0]
+    row = {
+        "seconds": med,
+        "map+solve rounds": rounds,
+        "iterations_per_pixel": float(work.mean()) if work.size else 0.0,
+        "hits": int(hits.hit.sum()),
+        "covered_by_map": res.stats.get("covered_by_map"),
+        "non_converged": res.stats.get("non_converged"),
+        "suspect": res.stats.get("suspect"),
+        "repaired": res.stats.get("repaired"),
+        "shadow_rays": res.stats.get("shadow_rays", 0),
+        "reflection_rays": res.stats.get("reflection_rays", 0),
+    }
+    if reference is not None and method != REFERENCE_METHOD:
+        reference = reference.hits
+        tol = 1e3 * scene.render.tolerance * geometry.patches.scene_diagonal()
+        both = hits.hit & reference.hit
+        row["disagree"] = {
+            "hit": int((hits.hit != reference.hit).sum()),
+            "surface": int((hits.surface[both] != reference.surface[both]).sum()),
+            "t": int((np.abs(hits.t[both] - reference.t[both]) > tol).sum()),
+        }
+    return row
+
+
+def format_tables(results: dict) -> str:
+    """Table 1 (seconds) and Table 2 (percent of martin, or of newton without it)."""
+    scenes = results["scenes"]
+    methods = list(dict.fromkeys(m for e in scenes.values() for m in e["methods"]))
+    base = "martin" if "martin" in methods else REFERENCE_METHOD  # the paper's Table 2 is in percent of martin
+    lines = [f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets)"]
+    lines.append(f"{'scene':12s}" + "".join(f"{m:>20s}" for m in methods) + f"{'paper (grad/fast/martin)':>30s}")
+    for name, e in scenes.items():
+        cells = "".join(
+            f"{e['methods'][m]['seconds']['map+solve']:>10.3f} ({e['methods'][m]['seconds']['total']:6.3f})" if m in e["methods"] else f"{'-':>20s}"
+            for m in methods
+        )
+        paper = PAPER.get(name)
+        ptxt = " / ".join(f"{paper[m]:.1f}" for m in ("gradient", "fast", "martin")) if paper else "-"
+        lines.append(f"{name:12s}{cells}{ptxt:>30s}")
+    lines.append("")
+    lines.append(f"Table 2: percent of {base} (map + solve)")
+    lines.append(f"{'scene':12s}" + "".join(f"{m:>12s}" for m in methods) + f"{'paper grad/fast':>20s}")
+    for name, e in scenes.items():
+        ref = e["methods"].get(base)
+        if not ref:
+            continue
+        cells = "".join(f"{_percent(e['methods'][m], ref):>11.0f}%" if m in e["methods"] else f"{'-':>12s}"
+                        for m in methods)
+        paper = PAPER.get(name)
+        ptxt = f"{100 * paper['gradient'] / paper['martin']:.0f}% / {100 * paper['fast'] / paper['martin']:.0f}%" if paper else "-"
+        lines.append(f"{name:12s}{cells}{ptxt:>20s}")
+    lines.append("")
+    lines.append("Per method: iterations per pixel, hits, map-covered, non-converged, suspect, repaired; disagreements with newton (hit/surface/t)")
+    for name, e in scenes.items():
+        for m, row in e["methods"].items():
+            dis = row.get("disagree")
+            dtxt = f"{dis['hit']}/{dis['surface']}/{dis['t']}" if dis else "-"
+            lines.append(
+                f"  {name:12s} {m:9s} {row['iterations_per_pixel']:6.2f} it/px  hits {row['hits']:7d}  map {row['covered_by_map'] if row['covered_by_map'] is not None else '-':>7}"
+                f"  non-conv {row['non_converged']:5d}  suspect {row['suspect']:6d}  repaired {row['repaired']:5d}  disagree {dtxt}"
+            )
+    lines.append(f"peak RSS of the process: {results['peak_rss_mb']:.0f} MB")
+    return "\n".join(lines)
+
+
+def _percent(row: dict, base: dict) -> float:
+    """Median over rounds of row's map + solve as a percentage of base's in the same round."""
+    return statistics.median(100 * a / b for a, b in zip(row["map+solve rounds"], base["map+solve rounds"]))
+
+
+def format_full(results: dict) -> str:
+    """Whole renders by stage (``--full``): seconds per stage (medians), secondary rays per second.
+
+    "whole" is what one ``bsrt render`` of a loaded scene costs: the set-up
+    (patch table and hierarchy, measured once) plus the median render.
+    """
+    lines = [f"Whole renders, {results['size']}x{results['size']}, seconds (median of {results['repeat']}); "
+             "shade includes secondary (shadow and mirror rays)"]
+    head = ("scene", "method", "setup", "map", "solve", "shade", "secondary", "render", "whole", "sec. rays/s")
+    lines.append(f"{head[0]:12s}{head[1]:>9s}" + "".join(f"{h:>11s}" for h in head[2:]))
+    for name, e in results["scenes"].items():
+        for m, row in e["methods"].items():
+            sec = row["seconds"]
+            rays = row["shadow_rays"] + row["reflection_rays"]
+            rate = rays / sec["secondary"] if sec.get("secondary") else 0.0
+            cells = (e["setup_seconds"], sec["map"], sec["solve"], sec["shade"], sec.get("secondary", 0.0),
+                     sec["total"], e["setup_seconds"] + sec["total"])
+            lines.append(f"{name:12s}{m:>9s}" + "".join(f"{c:>11.3f}" for c in cells) + f"{rate:>11.3g}")
+    return "\n".join(lines)
+
+
+def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
+    """Each model rendered as it is and with its trims ignored (same camera: the trimmed model's), medians.
+
+    Returns {name: {"trimmed": seconds, "untrimmed": seconds, "ratio": ..., "trimmed_surfaces": n}}.
+    """
+    from dataclasses import replace
+
+    from bsrt.io import load_model
+    from bsrt.scene import SceneSurface, scene_for_model
+
+    out = {}
+    for path in paths:
+        model = load_model(path)
+        scene = scene_for_model(model, size, size)
+        bare = replace(scene, surfaces=tuple(SceneSurface(replace(s.geometry, trims=()), s.material, s.name)
+                                             for s in scene.surfaces))
+        row = {"trimmed_surfaces": sum(s.geometry.is_trimmed for s in scene.surfaces)}
+        for label, sc in (("trimmed", scene), ("untrimmed", bare)):
+            options = RenderOptions.resolve(sc)
+            render(sc, options)  # warm-up
+            times = []
+            for _ in range(repeat):
+                clock = time.perf_counter()
+                render(sc, options)
+                times.append(time.perf_counter() - clock)
+            row[label] = statistics.median(times)
+        row["ratio"] = row["trimmed"] / row["untrimmed"]
+        out[Path(path).name] = row
+        log(f"{Path(path).name:24s} trimmed {row['trimmed']:6.3f} s  trims ignored {row['untrimmed']:6.3f} s  "
+            f"ratio {row['ratio']:.2f}  ({row['trimmed_surfaces']} trimmed surfaces)")
+    return out

@@ -1,0 +1,241 @@
+"""The one place that creates OpenGL contexts and loads shaders.
+
+Headless rendering uses EGL (``backend="egl"``; without it glcontext would try
+X11). EGL device 0 can be an unusable DRM node, so devices are tried in turn;
+``GLCONTEXT_DEVICE_INDEX`` (or ``BSRT_EGL_DEVICE``) picks one explicitly.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import re
+from importlib import resources
+from pathlib import Path
+
+import moderngl
+
+from bsrt.errors import RenderError
+
+GL_VERSION = 330
+FIX_HINT = (
+    "install Mesa's EGL and OpenGL drivers (Debian/Ubuntu: apt-get install libegl1 libgl1 "
+    "libegl-mesa0 libgl1-mesa-dri), or pick a device with GLCONTEXT_DEVICE_INDEX=N; "
+    "`bsrt doctor` lists the devices"
+)
+
+
+def egl_devices() -> list[str]:
+    """Describe each EGL device (DRM node or 'software'), [] if EGL is missing.
+
+    Uses EGL_EXT_device_enumeration through ctypes; best effort, for
+    ``bsrt doctor`` only.
+    """
+    name = ctypes.util.find_library("EGL")
+    if not name:
+        return []
+    try:
+        egl = ctypes.CDLL(name)
+    except OSError:
+        return []
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    query_ptr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
+    string_ptr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
+    if not query_ptr or not string_ptr:
+        return []
+    query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int))(query_ptr)
+    device_string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(string_ptr)
+    count = ctypes.c_int(0)
+    if not query(0, None, ctypes.byref(count)) or count.value <= 0:
+        return []
+    devices = (ctypes.c_void_p * count.value)()
+    query(count.value, devices, ctypes.byref(count))
+    egl_extensions, egl_drm_device_file = 0x3055, 0x3233
+    out = []
+    for dev in devices[: count.value]:
+        ext = (device_string(dev, egl_extensions) or b"").decode(errors="replace")
+        drm = device_string(dev, egl_drm_device_file) if "EGL_EXT_device_drm" in ext else None
+        if drm:
+            out.append(drm.decode(errors="replace"))
+        elif "EGL_MESA_device_software" in ext:
+            out.append("software (Mesa llvmpipe)")
+        else:
+            out.append("unknown device")
+    return out
+
+
+def create_headless_context() -> moderngl.Context:
+    """A standalone OpenGL 3.3 core context through EGL.
+
+    Tries the device named by GLCONTEXT_DEVICE_INDEX / BSRT_EGL_DEVICE, else
+    each device in turn. Raises RenderError with a fix when none works.
+    """
+    chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
+    if chosen is not None:
+        candidates = [int(chosen)]
+    else:
+        candidates = list(range(max(1, len(egl_devices()))))
+    errors = []
+    for index in candidates:
+        try:
+            ctx = moderngl.create_context(standalone=True, backend="egl", require=GL_VERSION, device_index=index)
+        except Exception as exc:  # glcontext raises plain Exception subclasses
+            errors.append(f"device {index}: {exc}")
+            continue
+        return ctx
+    raise RenderError("no OpenGL context through EGL (" + "; ".join(errors) + "); " + FIX_HINT)
+
+
+def _shader_file(filename: str) -> str:
+    """The text of shaders/FILENAME.
+
+    An installed wheel ships the top-level shaders/ as the package
+    bsrt.shaders; running from a source checkout (bsrt/ imported from the
+    working tree) reads the checkout's shaders/ directly.
+    """
+    try:
+        folder = resources.files("bsrt.shaders")
+    except ModuleNotFoundError:
+        folder = Path(__file__).resolve().parents[2] / "shaders"  # bsrt/rendering/gl.py -> the checkout
+    return folder.joinpath(filename).read_text(encoding="utf-8")
+
+
+_INCLUDE = re.compile(r'^[ \t]*#[ \t]*include[ \t]+"([A-Za-z0-9_.-]+\.glsl)"[ \t]*$', re.MULTILINE)
+
+
+def shader_source(name: str) -> str:
+    """The text of ``shaders/NAME.glsl`` with its ``#include "FILE.glsl"``
+    lines replaced by shaders/FILE.glsl (an include file has no #version
+    line; each file is included once per program, nested includes allowed).
+    ``#line`` directives keep the compiler's line numbers those of each
+    file: source string 0 is NAME.glsl, string k the k-th included file."""
+    included: list[str] = []
+
+    def expand(text: str, string: int) -> str:
+        out, at = [], 0
+        for match in _INCLUDE.finditer(text):
+            filename = match.group(1)
+            out.append(text[at:match.start()])
+            at = match.end()
+            if filename in included:
+                continue
+            included.append(filename)
+            line_after = text.count("\n", 0, match.end()) + 2  # GLSL numbers lines from 1
+            out.append(f"#line 1 {len(included)}\n{expand(_shader_file(filename), len(included))}\n"
+                       f"#line {line_after - 1} {string}")
+        out.append(text[at:])
+        return "".join(out)
+
+    return expand(_shader_file(f"{name}.glsl"), 0)
+
+
+def load_program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
+    """Compile shaders/NAME.glsl: one file, stages split by #if defined X_SHADER;
+    each of defines (names) is #defined too, for variants of one program."""
+    source = shader_source(name)
+    version, _, body = source.partition("\n")
+    extra = "".join(f"#define {d}\n" for d in defines)
+
+    def stage(define: str) -> str:
+        return f"{version}\n#define {define}\n{extra}#line 2\n{body}"  # the compiler's line numbers: the file's
+
+    return ctx.program(vertex_shader=stage("VERTEX_SHADER"), fragment_shader=stage("FRAGMENT_SHADER"))
+
+
+_headless: moderngl.Context | None = None
+
+
+def headless_context() -> moderngl.Context:
+    """The process's one standalone EGL context, created on first use."""
+    global _headless
+    if _headless is None:
+        _headless = create_headless_context()
+    return _headless
+
+
+def program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
+    """The compiled program NAME (the variant with defines, as load_program),
+    cached on the context (released with it)."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    programs = ctx.extra.setdefault("bsrt_programs", {})
+    key = (name, tuple(defines)) if defines else name
+    if key not in programs:
+        programs[key] = load_program(ctx, name, tuple(defines))
+    return programs[key]
+
+
+def keep(ctx: moderngl.Context, key, make, limit: int = 1):
+    """make() once per key, kept on ctx for later calls (framebuffers reused
+    by renders of one size); the least recently used beyond limit keys is
+    released before a new one is made. The object needs a release() method;
+    release_cached releases them all."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    kept = ctx.extra.setdefault("bsrt_kept", {})
+    if key in kept:
+        kept[key] = kept.pop(key)  # now the most recently used
+        return kept[key]
+    while kept and len(kept) >= limit:
+        bind_default_framebuffer(ctx)  # the one to release may be bound
+        kept.pop(next(iter(kept))).release()
+    kept[key] = made = make()
+    return made
+
+
+def bind_default_framebuffer(ctx: moderngl.Context) -> None:
+    """Bind framebuffer 0 (the window, or none headless).
+
+    Call before releasing a bound framebuffer: moderngl otherwise keeps the
+    released one as current and the next framebuffer creation fails with
+    GL_INVALID_OPERATION.
+    """
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    if "bsrt_default_fbo" not in ctx.extra:
+        ctx.extra["bsrt_default_fbo"] = ctx.detect_framebuffer(0)
+    ctx.extra["bsrt_default_fbo"].use()
+
+
+def create_window_context() -> moderngl.Context:
+    """A moderngl context for the OpenGL context current on this thread (the
+    preview's glfw window, which owns it). GLX first, then EGL. Raises
+    RenderError when the window's context cannot be used (not 3.3 core)."""
+    errors = []
+    for backend in (None, "egl"):
+        try:
+            if backend is None:
+                return moderngl.create_context(require=GL_VERSION)
+            return moderngl.create_context(require=GL_VERSION, backend=backend)
+        except Exception as exc:  # glcontext raises plain Exception subclasses
+            errors.append(f"{backend or 'default'}: {exc}")
+    raise RenderError("cannot use the window's OpenGL context (" + "; ".join(errors) + "); " + FIX_HINT)
+
+
+def release_cached(ctx: moderngl.Context) -> int:
+    """Release the programs :func:`program` and the objects :func:`keep`
+    cached on ctx. Call it before releasing a window's context: that GL
+    context belongs to glfw, so releasing the moderngl wrapper frees
+    nothing. Returns how many."""
+    if not isinstance(ctx.extra, dict):
+        return 0
+    objects = list(ctx.extra.pop("bsrt_programs", {}).values()) + list(ctx.extra.pop("bsrt_kept", {}).values())
+    if objects:
+        bind_default_framebuffer(ctx)  # a kept framebuffer may be bound
+    for obj in objects:
+        obj.release()
+    ctx.extra.pop("bsrt_default_fbo", None)
+    return len(objects)
+
+
+def max_framebuffer_side(ctx: moderngl.Context) -> int:
+    """The largest square framebuffer the context draws into at once: the
+    least of its texture, renderbuffer and viewport limits (llvmpipe: 16384)."""
+    info = ctx.info
+    limits = [info.get("GL_MAX_TEXTURE_SIZE"), info.get("GL_MAX_RENDERBUFFER_SIZE")]
+    viewport = info.get("GL_MAX_VIEWPORT_DIMS")
+    if viewport:
+        limits += list(viewport)
+    return int(min(x for x in limits if x))

@@ -1,0 +1,316 @@
+"""The one rendering pipeline: scene -> camera rays -> hits -> shaded image.
+
+The CLI, the preview window, the Python API and the benchmarks all call
+:func:`render` with a :class:`~bsrt.rendering.options.RenderOptions`. Camera rays go
+through the tracer the method picks (trace.py); shading sends shadow and
+mirror rays through the hierarchy. Anti-aliased and large films are traced in
+bands of at most MAX_BAND_SAMPLES samples (at least one row of the sample
+film, width * columns <= width * sqrt(spp) samples), which bounds memory
+whatever spp is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from bsrt.rendering.bvh import build_bvh, intersect
+from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.hits import Hits
+from bsrt.rendering.image import srgb_encode
+from bsrt.geometry.patches import PatchSet
+from bsrt.rendering.prelim import PrelimMap
+from bsrt.scene import Scene
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.shade import facing_frames, light_directions, shade
+from bsrt.rendering.stats import Stats
+from bsrt.rendering.trace import make_primary_tracer
+
+MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
+SECONDARY_CHUNK = 1 << 16  # secondary rays per kernel call: progress and cancellation points
+
+
+@dataclass(eq=False)
+class RenderResult:
+    """pixels: (H, W, 3) uint8 sRGB. linear: (H, W, 3) float64.
+    hits: Hits for the H * W pixel-centre rays (row-major).
+    position, normal: (H * W, 3) float64, NaN where no hit, computed from the
+      hits on first use (a large film keeps only its hits).
+    prelim: the preliminary map of the last band traced, the whole film's
+      when it fits in one band (None for method "martin").
+    stats: timings (seconds) and counters, JSON-serialisable.
+    options: the settings it was rendered with; geometry: the scene's Geometry."""
+
+    pixels: np.ndarray
+    linear: np.ndarray
+    hits: Hits
+    prelim: PrelimMap | None
+    stats: dict
+    options: RenderOptions
+    geometry: "Geometry"
+
+    @cached_property
+    def _frames(self):
+        h, w = self.pixels.shape[:2]
+        directions = pixel_rays(self.options.camera, w, h)
+        return facing_frames(self.geometry.patches, self.hits, directions)[:2]
+
+    @property
+    def position(self) -> np.ndarray:
+        return self._frames[0]
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self._frames[1]
+
+    def __repr__(self) -> str:
+        h, w = self.pixels.shape[:2]
+        hit = int(np.count_nonzero(self.hits.hit))
+        took = f", {sum(self.stats.get('seconds', {}).values()):.2f} s"
+        return (f"<RenderResult {w}x{h}, {self.options.spp} spp, {self.options.method}, {hit} of {w * h} pixel rays "
+                f"hit{took}>")
+
+    def to_pil(self):
+        """The image as a ``PIL.Image.Image`` (RGB, 8-bit sRGB)."""
+        from PIL import Image
+
+        return Image.fromarray(self.pixels, "RGB")
+
+    def save(self, path) -> None:
+        """Write the image in the format its extension names (``.png``, ``.jpg``/``.jpeg``,
+        ``.webp``: bsrt.rendering.image.IMAGE_FORMATS), atomically: a failure leaves no file. Another
+        extension is an InputError, before anything is written."""
+        from bsrt.rendering.image import write_image
+
+        write_image(path, self.pixels)
+
+    def png_bytes(self) -> bytes:
+        """The image encoded as PNG."""
+        import io
+
+        buffer = io.BytesIO()
+        self.to_pil().save(buffer, format="PNG")
+        return buffer.getvalue()
+
+    def _repr_png_(self) -> bytes:  # Jupyter shows the image
+        return self.png_bytes()
+
+    def aovs(self) -> dict:
+        """The arrays of ``--aov`` (keys, dtypes and shapes of the scene format)."""
+        h, w = self.pixels.shape[:2]
+        hits = self.hits
+        return {
+            "hit": hits.hit.reshape(h, w),
+            "t": hits.t.reshape(h, w),
+            "surface": hits.surface.astype(np.int32).reshape(h, w),
+            "u": hits.u.reshape(h, w),
+            "v": hits.v.reshape(h, w),
+            "position": self.position.reshape(h, w, 3),
+            "normal": self.normal.reshape(h, w, 3),
+            "iterations": hits.iterations.astype(np.int32).reshape(h, w),
+            "residual": hits.residual.reshape(h, w),
+        }
+
+
+class Geometry:
+    """A scene's surfaces prepared for tracing: the patch table and, built on
+    first use, the Martin et al. hierarchy. Reuse it across renders of the
+    same scene (the preview window does)."""
+
+    def __init__(self, scene: Scene):
+        self.patches = PatchSet([s.geometry for s in scene.surfaces])
+        self.material = np.array([s.material for s in scene.surfaces], dtype=np.int64)
+        self.diagonal = max(self.patches.scene_diagonal(), 1e-300)
+        self._bvh = None
+
+    @property
+    def bvh(self):
+        if self._bvh is None:
+            self._bvh = build_bvh(self.patches)
+        return self._bvh
+
+    def intersect(self, origins, directions, **kwargs) -> Hits:
+        """bvh.intersect with this geometry's hierarchy (see there for the arguments)."""
+        return intersect(self.bvh, origins, directions, **kwargs)
+
+
+def sample_grid(spp: int) -> tuple[int, int]:
+    """(columns, rows) of the stratified sub-pixel grid: columns * rows = spp, as
+    square as possible, columns <= rows (so a row of the sample film is at most
+    width * sqrt(spp) samples, even for a prime spp: 1 x spp)."""
+    columns = max(d for d in range(1, int(np.sqrt(spp)) + 1) if spp % d == 0)
+    return columns, spp // columns
+
+
+def render(
+    scene: Scene,
+    options: RenderOptions | None = None,
+    *,
+    geometry: Geometry | None = None,
+    ctx=None,
+    prelim: PrelimMap | None = None,
+    progress=None,
+) -> RenderResult:
+    """Render a scene with ``options`` (default: the scene's own settings).
+
+    geometry: the scene's Geometry, when the caller keeps one across renders.
+    ctx: a moderngl context for the map (default: the process's headless EGL
+    context). prelim: a map already rendered for options.camera and the whole
+    film (the preview window rasterises it on its own context, then solves
+    elsewhere; spp = 1 only). progress: called as ``progress(stage,
+    fraction)`` with a stage name ("map", "solve", "shade", "aov", "done") and
+    the fraction (0..1) of the whole render done (bands traced and shaded,
+    secondary rays included); it may raise to abandon the render.
+
+    Anti-aliasing: spp samples per pixel sit at the centres of a stratified
+    columns x rows grid (sample_grid), which is exactly the pixel-centre grid
+    of a film spp times larger; that film is traced band by band (each band
+    with its own preliminary map, so every sample is seeded; a band may end
+    inside a pixel row) and box-filtered down. The AOVs always describe the pixel-centre rays (a second pass when
+    spp > 1).
+    """
+    opts = options or RenderOptions.resolve(scene)
+    width, height, spp = opts.width, opts.height, opts.spp
+    report = progress or (lambda stage, fraction=0.0: None)
+    stats = Stats(method=opts.method, map=opts.map if opts.uses_map else None, width=width, height=height, spp=spp)
+    stats.loaded(getattr(scene, "loads", ()))  # the model files' load, which came before (bsrt/scene/loading.py)
+    with stats.timer("setup"):
+        geometry = geometry or Geometry(scene)
+        _ = geometry.bvh  # built here, not inside the first stage that needs it
+    tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
+    shader = _Shader(scene, opts, geometry, stats, report)
+    cols, rows = sample_grid(spp)
+    sample_w, sample_h = width * cols, height * rows
+    band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
+    if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
+        raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
+    linear = np.zeros((height, width, 3))  # sums of the samples until a pixel row is complete
+    pixels = np.zeros((height, width, 3), dtype=np.uint8)
+    primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
+    total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
+    complete = 0  # pixel rows 0..complete-1 are final
+    for first in range(0, sample_h, band):
+        stop = min(sample_h, first + band)
+        hits, directions = tracer.trace(sample_w, sample_h, (first, stop), prelim, first / total)
+        shader.begin_band(hits, (first / total, stop / total))
+        with stats.timer("shade"):
+            colour = shader.shade(hits, directions)
+        sums = colour.reshape(stop - first, width, cols, 3).sum(axis=2)  # (band rows, width, 3)
+        np.add.at(linear, np.arange(first, stop) // rows, sums)
+        done = stop // rows
+        if done > complete:
+            final = slice(complete, done)
+            linear[final] /= spp
+            pixels[final] = srgb_encode(linear[final])  # per band: no film-sized temporaries
+            complete = done
+        if spp == 1:
+            primary.put(slice(first * width, stop * width), hits)
+    if spp > 1:  # the AOVs: pixel-centre rays
+        band = max(1, MAX_BAND_SAMPLES // width)
+        for first in range(0, height, band):
+            report("aov", (sample_h + first) / total)
+            stop = min(height, first + band)
+            hits, _ = tracer.trace(width, height, (first, stop), None)
+            primary.put(slice(first * width, stop * width), hits)
+    report("done", 1.0)
+    hits = primary
+    work = hits.iterations[hits.iterations > 0]
+    stats.fields.update(pixels=width * height, hits=int(hits.hit.sum()),
+                        iterations_mean=float(work.mean()) if work.size else 0.0,
+                        iterations_max=int(hits.iterations.max()))
+    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
+
+
+class _Shader:
+    """Colour along rays: Blinn-Phong with shadow rays to every point and
+    directional light, and mirror reflection up to options.max_depth bounces."""
+
+    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report):
+        self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
+        self.tolerance = options.tolerance * geometry.diagonal
+        self.reflectance = np.array([m.reflectance for m in scene.materials])
+        self.span, self.expected, self.traced, self.shown = (0.0, 1.0), 1, 0, 0.0
+        self.casting = sum(light.kind != "ambient" for light in scene.lights)
+        stats.add("shadow_rays", 0)
+        stats.add("reflection_rays", 0)
+
+    def begin_band(self, hits: Hits, span: tuple[float, float]) -> None:
+        """Progress of the band's secondary rays is reported within span (fractions of the render),
+        against an estimate of their number (one shadow ray per hit and light, and a bounce where mirrors are)."""
+        mirrors = 2 if np.any(self.reflectance > 0) and self.options.max_depth > 0 else 1
+        self.span, self.traced = span, 0
+        self.expected = max(1, int(hits.hit.sum()) * max(self.casting, 1) * mirrors)
+
+    def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0):
+        """Linear RGB (K, 3) seen along each ray (ending at ``hits``)."""
+        position, normal, speed = facing_frames(self.geometry.patches, hits, directions)
+        colour = np.empty((len(hits), 3))
+        colour[:] = self.options.background
+        hit = np.flatnonzero(hits.hit)
+        if not hit.size:
+            return colour
+        pos, nrm, dirs = position[hit], normal[hit], directions[hit]
+        material = self.geometry.material[hits.surface[hit]]
+        exclude = self._exclusion(hits, hit, speed[hit])
+        visibility = self._visibility(pos, nrm, exclude)
+        colour[hit] = shade(self.scene, pos, nrm, dirs, material, visibility)
+        reflectance = self.reflectance[material]
+        mirror = np.flatnonzero(reflectance > 0)
+        if mirror.size and depth < self.options.max_depth:
+            d, n = dirs[mirror], nrm[mirror]
+            r = d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
+            self.stats.add("reflection_rays", mirror.size)
+            seen = self._trace(pos[mirror], r, tuple(a[mirror] for a in exclude))
+            reflected = self.shade(seen, r, depth + 1)
+            k = reflectance[mirror][:, None]
+            colour[hit[mirror]] = (1.0 - k) * colour[hit[mirror]] + k * reflected
+        return colour
+
+    def _exclusion(self, hits: Hits, hit: np.ndarray, speed: np.ndarray):
+        """The parameter box around each hit that its secondary rays must not hit again.
+
+        Half-widths: 1e-6 of the scene diagonal in scene units, converted with
+        |S_u|, |S_v| (a thousand times the root finder's tolerance), at most a
+        quarter of the patch (where S_u or S_v vanishes, at poles).
+        """
+        eps = 1e-6 * self.geometry.diagonal
+        bounds = self.geometry.patches.bounds[hits.patch[hit]]
+        with np.errstate(divide="ignore"):
+            ru = np.minimum(eps / speed[:, 0], 0.25 * (bounds[:, 1] - bounds[:, 0]))
+            rv = np.minimum(eps / speed[:, 1], 0.25 * (bounds[:, 3] - bounds[:, 2]))
+        return hits.surface[hit], hits.u[hit], hits.v[hit], ru, rv
+
+    def _trace(self, origins, directions, exclude, t_max=np.inf, any_hit=False) -> Hits:
+        """Secondary rays through the hierarchy, in chunks (progress, cancellation)."""
+        parts = []
+        n = directions.shape[0]
+        t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
+        lo, hi = self.span
+        with self.stats.timer("secondary"):
+            for a in range(0, n, SECONDARY_CHUNK):
+                part = slice(a, min(n, a + SECONDARY_CHUNK))
+                parts.append(self.geometry.intersect(origins[part], directions[part], t_min=0.0, t_max=t_max[part],
+                                                     tolerance=self.tolerance, any_hit=any_hit,
+                                                     exclude=tuple(x[part] for x in exclude)))
+                self.traced += part.stop - part.start
+                self.shown = max(self.shown, lo + (hi - lo) * min(0.99, self.traced / self.expected))
+                self.report("shade", self.shown)
+        return Hits.concatenate(parts) if parts else Hits.empty(0)
+
+    def _visibility(self, position, normal, exclude) -> np.ndarray:
+        """(K, L) 1.0 where light L reaches the point, 0.0 in shadow (any-hit shadow rays)."""
+        visibility = np.ones((position.shape[0], len(self.scene.lights)))
+        for index, light in enumerate(self.scene.lights):
+            if light.kind == "ambient":
+                continue
+            to_light, dist = light_directions(light, position)
+            facing = np.flatnonzero(np.einsum("ij,ij->i", normal, to_light) > 0)
+            if not facing.size:
+                continue
+            self.stats.add("shadow_rays", facing.size)
+            blocked = self._trace(position[facing], to_light[facing], tuple(a[facing] for a in exclude),
+                                  t_max=dist[facing], any_hit=True)
+            visibility[facing[blocked.hit], index] = 0.0
+        return visibility

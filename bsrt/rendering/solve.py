@@ -1,0 +1,119 @@
+"""Root finding for batches of (ray, start) items (paper 2.2, 2.3).
+
+The per-item loops are compiled (``kernels/roots.py``, where the methods are
+described); this module holds the ray batch and the result record, and
+applies the surfaces' trims to converged roots.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bsrt.rendering.hits import Hits
+from bsrt.kernels.prelim import normalise_rows
+from bsrt.kernels.roots import solve_items
+from bsrt.kernels.threads import run_chunks
+from bsrt.kernels.trim import kept_many
+from bsrt.methods import METHODS, REFERENCE_METHOD
+from bsrt.geometry.patches import PatchSet
+
+
+@dataclass
+class Rays:
+    """A batch of N rays. origin, direction: (N, 3) float64, C-contiguous; directions of unit length."""
+
+    origin: np.ndarray
+    direction: np.ndarray
+
+    @classmethod
+    def from_arrays(cls, origins: np.ndarray, directions: np.ndarray) -> "Rays":
+        """origins: (N, 3) or (1, 3) (broadcast); directions: (N, 3), normalised here."""
+        d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+        unit = np.empty_like(d)
+        run_chunks(normalise_rows, d.shape[0], d, unit)  # d / |d|, row by row
+        d = unit
+        o = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), d.shape)
+        # writable C arrays always (a broadcast view is read-only): numba compiles a kernel again per flag
+        return cls(np.require(o, np.float64, ("C", "W")), np.require(d, np.float64, ("C", "W")))
+
+    def __len__(self) -> int:
+        return self.direction.shape[0]
+
+
+@dataclass
+class RootResult:
+    """Outcome for M (ray, start) items.
+
+    converged: (M,) bool, the ray-surface distance fell under the tolerance
+      at a kept (untrimmed) point.
+    trimmed: (M,) bool, it converged, but to a point its surface's trims remove.
+    u, v: (M,) float64 final parameters (inside the surface's domain).
+    patch: (M,) int64 patch of the final (u, v).
+    t: (M,) float64 distance along the ray of S(u, v).
+    residual: (M,) float64 ray-surface distance at the final (u, v).
+    iterations: (M,) int32 evaluations spent.
+    """
+
+    converged: np.ndarray
+    trimmed: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    patch: np.ndarray
+    t: np.ndarray
+    residual: np.ndarray
+    iterations: np.ndarray
+
+
+    def as_hits(self, patches: PatchSet) -> Hits:
+        """The items as hit candidates: a hit where converged (and kept) with t > 0."""
+        hit = self.converged & (self.t > 0)
+        nan = np.where(hit, 0.0, np.nan)
+        return Hits(hit=hit, t=self.t + nan, surface=np.where(hit, patches.surface[self.patch], -1),
+                    patch=np.where(hit, self.patch, -1), u=self.u + nan, v=self.v + nan,
+                    iterations=self.iterations, residual=self.residual + nan)
+
+
+def find_roots(
+    patches: PatchSet,
+    rays: Rays,
+    ray: np.ndarray,
+    surface: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    method: str = REFERENCE_METHOD,
+    tolerance: float = 1e-9,
+    max_iterations: int = 64,
+    stop_on_growth: bool = False,
+) -> RootResult:
+    """Solve Qx = Qy = 0 for M items, each a ray and a starting (surface, u, v).
+
+    ray: (M,) int index into ``rays`` (a ray may appear in several items);
+    surface: (M,) int; u, v: (M,) float64 starting parameters.
+    tolerance: absolute ray-surface distance (scene units) that counts as
+    converged. stop_on_growth: give up on an item as soon as a Newton step
+    increases the residual (Martin et al.'s rule, for starts that may be far).
+    """
+    kernel_id = METHODS[method].kernel_id if method in METHODS else None
+    if kernel_id is None:
+        raise ValueError(f"not a seeded method: {method!r}")
+    m = np.shape(ray)[0]
+    out = RootResult(
+        converged=np.zeros(m, dtype=bool), trimmed=np.zeros(m, dtype=bool), u=np.empty(m), v=np.empty(m),
+        patch=np.empty(m, dtype=np.int64), t=np.empty(m), residual=np.empty(m), iterations=np.zeros(m, dtype=np.int32),
+    )
+    if m == 0:
+        return out
+    run_chunks(
+        solve_items, m, patches.arrays, rays.origin, rays.direction, np.ascontiguousarray(ray, dtype=np.int64),
+        np.ascontiguousarray(surface, dtype=np.int64), np.ascontiguousarray(u, dtype=np.float64),
+        np.ascontiguousarray(v, dtype=np.float64), kernel_id, float(tolerance), int(max_iterations),
+        bool(stop_on_growth), out.converged, out.u, out.v, out.patch, out.t, out.residual, out.iterations,
+    )
+    if patches.trimmed:
+        done = np.flatnonzero(out.converged)
+        kept = kept_many(patches.trims, np.ascontiguousarray(surface, dtype=np.int64)[done], out.u[done], out.v[done])
+        out.trimmed[done[~kept]] = True
+        out.converged[done[~kept]] = False
+    return out

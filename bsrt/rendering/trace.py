@@ -1,0 +1,127 @@
+"""The tracing seam: camera rays to nearest hits, by one of two tracers.
+
+``make_primary_tracer`` turns the method name into a tracer once:
+
+- ``MapTracer`` (gradient, fast, newton): the preliminary map (GL) seeds
+  every pixel's root finder; suspect pixels are repaired (hard_pixels.py).
+- ``HierarchyTracer`` (martin): every ray through the hierarchy, no map.
+
+Both answer ``trace(width, height, rows, prelim) -> (Hits, directions)`` for
+a band of film rows. Secondary rays always use ``Geometry.intersect`` (the
+hierarchy): they do not start at the eye, so no map can seed them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bsrt.rendering import hard_pixels
+from bsrt.scene.camera import pixel_footprint, pixel_rays
+from bsrt.rendering.hits import Hits
+from bsrt.rendering.prelim import PrelimMap, render_map
+from bsrt.rendering.options import RenderOptions
+from bsrt.kernels.prelim import seeded_hits
+from bsrt.kernels.threads import run_chunks
+from bsrt.rendering.solve import Rays, RootResult, find_roots
+from bsrt.rendering.stats import Stats
+
+
+class HierarchyTracer:
+    """Martin et al.: every camera ray through the hierarchy."""
+
+    def __init__(self, options: RenderOptions, geometry, stats: Stats, report):
+        self.options, self.geometry, self.stats, self.report = options, geometry, stats, report
+        self.tolerance = options.tolerance * geometry.diagonal
+        self.last_map = None
+        _count_repairs(stats)
+        stats.fields["covered_by_map"] = None  # no map
+
+    def trace(self, width: int, height: int, rows: tuple[int, int], prelim=None, done: float = 0.0):
+        """Nearest hits of the pixel-centre rays of film rows rows[0]..rows[1]-1:
+        (Hits (K,), unit directions (K, 3)), K = band rows x width."""
+        directions = pixel_rays(self.options.camera, width, height, rows)
+        self.report("solve", done)
+        with self.stats.timer("solve"):
+            hits = self.geometry.intersect(self.options.camera.eye[None, :], directions, tolerance=self.tolerance)
+        return hits, directions
+
+
+class MapTracer:
+    """The paper's tracer: map seeds, root finder, hard-pixel repair."""
+
+    def __init__(self, options: RenderOptions, geometry, stats: Stats, report, ctx=None):
+        self.options, self.geometry, self.stats, self.report, self.ctx = options, geometry, stats, report, ctx
+        self.tolerance = options.tolerance * geometry.diagonal
+        self.last_map: PrelimMap | None = None
+        _count_repairs(stats)
+        stats.add("covered_by_map", 0)
+
+    def trace(self, width: int, height: int, rows: tuple[int, int], prelim: PrelimMap | None = None,
+              done: float = 0.0):
+        """As HierarchyTracer.trace. The map is rasterised (and solved) with one
+        extra row above and below the band, so the neighbour tests of the hard
+        pixels see across band borders. prelim: the whole film's map, given."""
+        first, stop = rows
+        lo, hi = max(0, first - 1), min(height, stop + 1)
+        camera = self.options.camera
+        directions = pixel_rays(camera, width, height, (lo, hi))
+        self.report("map", done)
+        with self.stats.timer("map"):
+            if prelim is None:
+                prelim = render_map(self.geometry.patches, camera, width, height, self.options.map, ctx=self.ctx,
+                                    rows=(lo, hi))
+            else:
+                prelim = prelim.rows(lo, hi)
+        self.last_map = prelim
+        self.report("solve", done)
+        with self.stats.timer("solve"):
+            hits = self._solve(Rays.from_arrays(camera.eye[None, :], directions), prelim,
+                               pixel_footprint(camera, width, height))
+        keep = slice((first - lo) * width, (stop - lo) * width)
+        return hits.take(keep), directions[keep]
+
+    def _solve(self, rays: Rays, prelim: PrelimMap, footprint: float) -> Hits:
+        patches, options, stats = self.geometry.patches, self.options, self.stats
+        seed = prelim.surface.ravel()
+        covered = np.flatnonzero(seed >= 0)
+        res = find_roots(patches, rays, covered, seed[covered], prelim.u.ravel()[covered], prelim.v.ravel()[covered],
+                         method=options.method, tolerance=self.tolerance, max_iterations=options.max_iterations,
+                         stop_on_growth=options.method == "newton")  # a failure is re-solved as a suspect
+        hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
+        suspect, layer = hard_pixels.suspect_pixels(prelim, hits, failed, footprint, self.tolerance)
+        suspects = np.flatnonzero(suspect)
+        before = (hits.hit[suspects].copy(), hits.surface[suspects].copy(), np.nan_to_num(hits.t[suspects]))
+        hard_pixels.repair(self.geometry, rays, prelim, hits, suspects, self.tolerance, options.max_iterations)
+        changed = (before[0] != hits.hit[suspects]) | (before[1] != hits.surface[suspects]) | (
+            np.abs(before[2] - np.nan_to_num(hits.t[suspects])) > 10 * self.tolerance)
+        for key, value in (("covered_by_map", covered.size), ("non_converged", (~res.converged).sum()),
+                           ("trimmed_roots", res.trimmed.sum()), ("suspect", suspects.size),
+                           ("wrong_layer", layer.sum()), ("repaired", changed.sum()), ("hierarchy", suspects.size)):
+            stats.add(key, value)
+        return hits
+
+
+def _seeded_hits(n: int, covered: np.ndarray, res: RootResult, patch_surface: np.ndarray):
+    """(Hits (n,), failed (n,) bool) of n pixels from the roots res of the covered
+    pixels' seeds (covered: (M,) sorted), one item per covered pixel: hits as
+    res.as_hits() puts them there, no hit elsewhere; failed: covered, no hit."""
+    hits = Hits(np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
+                np.empty(n), np.empty(n), np.empty(n, dtype=np.int32), np.empty(n))
+    failed = np.empty(n, dtype=bool)
+    run_chunks(seeded_hits, n, covered, res.converged, res.t, res.u, res.v, res.patch, res.residual, res.iterations,
+               np.ascontiguousarray(patch_surface, dtype=np.int64), hits.hit, hits.t, hits.surface, hits.patch, hits.u,
+               hits.v, hits.iterations, hits.residual, failed)
+    return hits, failed
+
+
+def _count_repairs(stats: Stats) -> None:
+    """The hard-pixel counters, present (0 for martin) whatever the tracer."""
+    for key in ("non_converged", "trimmed_roots", "suspect", "wrong_layer", "repaired", "hierarchy"):
+        stats.add(key, 0)
+
+
+def make_primary_tracer(options: RenderOptions, geometry, stats: Stats, report, ctx=None):
+    """The tracer for options.method: the one place the method name picks an algorithm."""
+    if options.uses_map:
+        return MapTracer(options, geometry, stats, report, ctx)
+    return HierarchyTracer(options, geometry, stats, report)
