@@ -37,9 +37,9 @@ _LAZY = {
 
 __all__ = sorted([*_LAZY, "__version__"])
 
-if TYPE_CHECKING:  # what type checkers and IDEs see
+if TYPE_CHECKING:  # what type checkers and IDEs see (the names of _LAZY)
     from bsrt.api import (Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, from_geomdl,
-                      from_splipy, load, render)
+                          from_splipy, load, render)
     from bsrt.batch.api import animate, batch
     from bsrt.errors import InputError, RenderError
     from bsrt.rendering.pipeline import RenderResult

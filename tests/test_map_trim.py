@@ -1,4 +1,4 @@
-"""The trim-aware preliminary map (prelim.TRIM_MAP) changes seeds, never hits.
+"""The trim-aware preliminary map (map_mesh.TRIM_MAP) changes seeds, never hits.
 
 Every render below is done twice on the real GL context, with the map's
 trim handling on and off: the hits (hit or miss, surface, t within 1e-9 of
@@ -14,7 +14,7 @@ import pytest
 
 from bsrt import api
 
-from bsrt.rendering import prelim
+from bsrt.rendering import map_mesh, prelim
 from bsrt.scene.camera import pixel_rays
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.rendering.options import RenderOptions
@@ -30,7 +30,7 @@ def both(scene, monkeypatch):
     geometry = Geometry(scene)
     out = []
     for flag in (False, True):
-        monkeypatch.setattr(prelim, "TRIM_MAP", flag)
+        monkeypatch.setattr(map_mesh, "TRIM_MAP", flag)
         out.append(render(scene, RenderOptions.resolve(scene), geometry=geometry))
     return out[0], out[1], geometry.diagonal
 
@@ -122,7 +122,7 @@ def test_the_map_leaves_out_what_the_trims_remove(ctx, monkeypatch):
     camera = RenderOptions.resolve(scene).camera
     covered = []
     for flag in (False, True):
-        monkeypatch.setattr(prelim, "TRIM_MAP", flag)
+        monkeypatch.setattr(map_mesh, "TRIM_MAP", flag)
         m = prelim.render_map(patches, camera, 128, 128)
         covered.append(int((m.surface >= 0).sum()))
     assert covered[1] < covered[0]
@@ -132,8 +132,8 @@ def test_the_map_leaves_out_what_the_trims_remove(ctx, monkeypatch):
 def test_the_per_fragment_trim_test_alone_renders_the_same(ctx, monkeypatch, path):
     """No cutting on the CPU: every triangle a trim curve crosses is drawn with
     shaders/prelim.glsl's per-fragment test (the fallback the cutting leaves
-    for pieces still undecided at prelim.SUB_PIXELS)."""
-    monkeypatch.setattr(prelim, "SUB_PIXELS", np.inf)
+    for pieces still undecided at map_mesh.SUB_PIXELS)."""
+    monkeypatch.setattr(map_mesh, "SUB_PIXELS", np.inf)
     scene = api.load(path, width=160, height=160)
     a, b, diagonal = both(scene, monkeypatch)
     assert_same_hits(a, b, diagonal, path.name)

@@ -86,7 +86,7 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--full", action="store_true", help="also show whole renders by stage (shadows, mirrors) and rays per second")
 
     _preview_arguments(sub.add_parser("preview", help="interactive window: orbit, pan, zoom; refines to the exact image"))
-    from bsrt.batch.api import add_commands as _batch_commands
+    from bsrt.cli.batch import add_commands as _batch_commands
 
     _batch_commands(sub, _positive_int)
     for command in ("render", "map", "info", "preview", "batch", "animate"):  # every command that loads models
@@ -387,13 +387,13 @@ def _cmd_preview(args) -> int:
 
 
 def _cmd_batch(args) -> int:
-    from bsrt.batch.api import cmd_batch
+    from bsrt.cli.batch import cmd_batch
 
     return cmd_batch(args)
 
 
 def _cmd_animate(args) -> int:
-    from bsrt.batch.api import cmd_animate
+    from bsrt.cli.batch import cmd_animate
 
     return cmd_animate(args)
 

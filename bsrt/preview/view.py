@@ -41,11 +41,11 @@ def fast_view_mesh(scene, geometry, camera: Camera, width: int, height: int):
     surface; ``kernels.trim.rect_states`` of their (u, v) box is INSIDE), so
     they are drawn without the per-fragment trim test, the rest with it).
 
-    Vertices come from ``prelim.tessellate`` (the map's own grid, as dense as
+    Vertices come from ``map_mesh.tessellate`` (the map's own grid, as dense as
     the map needs at this camera and size); normals are the exact S_u x S_v
     at each vertex, or the mesh's area-weighted normal where that vanishes.
     """
-    from bsrt.rendering.prelim import segments_per_patch, tessellate
+    from bsrt.rendering.map_mesh import segments_per_patch, tessellate
 
     patches = geometry.patches
     lo, hi = patches.scene_box()
@@ -212,7 +212,7 @@ class View:
             self._draw_fast(size, camera)
 
     def _draw_fast(self, size: tuple[int, int], cam: Camera) -> None:
-        from bsrt.rendering.prelim import depth_range
+        from bsrt.rendering.map_mesh import depth_range
 
         ctx = self.ctx
         near, far = depth_range(self.geometry.patches, cam)

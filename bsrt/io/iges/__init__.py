@@ -66,7 +66,7 @@ __all__ = ["IgesFile", "read"]
 
 
 def read(path: str) -> Model:
-    from bsrt.io.iges.topology import draw
+    from bsrt.io.iges.drawing import draw
 
     f = IgesFile(path)
     surfaces, names, warnings, untrimmed = draw(f)
