@@ -32,7 +32,7 @@ _LAZY = {
     "from_splipy": "api", "from_geomdl": "api",
     "InputError": "errors", "RenderError": "errors",
     "render": "api", "RenderResult": "rendering.pipeline",
-    "batch": "batch.api", "animate": "batch.api",
+    "batch": "batches.api", "animate": "batches.api",
 }
 
 __all__ = sorted([*_LAZY, "__version__"])
@@ -40,7 +40,7 @@ __all__ = sorted([*_LAZY, "__version__"])
 if TYPE_CHECKING:  # what type checkers and IDEs see (the names of _LAZY)
     from bsrt.api import (Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, from_geomdl,
                           from_splipy, load, render)
-    from bsrt.batch.api import animate, batch
+    from bsrt.batches.api import animate, batch
     from bsrt.errors import InputError, RenderError
     from bsrt.rendering.pipeline import RenderResult
 

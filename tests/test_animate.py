@@ -16,7 +16,7 @@ from PIL import Image
 import bsrt
 from bsrt.rendering.warm_up import warm_up
 from bsrt.scene.camera import Camera
-from bsrt.batch.animation import frame_cameras, orbit_camera
+from bsrt.batches.animation import frame_cameras, orbit_camera
 from bsrt.scene.keyframes import Keyframe, keyframe_camera
 from bsrt.errors import InputError
 from bsrt.scene import load_scene

@@ -19,7 +19,7 @@ from distributed import Client, LocalCluster
 
 import bsrt
 from bsrt.rendering.warm_up import warm_up
-from bsrt.batch import engine as batching
+from bsrt.batches import engine as batching
 from bsrt.errors import InputError
 
 from conftest import MODELS

@@ -13,7 +13,7 @@ import pytest
 
 import bsrt
 from bsrt import api, doc_tables
-from bsrt.batch.api import animate, batch
+from bsrt.batches.api import animate, batch
 from bsrt.cli import _parser
 from bsrt.errors import InputError
 from bsrt.io.formats import BY_EXTENSION, READERS, format_choices

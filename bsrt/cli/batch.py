@@ -1,4 +1,4 @@
-"""``bsrt batch`` and ``bsrt animate``: their options, and the commands over bsrt.batch.api.
+"""``bsrt batch`` and ``bsrt animate``: their options, and the commands over bsrt.batches.api.
 
 Exit codes: 0 every item rendered (or skipped, complete already), 1 any item
 failed, 2 bad usage (no such input, no Dask, a bad scene for ``animate``).
@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from bsrt.batch.api import animate, batch, require_dask
+from bsrt.batches.api import animate, batch, require_dask
 from bsrt.io.formats import extensions_text
 from bsrt.settings import add_flags, flag_values
 
@@ -83,7 +83,7 @@ def _run(command: str, call) -> int:
 
 
 def cmd_batch(args: argparse.Namespace) -> int:
-    from bsrt.batch import engine as batching
+    from bsrt.batches import engine as batching
     require_dask("batch")
     paths = batching.discover(args.inputs)
     for note in batching.output_names(paths)[1]:

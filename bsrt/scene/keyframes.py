@@ -1,7 +1,7 @@
 """Camera keyframes of a scene file, the path of ``bsrt animate``.
 
 Frames are numbered 1..N, as their files (``frame_0001.png`` is frame 1).
-The orbit and the animated file: bsrt/batch/animation.py.
+The orbit and the animated file: bsrt/batches/animation.py.
 
 * Keyframes: ``[[camera.keyframe]]`` tables (``frame``, and any of ``eye``,
   ``look_at``, ``up``, ``fov``; a key left out takes the ``[camera]``

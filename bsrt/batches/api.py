@@ -4,8 +4,8 @@ Dask (``pip install 'bsrt[dask]'``) is optional: it is imported only here,
 when one of these runs. By default a local cluster is started: one worker
 process per core, one thread each (``--workers N`` to choose); with
 ``--scheduler ADDRESS`` the tasks go to a running cluster instead. The
-engine (inputs, tasks, outputs, summary) is bsrt/batch/engine.py; the camera
-paths bsrt/batch/animation.py.
+engine (inputs, tasks, outputs, summary) is bsrt/batches/engine.py; the camera
+paths bsrt/batches/animation.py.
 The command line's ``bsrt batch`` / ``bsrt animate`` are bsrt/cli/batch.py.
 """
 
@@ -81,7 +81,7 @@ def batch(inputs, out, *, aov=False, workers=None, scheduler=None, client=None, 
           progress=None, report=None, cache=True, **settings):
     """Render every scene or model file of ``inputs`` (files, folders, globs) to
     ``out/<name>.png`` (and ``<name>.npz`` with ``aov``) on Dask; returns the
-    :class:`bsrt.batch.engine.Summary` (``.items``, ``.exit_code``, ``.to_dict()``).
+    :class:`bsrt.batches.engine.Summary` (``.items``, ``.exit_code``, ``.to_dict()``).
 
     client: a ``distributed.Client`` to use; else scheduler (an address); else a
     local cluster of ``workers`` processes. summary: also write the JSON there.
@@ -90,7 +90,7 @@ def batch(inputs, out, *, aov=False, workers=None, scheduler=None, client=None, 
     settings overriding every file's (bsrt.settings.SETTINGS: width, spp, method, ...).
     Raises InputError for bad usage (an input that does not exist, no Dask).
     """
-    from bsrt.batch import engine as batching
+    from bsrt.batches import engine as batching
     start = time.perf_counter()
     require_dask("batch")
     paths = batching.discover([inputs] if isinstance(inputs, (str, os.PathLike)) else inputs)
@@ -115,8 +115,8 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wo
     ``out/<name>.webp`` / ``.png``. Returns the Summary (the animated file, if
     any, is its last item). cache: False reads the model files without the
     converted-model cache. settings: render settings, as for :func:`batch`."""
-    from bsrt.batch import engine as batching
-    from bsrt.batch import animation as camera_path
+    from bsrt.batches import engine as batching
+    from bsrt.batches import animation as camera_path
     from bsrt.scene.loading import CameraOverrides
 
     start = time.perf_counter()
@@ -158,8 +158,8 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wo
 
 def _write_animation(frames, target: Path, fps: float, kind: str):
     """The animated file from the frames' PNGs (read once, in frame order), written atomically."""
-    from bsrt.batch.engine import Item
-    from bsrt.batch.animation import animation_writer
+    from bsrt.batches.engine import Item
+    from bsrt.batches.animation import animation_writer
     from bsrt.errors import OutputError
     from bsrt.outputs import write_file
 
