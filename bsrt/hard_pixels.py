@@ -16,12 +16,13 @@ is *suspect* when (``suspect_pixels``, pure functions of the map and hits):
   pixel footprints: a root on another layer, or
 - the map's (u, v) jumps there between two layers of one surface (a *seam*:
   along the row or column, a step of the seeds is more than SEAM_RATIO
-  times the other step, or than half the step over both). Where two layers of a surface (a thin fold, a
-  self-intersection) lie within the tessellation's chord error of each
-  other along the ray, the depth test may keep either layer's triangles, so
-  the map and the root found from it may be the farther layer; the layer
-  test cannot see that (the roots are far closer than a pixel footprint),
-  but where the depth test switches between layers the seeds jump.
+  times the other step, or than half the step over both). Where two layers
+  of a surface (a thin fold, a self-intersection) lie within the
+  tessellation's chord error of each other along the ray, the depth test
+  may keep either layer's triangles, so the map and the root found from it
+  may be the farther layer; the layer test cannot see that (the roots are
+  far closer than a pixel footprint), but where the depth test switches
+  between layers the seeds jump.
 
 ``repair`` solves every suspect again with Newton from its own and its
 neighbours' starts (one per surface among them) and with the exact

@@ -70,7 +70,7 @@ def test_a_map_showing_the_far_layer_of_a_thin_fold_still_gives_the_near_layer(m
     options = RenderOptions.resolve(scene)
     first = render(scene, options)
     directions = pixel_rays(scene.camera, SIZE, SIZE)
-    (u_near, v_near, t_near), (u_far, v_far, t_far) = layers(scene.camera.eye, directions)
+    (u_near, _, t_near), (u_far, v_far, t_far) = layers(scene.camera.eye, directions)
     double = np.isfinite(t_near) & np.isfinite(t_far)
     assert double.sum() > 0.5 * SIZE * SIZE and (t_far - t_near)[double].max() < 1e-3  # thin: 1e-3 apart at most
     # the map's own seeds, as rasterised: right at every pixel

@@ -172,16 +172,16 @@ def reference_suspects(surface, distance, u, v, domain, hit, t, failed, footprin
     for axis in (0, 1):
         if surface.shape[axis] < 3:
             continue
-        a, b, c = (slice(0, -2), slice(1, -1), slice(2, None))
-        pick = (lambda x, k: x[k, :]) if axis == 0 else (lambda x, k: x[:, k])
+        uu, vv, scale_u, scale_v = (np.moveaxis(x, axis, 0) for x in (u, v, su, sv))  # lines along axis 0
+        mid = slice(1, -1)
 
-        def step(x, y):
-            return np.maximum(np.abs(pick(u, y) - pick(u, x)) * pick(su, b), np.abs(pick(v, y) - pick(v, x)) * pick(sv, b))
+        def step(x, y, uu=uu, vv=vv, scale_u=scale_u[mid], scale_v=scale_v[mid]):
+            return np.maximum(np.abs(uu[y] - uu[x]) * scale_u, np.abs(vv[y] - vv[x]) * scale_v)
 
-        p, q, r = step(a, b), step(b, c), 0.5 * step(a, c)
-        pad = [(0, 0), (0, 0)]
-        pad[axis] = (1, 1)
-        jump |= np.pad(np.maximum(p, q) > SEAM_RATIO * np.minimum(np.minimum(p, q), r) + floor, pad)
+        first, middle, last = slice(0, -2), mid, slice(2, None)
+        p, q, r = step(first, middle), step(middle, last), 0.5 * step(first, last)
+        found = np.maximum(p, q) > SEAM_RATIO * np.minimum(np.minimum(p, q), r) + floor
+        np.moveaxis(jump, axis, 0)[mid] |= found
     seam = ~odd & (surface.ravel() >= 0) & jump.ravel()
     return odd | seam, layer, seam
 
