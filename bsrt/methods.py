@@ -19,18 +19,22 @@ from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 class Method:
     """name: as users write it. seeded: started from the preliminary map (else
     the hierarchy finds every ray's start). kernel_id: the seeded solver's id in
-    kernels/roots.py (None: not a seeded solver). help: one line."""
+    kernels/roots.py (None: not a seeded solver). help: one line.
+    stops_on_growth: a seeded start gives up as soon as a step increases the
+    residual (Martin et al.'s rule; the pixel is then re-solved as a suspect)."""
 
     name: str
     seeded: bool
     kernel_id: int | None
     help: str
+    stops_on_growth: bool = False
 
 
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("gradient", True, GRADIENT, "the paper's gradient descent from the map's (u, v), steps in arc length"),
     Method("fast", True, FAST, "the paper's fast variant: derivatives at every other step, the previous direction kept"),
-    Method("newton", True, NEWTON, "Newton from the map's (u, v) (the default: fewest steps, exact)"),
+    Method("newton", True, NEWTON, "Newton from the map's (u, v) (the default: fewest steps, exact)",
+           stops_on_growth=True),
     Method("martin", False, None, "Martin et al. 2000: hierarchy + Newton for every ray, no map (the baseline)"),
 )}
 

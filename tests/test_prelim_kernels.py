@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from bsrt.rendering import gl, prelim
-from bsrt.scene.camera import Camera, pixel_rays
-from bsrt.rendering.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, suspect_pixels
+from bsrt.scene.parse.parse.parse.camera import Camera, pixel_rays
+from bsrt.rendering.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, SEAM_RATIO, suspect_pixels
 from bsrt.rendering.hits import Hits
 from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
 from bsrt.geometry.patches import PatchSet
-from bsrt.scene import parse_scene
+from bsrt.scene.parse.parse.parse import parse_scene
 from bsrt.rendering.solve import Rays
 
 DOMAIN = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
@@ -145,8 +145,8 @@ def test_normalise_rows_and_rays_from_arrays_are_numpy_bit_for_bit():
     np.testing.assert_array_equal(Rays.from_arrays([[0.0, 0.0, 0.0]], [[3.0, 0.0, 4.0]]).direction, [[0.6, 0.0, 0.8]])
 
 
-def reference_suspects(surface, distance, hit, t, failed, footprint, tolerance):
-    """The NumPy border, fold and layer tests that map_suspects replaced: (suspect, layer), each (N,)."""
+def reference_suspects(surface, distance, u, v, domain, hit, t, failed, footprint, tolerance, floor):
+    """The NumPy border, fold, layer and seam tests that map_suspects replaced: (suspect, layer, seam), each (N,)."""
     h, w = surface.shape
     padded = np.pad(surface, 1, mode="edge")
     border = np.zeros((h, w), dtype=bool)
@@ -164,25 +164,54 @@ def reference_suspects(surface, distance, hit, t, failed, footprint, tolerance):
         pad[axis] = (1, 1)
         fold |= np.pad(curve > FOLD_PIXELS * footprint * middle, pad)
     layer = hit & (np.abs(t - distance.ravel()) > LAYER_SLACK_PIXELS * footprint * distance.ravel() + tolerance)
-    return (border | fold).ravel() | failed | layer, layer
+    odd = (border | fold).ravel() | failed | layer
+    # seams: (u, v) scaled by the domain, steps in the max norm
+    s = np.maximum(surface, 0)
+    su, sv = 1.0 / (domain[s, 1] - domain[s, 0]), 1.0 / (domain[s, 3] - domain[s, 2])
+    jump = np.zeros((h, w), dtype=bool)
+    for axis in (0, 1):
+        if surface.shape[axis] < 3:
+            continue
+        uu, vv, scale_u, scale_v = (np.moveaxis(x, axis, 0) for x in (u, v, su, sv))  # lines along axis 0
+        mid = slice(1, -1)
+
+        def step(x, y, uu=uu, vv=vv, scale_u=scale_u[mid], scale_v=scale_v[mid]):
+            return np.maximum(np.abs(uu[y] - uu[x]) * scale_u, np.abs(vv[y] - vv[x]) * scale_v)
+
+        first, middle, last = slice(0, -2), mid, slice(2, None)
+        p, q, r = step(first, middle), step(middle, last), 0.5 * step(first, last)
+        found = np.maximum(p, q) > SEAM_RATIO * np.minimum(np.minimum(p, q), r) + floor
+        np.moveaxis(jump, axis, 0)[mid] |= found
+    seam = ~odd & (surface.ravel() >= 0) & jump.ravel()
+    return odd | seam, layer, seam
 
 
 @pytest.mark.parametrize("shape", [(12, 17), (1, 9), (2, 5), (7, 1)])
-def test_map_suspects_are_the_numpy_border_fold_and_layer_tests(shape):
+def test_map_suspects_are_the_numpy_border_fold_layer_and_seam_tests(shape):
     rng = np.random.default_rng(shape[0] * 31 + shape[1])
     surface = np.where(rng.random(shape) < 0.8, 0, rng.integers(-1, 3, size=shape))
     distance = np.where(surface >= 0, 5.0 + rng.normal(scale=0.02, size=shape), np.inf)
+    # smooth seeds, a fifth of them on another layer
+    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    other = rng.random(shape) < 0.2
+    u = np.where(surface >= 0, 0.01 * cols + 0.5 * other, np.nan)
+    v = np.where(surface >= 0, 0.02 * rows + 0.003 * cols, np.nan)
+    domain = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
     n = surface.size
     hit = (surface.ravel() >= 0) & (rng.random(n) < 0.9)
     t = np.where(hit, distance.ravel() + rng.choice([0.0, 0.1, 0.5, -0.5], size=n), np.nan)
     failed = (surface.ravel() >= 0) & ~hit
-    suspect, layer = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    suspect, layer, seam = (np.empty(n, dtype=bool) for _ in range(3))
     for start, stop in ((0, min(3, n)), (min(3, n), n)):
-        map_suspects(start, stop, surface, distance, hit, t, failed, FOLD_PIXELS * 0.01, LAYER_SLACK_PIXELS * 0.01,
-                     1e-3, suspect, layer)
-    expected_suspect, expected_layer = reference_suspects(surface, distance, hit, t, failed, 0.01, 1e-3)
+        map_suspects(start, stop, surface, distance, u, v, domain, hit, t, failed, FOLD_PIXELS * 0.01,
+                     LAYER_SLACK_PIXELS * 0.01, 1e-3, SEAM_RATIO, 1e-6, suspect, layer, seam)
+    expected_suspect, expected_layer, expected_seam = reference_suspects(surface, distance, u, v, domain, hit, t,
+                                                                         failed, 0.01, 1e-3, 1e-6)
     assert expected_layer.any() and not expected_layer.all()
+    if shape == (12, 17):
+        assert expected_seam.any()
     np.testing.assert_array_equal(layer, expected_layer)
+    np.testing.assert_array_equal(seam, expected_seam)
     np.testing.assert_array_equal(suspect, expected_suspect)
 
 
@@ -199,14 +228,41 @@ def test_suspects_of_a_hand_worked_map():
     hits.t[[0, 6]] = [1.0 + 0.08, 1.0 + 0.0801]  # slack: 8 footprints at distance 1 = 0.08 (+ tolerance 1e-9)
     failed = np.zeros(35, dtype=bool)
     failed[34] = True
-    suspect, layer = suspect_pixels(prelim_map, hits, failed, footprint=0.01, tolerance=1e-9)
+    suspect, layer, seam = suspect_pixels(prelim_map, hits, failed, footprint=0.01, tolerance=1e-9,
+                                          domain=np.array([[0.0, 1.0, 0.0, 1.0]] * 2))
     np.testing.assert_array_equal(np.flatnonzero(layer), [6])
+    assert not seam.any()  # (u, v) = (0, 0) everywhere
     expected = np.zeros((5, 7), dtype=bool)
     expected[0, 6] = expected[4, 6] = True  # the wrong layer; the failed start
     expected[:, 2:4] = True
     expected[1:4, 5] = True  # second differences along column 5: 1, -2, 1 (rows 1, 2, 3)
     expected[2, 4] = True  # along row 2 at column 4: 1 (column 6 is an edge: none)
     np.testing.assert_array_equal(suspect.reshape(5, 7), expected)
+
+
+def test_seams_of_a_hand_worked_map():
+    # one surface, seeds u = 0.1 column, v = 0.05 row (domain u 0..2: steps 0.05 and 0.05 normalised),
+    # except pixel (2, 3), which shows another layer: u + 1 (0.5 normalised)
+    rows, cols = np.mgrid[0:5, 0:7]
+    u, v = 0.1 * cols, 0.05 * rows
+    u[2, 3] += 1.0
+    surface = np.zeros((5, 7), dtype=np.int64)
+    prelim_map = prelim.PrelimMap(surface, u, v, np.ones((5, 7)), np.zeros((5, 7, 3), np.uint8))
+    hits = Hits.empty(35)
+    suspect, layer, seam = suspect_pixels(prelim_map, hits, np.zeros(35, dtype=bool), footprint=0.01,
+                                          tolerance=1e-9, domain=np.array([[0.0, 2.0, 0.0, 1.0]]))
+    expected = np.zeros((5, 7), dtype=bool)
+    # (2, 3): steps 0.5 on both sides, 0.05 across them; its four neighbours: 0.5 against 0.05
+    expected[2, 2:5] = expected[1:4, 3] = True
+    np.testing.assert_array_equal(seam.reshape(5, 7), expected)
+    np.testing.assert_array_equal(suspect.reshape(5, 7), expected)
+    assert not layer.any()
+    # a smooth map with a gentle change of speed (steps 0.05 then 0.15: less than SEAM_RATIO) has none
+    u2 = np.where(cols < 3, 0.1 * cols, 0.3 + 0.3 * (cols - 3))
+    prelim_map = prelim.PrelimMap(surface, u2, v, np.ones((5, 7)), np.zeros((5, 7, 3), np.uint8))
+    _, _, seam = suspect_pixels(prelim_map, hits, np.zeros(35, dtype=bool), footprint=0.01, tolerance=1e-9,
+                                domain=np.array([[0.0, 2.0, 0.0, 1.0]]))
+    assert not seam.any()
 
 
 PLATE = parse_scene({

@@ -90,17 +90,21 @@ def normalise_rows(start, stop, d, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def map_suspects(start, stop, surface, distance, hit, t, failed, fold_scale, layer_scale, tolerance, suspect, layer):
+def map_suspects(start, stop, surface, distance, u, v, domain, hit, t, failed, fold_scale, layer_scale, tolerance,
+                 seam_ratio, seam_floor, suspect, layer, seam):
     """The suspect pixels k = i * W + j of a solved map (hard_pixels' module doc).
 
     surface: (H, W) int64; distance: (H, W) float64 (inf where empty, taken
-    as 0 for folds); hit, failed: (H * W,) bool; t: (H * W,) float64.
-    layer[k] (bool (H * W,)): a hit farther from the map's distance than
-    layer_scale * distance + tolerance. suspect[k] (bool (H * W,)): layer,
-    failed, one of the 8 neighbours (the edge repeated beyond the film) with
-    another surface, or a second difference of the distance along the row or
-    column above fold_scale * the middle distance (none along an axis under 3
-    pixels).
+    as 0 for folds); u, v: (H, W) float64 the map's seeds; domain: (S, 4)
+    float64 the surfaces' (u0, u1, v0, v1); hit, failed: (H * W,) bool; t:
+    (H * W,) float64. layer[k] (bool (H * W,)): a hit farther from the map's
+    distance than layer_scale * distance + tolerance. seam[k] (bool (H *
+    W,)): three pixels along the row or column centred on k show one surface,
+    and their seeds jump (_seam, with seam_ratio and seam_floor). suspect[k] (bool (H *
+    W,)): layer, failed, one of the 8 neighbours (the edge repeated beyond
+    the film) with another surface, a second difference of the distance along
+    the row or column above fold_scale * the middle distance (none along an
+    axis under 3 pixels), or seam.
     """
     h, w = surface.shape
     i, j = start // w, start % w
@@ -108,6 +112,7 @@ def map_suspects(start, stop, surface, distance, hit, t, failed, fold_scale, lay
         s = surface[i, j]
         dist = distance[i, j]
         layer[k] = hit[k] and abs(t[k] - dist) > layer_scale * dist + tolerance
+        seam[k] = False
         odd = layer[k] or failed[k]
         for a in range(max(i - 1, 0), min(i + 2, h)):  # the clamped neighbours repeat these
             for b in range(max(j - 1, 0), min(j + 2, w)):
@@ -116,8 +121,37 @@ def map_suspects(start, stop, surface, distance, hit, t, failed, fold_scale, lay
             odd = _kink(distance[i - 1, j], dist, distance[i + 1, j], fold_scale)
         if not odd and 0 < j < w - 1:
             odd = _kink(distance[i, j - 1], dist, distance[i, j + 1], fold_scale)
+        if not odd and s >= 0:  # all 8 neighbours show s
+            su, sv = 1.0 / (domain[s, 1] - domain[s, 0]), 1.0 / (domain[s, 3] - domain[s, 2])
+            if 0 < i < h - 1:
+                seam[k] = _seam(u[i - 1, j], v[i - 1, j], u[i, j], v[i, j], u[i + 1, j], v[i + 1, j], su, sv,
+                                seam_ratio, seam_floor)
+            if not seam[k] and 0 < j < w - 1:
+                seam[k] = _seam(u[i, j - 1], v[i, j - 1], u[i, j], v[i, j], u[i, j + 1], v[i, j + 1], su, sv,
+                                seam_ratio, seam_floor)
+            odd = seam[k]
         suspect[k] = odd
         i, j = (i, j + 1) if j + 1 < w else (i + 1, 0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _seam(ua, va, ub, vb, uc, vc, su, sv, ratio, floor):
+    """Whether the seeds a, b, c of three pixels in a line jump between layers of their surface.
+
+    Steps are measured in the max norm of (u, v) scaled by (su, sv): p = |b -
+    a|, q = |c - b| and the mean step across b, |c - a| / 2. A jump: the
+    longer of p and q exceeds ratio * the shortest of the three + floor.
+    Across one sheet the map's (u, v) varies smoothly (linearly within a
+    triangle), so the three are alike; where the depth test switches between
+    two layers of the surface (a fold or a self-intersection whose layers lie
+    within the tessellation's error of each other) the seeds jump: on one
+    side of b (p or q is short), or on both (b alone shows the other layer,
+    and |c - a| is short).
+    """
+    p = max(abs(ub - ua) * su, abs(vb - va) * sv)
+    q = max(abs(uc - ub) * su, abs(vc - vb) * sv)
+    r = 0.5 * max(abs(uc - ua) * su, abs(vc - va) * sv)
+    return max(p, q) > ratio * min(min(p, q), r) + floor
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

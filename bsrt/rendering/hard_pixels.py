@@ -13,11 +13,25 @@ is *suspect* when (``suspect_pixels``, pure functions of the map and hits):
   every silhouette, trim edge and border between surfaces, on both sides), or
 - the map's distance has a kink there (a fold of a surface over itself), or
 - its root's distance differs from the map's by more than LAYER_SLACK_PIXELS
-  pixel footprints: a root on another layer.
+  pixel footprints: a root on another layer, or
+- the map's (u, v) jumps there between two layers of one surface (a *seam*:
+  along the row or column, a step of the seeds is more than SEAM_RATIO
+  times the other step, or than half the step over both). Where two layers
+  of a surface (a thin fold, a self-intersection) lie within the
+  tessellation's chord error of each other along the ray, the depth test
+  may keep either layer's triangles, so the map and the root found from it
+  may be the farther layer; the layer test cannot see that (the roots are
+  far closer than a pixel footprint), but where the depth test switches
+  between layers the seeds jump.
 
 ``repair`` solves every suspect again with Newton from its own and its
 neighbours' starts (one per surface among them) and with the exact
-intersector (the hierarchy); the nearest valid root of all wins.
+intersector (the hierarchy); the nearest valid root of all wins. A pixel
+whose repair found a nearer root than its own start's, within the layer
+slack (the map showed the farther of two close layers), makes its 8
+neighbours suspect too, round after round until a round finds no such
+root: the region where the map showed the farther layer is repaired from
+its seams inwards, however wide.
 """
 
 from __future__ import annotations
@@ -28,6 +42,7 @@ from bsrt.rendering.hits import Hits, keep_nearest
 from bsrt.kernels.prelim import map_suspects
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.prelim import PrelimMap
+from bsrt.methods import REFERENCE_METHOD
 from bsrt.rendering.solve import Rays, find_roots
 
 # A root farther than this many pixel footprints from the map's rasterised
@@ -36,22 +51,35 @@ LAYER_SLACK_PIXELS = 8.0
 # A second difference of the map's distance larger than this many pixel
 # footprints marks a fold (the surface's own silhouette) between neighbours.
 FOLD_PIXELS = 4.0
+# A step of the map's (u, v) along a row or column (normalised by the
+# surface's domain) longer than this many times the next step, or than half
+# the step over both, marks a seam between two layers (kernels.prelim._seam),
+# when longer by SEAM_QUANTA times the map's resolution of (u, v).
+SEAM_RATIO = 4.0
+SEAM_QUANTA = 4.0
+MAP_QUANTUM = {"float": 2.0 ** -22, "rgba8": 1.0 / 255.0}  # the map's (u, v) step (float32: a few ulps below 1)
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
 REPAIR_ITERATIONS = 16
 
 
-def suspect_pixels(prelim: PrelimMap, hits: Hits, failed: np.ndarray, footprint: float, tolerance: float):
+def suspect_pixels(prelim: PrelimMap, hits: Hits, failed: np.ndarray, footprint: float, tolerance: float,
+                   domain: np.ndarray, quantum: float = MAP_QUANTUM["float"]):
     """The suspect pixels (the module doc) of a solved map.
 
     failed: (N,) bool, covered pixels whose own start gave no valid root.
-    footprint: pixel size at unit distance. Returns (suspect (N,) bool,
-    layer (N,) bool, the wrong-layer part).
+    footprint: pixel size at unit distance. domain: (S, 4) the surfaces'
+    (u0, u1, v0, v1). quantum: the map's resolution of normalised (u, v)
+    (MAP_QUANTUM of its mode). Returns (suspect (N,) bool, layer (N,) bool,
+    the wrong-layer part, seam (N,) bool, the seam part).
     """
-    suspect, layer = np.empty(len(hits), dtype=bool), np.empty(len(hits), dtype=bool)
-    run_chunks(map_suspects, len(hits), np.ascontiguousarray(prelim.surface), np.ascontiguousarray(prelim.distance),
-               hits.hit, hits.t, np.ascontiguousarray(failed, dtype=bool), FOLD_PIXELS * footprint,
-               LAYER_SLACK_PIXELS * footprint, float(tolerance), suspect, layer)
-    return suspect, layer
+    n = len(hits)
+    suspect, layer, seam = np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    run_chunks(map_suspects, n, np.ascontiguousarray(prelim.surface), np.ascontiguousarray(prelim.distance),
+               np.ascontiguousarray(prelim.u), np.ascontiguousarray(prelim.v),
+               np.ascontiguousarray(domain, dtype=np.float64), hits.hit, hits.t,
+               np.ascontiguousarray(failed, dtype=bool), FOLD_PIXELS * footprint, LAYER_SLACK_PIXELS * footprint,
+               float(tolerance), SEAM_RATIO, SEAM_QUANTA * float(quantum), suspect, layer, seam)
+    return suspect, layer, seam
 
 
 def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfaces: int):
@@ -81,7 +109,39 @@ def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfac
 
 
 def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float,
-           max_iterations: int) -> None:
+           max_iterations: int, footprint: float) -> np.ndarray:
+    """Re-solve the suspect pixels (N,) (sorted), then the neighbours of those that had a farther layer.
+
+    Each round is _repair_once. A pixel whose repair replaced its hit by one
+    nearer by more than 10 tolerances but within the layer slack
+    (LAYER_SLACK_PIXELS footprints: two layers closer than the map can
+    order) makes its 8 neighbours not yet repaired the next round's pixels.
+    footprint: pixel size at unit distance. Returns every pixel repaired
+    (sorted).
+    """
+    h, w = prelim.surface.shape
+    visited = np.zeros(h * w, dtype=bool)
+    visited[suspects] = True
+    front = suspects
+    while front.size:
+        had, t = hits.hit[front], hits.t[front]  # copies (fancy indexing)
+        _repair_once(geometry, rays, prelim, hits, front, tolerance, max_iterations)
+        with np.errstate(invalid="ignore"):
+            gap = np.where(had & hits.hit[front], t - hits.t[front], 0.0)
+        layer = front[(gap > 10.0 * tolerance) & (gap <= LAYER_SLACK_PIXELS * footprint * t + tolerance)]
+        if not layer.size:
+            break
+        row, col = np.divmod(layer, w)
+        grown = [(r * w + c)[(r >= 0) & (r < h) & (c >= 0) & (c < w)]
+                 for r, c in ((row + di, col + dj) for di, dj in NEIGHBOURS)]
+        front = np.unique(np.concatenate(grown))
+        front = front[~visited[front]]
+        visited[front] = True
+    return np.flatnonzero(visited)
+
+
+def _repair_once(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float,
+                 max_iterations: int) -> None:
     """Re-solve the suspect pixels (N,) (sorted) from their neighbours' starts, then with the hierarchy.
 
     The nearest valid root of all wins, so a pixel is wrong only if both the
@@ -92,7 +152,7 @@ def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.nda
     patches = geometry.patches
     pixel, surface, u, v = neighbour_starts(prelim, hits, suspects, len(patches.surfaces))
     # Newton from a pixel away converges in a few steps or not at all.
-    res = find_roots(patches, rays, pixel, surface, u, v, method="newton", tolerance=tolerance,
+    res = find_roots(patches, rays, pixel, surface, u, v, method=REFERENCE_METHOD, tolerance=tolerance,
                      max_iterations=min(max_iterations, REPAIR_ITERATIONS), stop_on_growth=True)
     spent = np.bincount(np.searchsorted(suspects, pixel), weights=res.iterations, minlength=suspects.size)
     hits.iterations[suspects] += spent.astype(np.int32)  # every start's evaluations, on its pixel

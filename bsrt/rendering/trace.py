@@ -17,6 +17,7 @@ import numpy as np
 
 from bsrt.rendering import hard_pixels
 from bsrt.scene.camera import pixel_footprint, pixel_rays
+from bsrt.methods import METHODS
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.prelim import PrelimMap, render_map
 from bsrt.rendering.options import RenderOptions
@@ -86,17 +87,20 @@ class MapTracer:
         covered = np.flatnonzero(seed >= 0)
         res = find_roots(patches, rays, covered, seed[covered], prelim.u.ravel()[covered], prelim.v.ravel()[covered],
                          method=options.method, tolerance=self.tolerance, max_iterations=options.max_iterations,
-                         stop_on_growth=options.method == "newton")  # a failure is re-solved as a suspect
+                         stop_on_growth=METHODS[options.method].stops_on_growth)  # a failure is re-solved as a suspect
         hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
-        suspect, layer = hard_pixels.suspect_pixels(prelim, hits, failed, footprint, self.tolerance)
+        suspect, layer, seam = hard_pixels.suspect_pixels(prelim, hits, failed, footprint, self.tolerance,
+                                                          patches.domain, hard_pixels.MAP_QUANTUM[options.map])
         suspects = np.flatnonzero(suspect)
-        before = (hits.hit[suspects].copy(), hits.surface[suspects].copy(), np.nan_to_num(hits.t[suspects]))
-        hard_pixels.repair(self.geometry, rays, prelim, hits, suspects, self.tolerance, options.max_iterations)
-        changed = (before[0] != hits.hit[suspects]) | (before[1] != hits.surface[suspects]) | (
-            np.abs(before[2] - np.nan_to_num(hits.t[suspects])) > 10 * self.tolerance)
+        before = (hits.hit.copy(), hits.surface.copy(), np.nan_to_num(hits.t))
+        repaired = hard_pixels.repair(self.geometry, rays, prelim, hits, suspects, self.tolerance,
+                                      options.max_iterations, footprint)
+        changed = (before[0][repaired] != hits.hit[repaired]) | (before[1][repaired] != hits.surface[repaired]) | (
+            np.abs(before[2][repaired] - np.nan_to_num(hits.t[repaired])) > 10 * self.tolerance)
         for key, value in (("covered_by_map", covered.size), ("non_converged", (~res.converged).sum()),
                            ("trimmed_roots", res.trimmed.sum()), ("suspect", suspects.size),
-                           ("wrong_layer", layer.sum()), ("repaired", changed.sum()), ("hierarchy", suspects.size)):
+                           ("wrong_layer", layer.sum()), ("seam", seam.sum()), ("repaired", changed.sum()),
+                           ("hierarchy", repaired.size)):
             stats.add(key, value)
         return hits
 
@@ -116,7 +120,7 @@ def _seeded_hits(n: int, covered: np.ndarray, res: RootResult, patch_surface: np
 
 def _count_repairs(stats: Stats) -> None:
     """The hard-pixel counters, present (0 for martin) whatever the tracer."""
-    for key in ("non_converged", "trimmed_roots", "suspect", "wrong_layer", "repaired", "hierarchy"):
+    for key in ("non_converged", "trimmed_roots", "suspect", "wrong_layer", "seam", "repaired", "hierarchy"):
         stats.add(key, 0)
 
 
