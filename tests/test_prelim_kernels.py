@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from bsrt.rendering import gl, prelim
-from bsrt.scene.parse.parse.parse.camera import Camera, pixel_rays
+from bsrt.scene.camera import Camera, pixel_rays
 from bsrt.rendering.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, SEAM_RATIO, suspect_pixels
 from bsrt.rendering.hits import Hits
 from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
 from bsrt.geometry.patches import PatchSet
-from bsrt.scene.parse.parse.parse import parse_scene
+from bsrt.scene import parse_scene
 from bsrt.rendering.solve import Rays
 
 DOMAIN = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
