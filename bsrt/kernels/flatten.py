@@ -2,7 +2,9 @@
 
 The criterion is bvh.py's (see its module doc): a piece is a leaf when its
 projected control points lie within ``eps`` of its corners' bilinear patch
-and it is not bent (deviation and twist within BEND x its size), or it has
+and its normals lie within CONE_DEGREES of one axis (cones.py; pieces of
+degree p + q > CONE_MAX_DEGREE: deviation and twist within BEND x its
+size), or it has
 been cut ``max_depth`` times; otherwise it is cut at the parameter midpoint
 across the direction with the larger directional deviation. Each patch is
 cut depth-first with a stack of nets; two passes (count_leaves, which counts
@@ -10,12 +12,25 @@ the leaves for every depth bound at once, then flatten_patches to fill) so
 the output arrays are allocated once and the caller can choose a lower
 max_depth when the count exceeds its memory budget. Both run on slices of
 the patches from every core (threads.run_chunks), as does leaf_boxes.
+
+numba's cache keys a kernel on its own file only: after editing cones.py,
+edit this file too (or clear bsrt/kernels/__pycache__), or _cut keeps the
+old cone code.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .cones import normal_cone_within, scratch
+
+# A piece's normals must lie within CONE_DEGREES of one axis (bvh.py's module doc); pieces of
+# degree p + q > CONE_MAX_DEGREE (the bound's polynomial has degree (4p - 1, 4q - 1)) keep the
+# older relative bound instead.
+CONE_DEGREES = 8.0
+COS_CONE = float(np.cos(np.radians(CONE_DEGREES)))
+CONE_MAX_DEGREE = 8
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -126,6 +141,8 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_n
     depth = np.empty(max_depth + 2, dtype=np.int64)
     piece = np.empty((net.shape[0], net.shape[1], 4))
     tmp = np.empty(max(net.shape[0], net.shape[1]))
+    cone = p + q <= CONE_MAX_DEGREE  # else the older relative bound (dev, twist <= BEND x size)
+    h, hu, hv, uv, nrm, binom = scratch(p + 1 if cone else 1, q + 1 if cone else 1)
     copy_net(net, stack[0], p, q)
     for k in range(4):
         rects[0, k] = rect[k]
@@ -134,7 +151,13 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_n
     while top > 0:
         top -= 1
         dev, dev_u, dev_v, twist, size = measures(stack[top], p, q)
-        if not ((dev > eps or max(dev, twist) > bend * size) and depth[top] < max_depth):
+        split = depth[top] < max_depth and dev > eps
+        if depth[top] < max_depth and not split:
+            if cone:
+                split = not normal_cone_within(stack[top], p, q, COS_CONE, h, hu, hv, uv, nrm, binom)
+            else:
+                split = max(dev, twist) > bend * size
+        if not split:
             if fill:
                 for k in range(4):
                     out_rect[count, k] = rects[top, k]
