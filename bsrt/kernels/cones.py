@@ -55,7 +55,10 @@ def binomials(n):
     return table
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+# Explicit signatures: called with literal and variable component indices, numba would compile
+# one specialisation per kind of call site (tests/test_compile.py wants one per kernel).
+@njit("void(float64[:, :, ::1], int64, int64, int64, float64[:, :, ::1], int64, int64, int64, float64, "
+      "float64[:, :, ::1], int64, float64[:, ::1])", cache=True, no_cpython_wrapper=True)
 def _mul_add(f, fc, fu, fv, g, gc, gu, gv, sign, out, oc, binom):
     """out[oc] += sign * f[fc] g[gc] (f of degree (fu, fv), g of degree (gu, gv)), Bernstein
     coefficients before the division by C(fu + gu, k) C(fv + gv, l) (the caller's, once)."""
@@ -70,7 +73,7 @@ def _mul_add(f, fc, fu, fv, g, gc, gu, gv, sign, out, oc, binom):
                     out[oc, i + k, j + m] += b * binom[gv, m] * g[gc, k, m]
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit("void(float64[:, :, ::1], int64, int64, int64, float64[:, ::1])", cache=True, no_cpython_wrapper=True)
 def _normalise(out, c, du, dv, binom):
     for k in range(du + 1):
         for m in range(dv + 1):
