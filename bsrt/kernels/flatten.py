@@ -2,18 +2,35 @@
 
 The criterion is bvh.py's (see its module doc): a piece is a leaf when its
 projected control points lie within ``eps`` of its corners' bilinear patch
-and it is not bent (deviation and twist within BEND x its size), or it has
+and its normals lie within CONE_DEGREES of one axis (cones.py; pieces of
+degree p + q > CONE_MAX_DEGREE: deviation and twist within BEND x its
+size), or it has
 been cut ``max_depth`` times; otherwise it is cut at the parameter midpoint
 across the direction with the larger directional deviation. Each patch is
-cut depth-first with a stack of nets; two passes (count_leaves, then
-flatten_patches to fill) so the output arrays are allocated once and the
-caller can lower max_depth when the count exceeds its memory budget.
+cut depth-first with a stack of nets; two passes (count_leaves, which counts
+the leaves for every depth bound at once, then flatten_patches to fill) so
+the output arrays are allocated once and the caller can choose a lower
+max_depth when the count exceeds its memory budget. Both run on slices of
+the patches from every core (threads.run_chunks), as does leaf_boxes.
+
+numba's cache keys a kernel on its own file only: after editing cones.py,
+edit this file too (or clear bsrt/kernels/__pycache__), or _cut keeps the
+old cone code.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .cones import normal_cone_within, scratch
+
+# A piece's normals must lie within CONE_DEGREES of one axis (bvh.py's module doc); pieces of
+# degree p + q > CONE_MAX_DEGREE (the bound's polynomial has degree (4p - 1, 4q - 1)) keep the
+# older relative bound instead.
+CONE_DEGREES = 8.0
+COS_CONE = float(np.cos(np.radians(CONE_DEGREES)))
+CONE_MAX_DEGREE = 8
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -105,10 +122,18 @@ def copy_net(src, dst, p, q):
 
 
 # (explicit signature: see split_half)
-@njit("int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, int64, boolean, int64, float64[:, ::1], "
-      "int64[::1], float64[:, :, :, ::1])", cache=True, no_cpython_wrapper=True)
-def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth, out_net):
-    """Cut one patch depth-first; with fill, write its leaves from index first. Returns the leaf count.
+@njit("int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, int64, boolean, float64[:, ::1], "
+      "int64[::1], float64[:, :, :, ::1], int64[::1])", cache=True, no_cpython_wrapper=True, nogil=True)
+def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_net, hist):
+    """Cut one patch depth-first. Returns the leaf count.
+
+    fill: write its leaves into out_rect (n, 4), out_depth (n,), out_net
+    (n, Pm, Qm, 4) from index 0. Otherwise count, into hist (2 * (max_depth
+    + 1),) int64 (added to): hist[d] the pieces at depth d that are leaves
+    by the criterion (or at max_depth), hist[max_depth + 1 + d] those cut
+    at depth d; cut at most D <= max_depth times the patch then has
+    sum(hist[:D + 1]) + hist[max_depth + 1 + D] leaves (the walk down to
+    depth D is the same for every max_depth >= D).
 
     (Element loops, not array slices: numba compiles those far faster.)"""
     stack = np.empty((max_depth + 2, net.shape[0], net.shape[1], 4))
@@ -116,6 +141,8 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
     depth = np.empty(max_depth + 2, dtype=np.int64)
     piece = np.empty((net.shape[0], net.shape[1], 4))
     tmp = np.empty(max(net.shape[0], net.shape[1]))
+    cone = p + q <= CONE_MAX_DEGREE  # else the older relative bound (dev, twist <= BEND x size)
+    h, hu, hv, uv, nrm, binom = scratch(p + 1 if cone else 1, q + 1 if cone else 1)
     copy_net(net, stack[0], p, q)
     for k in range(4):
         rects[0, k] = rect[k]
@@ -124,14 +151,24 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
     while top > 0:
         top -= 1
         dev, dev_u, dev_v, twist, size = measures(stack[top], p, q)
-        if not ((dev > eps or max(dev, twist) > bend * size) and depth[top] < max_depth):
+        split = depth[top] < max_depth and dev > eps
+        if depth[top] < max_depth and not split:
+            if cone:
+                split = not normal_cone_within(stack[top], p, q, COS_CONE, h, hu, hv, uv, nrm, binom)
+            else:
+                split = max(dev, twist) > bend * size
+        if not split:
             if fill:
                 for k in range(4):
-                    out_rect[first + count, k] = rects[top, k]
-                out_depth[first + count] = depth[top]
-                copy_net(stack[top], out_net[first + count], p, q)
+                    out_rect[count, k] = rects[top, k]
+                out_depth[count] = depth[top]
+                copy_net(stack[top], out_net[count], p, q)
+            else:
+                hist[depth[top]] += 1
             count += 1
             continue
+        if not fill:
+            hist[max_depth + 1 + depth[top]] += 1
         axis = 0 if dev_u >= dev_v else 1
         copy_net(stack[top], piece, p, q)
         split_half(piece, stack[top], stack[top + 1], p, q, axis, tmp)
@@ -146,46 +183,45 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, first, out_rect, out_depth
     return count
 
 
-@njit(cache=True)
-def count_leaves(nets, degree, rects, eps, bend, max_depth):
-    """(P,) int64: the number of leaves of each patch cut at most max_depth times.
+@njit(cache=True, nogil=True)
+def count_leaves(start, stop, nets, degree, rects, eps, bend, max_depth, counts):
+    """Leaf counts of patches start..stop-1 at every depth bound, in one walk each.
 
     nets: (P, Pm, Qm, 4) homogeneous Bezier nets (degree (P, 2) fills the
-    corner); rects: (P, 4) parameter rectangles.
+    corner); rects: (P, 4) parameter rectangles; counts: (P, max_depth + 1)
+    int64 out: counts[k, d] = the leaves of patch k cut at most d times.
+    Called on slices by threads.run_chunks (patches are independent).
     """
-    n = nets.shape[0]
-    counts = np.zeros(n, dtype=np.int64)
     dummy_r, dummy_d, dummy_n = np.empty((0, 4)), np.empty(0, dtype=np.int64), np.empty((0,) + nets.shape[1:])
-    for k in range(n):
-        counts[k] = _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, 0,
-                         dummy_r, dummy_d, dummy_n)
-    return counts
+    hist = np.empty(2 * (max_depth + 1), dtype=np.int64)
+    for k in range(start, stop):
+        hist[:] = 0
+        _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, dummy_r, dummy_d, dummy_n,
+             hist)
+        leaves = 0
+        for d in range(max_depth + 1):
+            leaves += hist[d]
+            counts[k, d] = leaves + hist[max_depth + 1 + d]
 
 
-@njit(cache=True)
-def flatten_patches(nets, degree, rects, eps, bend, max_depth, counts):
-    """Leaves of every patch: (patch (L,), rect (L, 4), depth (L,), row (L,), net (R, Pm, Qm, 4)).
+@njit(cache=True, nogil=True)
+def flatten_patches(start, stop, nets, degree, rects, eps, bend, max_depth, counts, starts, net_starts,
+                    patch, out_rect, out_depth, row, out_net):
+    """Leaves of patches start..stop-1 into the caller's arrays (slices by threads.run_chunks).
 
-    nets, degree, rects: as count_leaves; counts: count_leaves' answer for
-    the same arguments (the output arrays are allocated once from it). A
-    patch that stays whole is its own leaf and keeps its net where it is
-    (row -1 - patch, see leaf_net); only the pieces of cut patches get a
-    net of their own (row r >= 0: net[r]), so a model of many small
-    patches holds no second copy of its nets.
+    nets, degree, rects: as count_leaves; counts (P,) int64: each patch's
+    leaves cut at most max_depth times (count_leaves' column max_depth);
+    starts (P + 1,): cumulative counts (patch k's leaves are rows
+    starts[k]..starts[k + 1] - 1 of patch (L,), out_rect (L, 4), out_depth
+    (L,), row (L,)); net_starts (P + 1,): the same over the cut patches
+    (counts > 1) only, into out_net (R, Pm, Qm, 4). A patch that stays
+    whole is its own leaf and keeps its net where it is (row -1 - patch,
+    see leaf_net); only the pieces of cut patches get a net of their own
+    (row r >= 0: out_net[r]), so a model of many small patches holds no
+    second copy of its nets.
     """
-    n = nets.shape[0]
-    starts = np.zeros(n + 1, dtype=np.int64)
-    starts[1:] = np.cumsum(counts)
-    net_starts = np.zeros(n + 1, dtype=np.int64)
-    for k in range(n):
-        net_starts[k + 1] = net_starts[k] + (counts[k] if counts[k] > 1 else 0)
-    total = starts[n]
-    patch = np.empty(total, dtype=np.int64)
-    out_rect = np.empty((total, 4))
-    out_depth = np.empty(total, dtype=np.int64)
-    row = np.empty(total, dtype=np.int64)
-    out_net = np.zeros((net_starts[n],) + nets.shape[1:])
-    for k in range(n):
+    hist = np.empty(0, dtype=np.int64)
+    for k in range(start, stop):
         first = starts[k]
         if counts[k] == 1:
             for c in range(4):
@@ -193,12 +229,12 @@ def flatten_patches(nets, degree, rects, eps, bend, max_depth, counts):
             out_depth[first] = 0
             row[first] = -1 - k
         else:
-            _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True, 0,
-                 out_rect[first:], out_depth[first:], out_net[net_starts[k]:])
+            _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True,
+                 out_rect[first:], out_depth[first:], out_net[net_starts[k]:], hist)
             for i in range(counts[k]):
                 row[first + i] = net_starts[k] + i
-        patch[first:starts[k + 1]] = k
-    return patch, out_rect, out_depth, row, out_net
+        for i in range(first, starts[k + 1]):
+            patch[i] = k
 
 
 @njit(cache=True, inline="always")
@@ -327,9 +363,10 @@ def build_tree(box_min, box_max, leaf_size):
             first[:made].copy(), count[:made].copy())
 
 
-@njit(cache=True)
-def leaf_boxes(patch_net, piece_net, row, degree, padding, box_min, box_max, obb):
-    """Boxes of each leaf's projected control points, padded by ``padding``, into
+@njit(cache=True, nogil=True)
+def leaf_boxes(start, stop, patch_net, piece_net, row, degree, padding, box_min, box_max, obb):
+    """For leaves start..stop-1 (slices by threads.run_chunks): boxes of each leaf's
+    projected control points, padded by ``padding``, into
     box_min, box_max (L, 3) (axis-aligned) and obb (L, 15) (oriented: centre,
     axes as rows, half extents; axis 0 along the corners' u direction, axis 2
     their normal, the world axes where those degenerate). The leaves' nets:
@@ -338,7 +375,7 @@ def leaf_boxes(patch_net, piece_net, row, degree, padding, box_min, box_max, obb
     axes = np.empty((3, 3))
     lo, hi = np.empty(3), np.empty(3)
     corner = np.empty((4, 3))
-    for n in range(row.shape[0]):
+    for n in range(start, stop):
         net = leaf_net(patch_net, piece_net, row, n)
         p, q = degree[n, 0], degree[n, 1]
         for c, (i, j) in enumerate(((0, 0), (p, 0), (0, q), (p, q))):

@@ -21,11 +21,13 @@ def workers() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
 
 
-def run_chunks(kernel, n: int, *args) -> None:
-    """kernel(start, stop, *args) over [0, n) in about 4 slices per core (at least MIN_CHUNK items each)."""
+def run_chunks(kernel, n: int, *args, min_chunk: int = MIN_CHUNK, per_worker: int = 4) -> None:
+    """kernel(start, stop, *args) over [0, n) in about per_worker slices per core (at least
+    min_chunk items each; the pool hands the next slice to the first free thread, so items
+    of uneven cost want more, smaller slices)."""
     global _POOL
     interrupts.safe_point()
-    count = min(4 * workers(), max(1, n // MIN_CHUNK))
+    count = min(per_worker * workers(), max(1, n // max(1, min_chunk)))
     if count <= 1:
         kernel(0, n, *args)
         return

@@ -106,12 +106,18 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def _grazing(P, k, u, v, dx, dy, dz):
+def _cosine(P, k, u, v, dx, dy, dz):
+    """|cos| of the angle between the unit ray direction and the surface normal at (u, v)."""
     f = frame(P, k, u, v)
     nx = f[4] * f[8] - f[5] * f[7]
     ny = f[5] * f[6] - f[3] * f[8]
     nz = f[3] * f[7] - f[4] * f[6]
-    return abs(nx * dx + ny * dy + nz * dz) < GRAZING_COSINE * np.sqrt(nx * nx + ny * ny + nz * nz)
+    return abs(nx * dx + ny * dy + nz * dz) / max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def _grazing(P, k, u, v, dx, dy, dz):
+    return _cosine(P, k, u, v, dx, dy, dz) < GRAZING_COSINE
 
 
 @njit(cache=True, no_cpython_wrapper=True)
@@ -217,6 +223,15 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
                         rects[top, k] = rects[s, k]
                 depth[top] = d
                 top += 1
+    cosine = _cosine(P, best_k, best_u, best_v, dx, dy, dz) if found else 1.0
+    if cosine < GRAZING_COSINE:
+        # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
+        # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
+        ok, u, v, k, t, res, its = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
+        iterations += its
+        if res < best_res and abs(t - best_t) * cosine <= 4.0 * best_res and _root_in(
+                P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1:
+            best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
     return found, best_t, best_u, best_v, best_k, best_res, iterations
 
 

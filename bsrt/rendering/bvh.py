@@ -30,16 +30,24 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    patch of its corners with the uniform parametrisation; it bounds both the
    piece's departure from a plane and the non-linearity of its
    parametrisation, which is what limits Newton's basin from the centre.
-   A second, relative bound (curvature-based, like Martin's) also splits a
-   piece while ``dev > BEND * size`` or its corners' bilinear patch is
-   twisted by more than that (``|P00 - Pp0 - P0q + Ppq| / 4``; size = its box
-   diagonal, BEND = 0.02): the piece is then within 2% of its size of a
-   plane, its normals turn by only about 9 degrees, so a ray can cross a
-   leaf twice only within about 9 degrees of its tangent plane, i.e. with
-   |cos(normal, ray)| < 0.16, which the grazing retries below (threshold
-   0.3) cover. Without it, small strongly curved features (the column's
+   A second, relative bound (on the normals, like Martin's curvature
+   bound) also splits a piece while its normals do not all lie within
+   CONE_DEGREES = 8 degrees of one axis (``kernels/cones.py``: the Bernstein
+   coefficients of U x V, U = H_u w - H w_u, V = H_v w - H w_v, bound every
+   normal of a rational piece, the weights included, without a bound on
+   their spread). Two normals of a leaf then differ by at most 16 degrees;
+   a ray that crosses a leaf twice is tangent to it somewhere between, so at
+   either crossing |cos(normal, ray)| <= sin 16 deg = 0.28, below the
+   grazing retries' threshold (0.3): such a ray is always retried. Without
+   a relative bound, small strongly curved features (the column's
    mouldings) made leaves that a ray at cos 0.3-0.5 crosses twice, and
-   Newton from the centre found the far root.
+   Newton from the centre found the far root. (This replaced ``dev >
+   BEND * size`` or a corner twist above that, BEND = 0.02, with the
+   weights' spread in dev: it cut a sphere into pieces of 3-6 degrees, and
+   at its poles down to max_depth; a 2,046-face STEP part needed 1.79 M
+   leaves, 0.67 M under the memory cap below, now 53 k.) Pieces of degree
+   p + q > 8 keep that older bound: the cone's polynomial has degree
+   (4p - 1, 4q - 1).
    Default ``flatness = 2e-3`` (``DEFAULT_FLATNESS``), ``max_depth = 12``
    (at most 4096 leaves per Bezier patch), lowered for the whole scene while
    the leaves' nets would exceed LEAF_NET_FLOATS (256 MB) or LEAVES_PER_PATCH
@@ -70,7 +78,10 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    straddle the ray in the ray's frame (or lie beyond the root found) are
    culled and Newton restarts from the survivors' centres, recursively;
    quarters whose root is again grazing are cut further too (the nearer of
-   two crossings may be in the same quarter).
+   two crossings may be in the same quarter). A grazing root then takes one
+   more Newton step (kept if it is still a valid root of the piece, that
+   near): its t is off by up to its residual / |cos|, and the step takes the
+   residual from the tolerance down to rounding.
    Measured against an exhaustive search (Newton from 10 x 10 starts on
    every Bezier patch whose box the ray enters): 30,000 random rays at
    three non-uniform surfaces (degrees 3, 2 and a rational bowl, a third of
@@ -105,6 +116,7 @@ DEFAULT_RETRY_DEPTH = 4
 BEND = 0.02  # a leaf deviates from its bilinear patch by at most this fraction of its size
 LEAF_NET_FLOATS = 1 << 25  # the leaves' nets hold at most this many floats (256 MB) ...
 LEAVES_PER_PATCH = 4  # ... or this many nets per patch, if more (a patch is at least one leaf)
+PATCH_CHUNK, PATCH_SLICES = 16, 32  # flattening slices: patches cost very unevenly (1 to 4096 leaves)
 
 
 @dataclass(eq=False)
@@ -206,23 +218,38 @@ def padded_nets(patches: PatchSet):
 def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: int = DEFAULT_MAX_DEPTH):
     """Cut every Bezier patch into flat pieces (compiled: kernels/flatten.py).
 
-    The leaves' nets are bounded: while they would hold more than
-    max(LEAF_NET_FLOATS, LEAVES_PER_PATCH floats per patch's net) floats,
-    max_depth is lowered by one (a high-degree patch then keeps coarser,
-    curved leaves; the grazing/miss retries cut those further per ray).
+    The leaves' nets are bounded: the largest depth bound <= max_depth at
+    which they hold at most max(LEAF_NET_FLOATS, LEAVES_PER_PATCH floats per
+    patch's net) floats is used (a high-degree patch then keeps coarser,
+    curved leaves; the grazing/miss retries cut those further per ray); one
+    counting walk gives the leaf counts at every bound.
     Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, degree (L, 2)
     int64, and the nets: patch_net (P, Pm, Qm, 4), piece_net (R, Pm, Qm, 4),
     row (L,) int64 as BVH.patch_net, leaf_net, leaf_net_row).
     """
     nets, degree = padded_nets(patches)
     eps = flatness * patches.scene_diagonal()
+    n = patches.size
     per_leaf = int(np.prod(nets.shape[1:]))
-    allowance = max(LEAF_NET_FLOATS, LEAVES_PER_PATCH * per_leaf * patches.size)
-    counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
-    while max_depth > 0 and int(counts[counts > 1].sum()) * per_leaf > allowance:  # a whole patch keeps its net
+    allowance = max(LEAF_NET_FLOATS, LEAVES_PER_PATCH * per_leaf * n)
+    by_depth = np.zeros((n, max_depth + 1), dtype=np.int64)
+    run_chunks(count_leaves, n, nets, degree, patches.bounds, eps, BEND, max_depth, by_depth,
+               min_chunk=PATCH_CHUNK, per_worker=PATCH_SLICES)
+    copied = np.where(by_depth > 1, by_depth, 0).sum(axis=0)  # (max_depth + 1,): a whole patch keeps its net
+    while max_depth > 0 and int(copied[max_depth]) * per_leaf > allowance:
         max_depth -= 1
-        counts = count_leaves(nets, degree, patches.bounds, eps, BEND, max_depth)
-    patch, rect, depth, row, piece_nets = flatten_patches(nets, degree, patches.bounds, eps, BEND, max_depth, counts)
+    counts = np.ascontiguousarray(by_depth[:, max_depth])
+    del by_depth
+    starts = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=starts[1:])
+    net_starts = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.where(counts > 1, counts, 0), out=net_starts[1:])
+    total = int(starts[n])
+    patch, rect = np.empty(total, dtype=np.int64), np.empty((total, 4))
+    depth, row = np.empty(total, dtype=np.int64), np.empty(total, dtype=np.int64)
+    piece_nets = np.zeros((int(net_starts[n]),) + nets.shape[1:])
+    run_chunks(flatten_patches, n, nets, degree, patches.bounds, eps, BEND, max_depth, counts, starts, net_starts,
+               patch, rect, depth, row, piece_nets, min_chunk=PATCH_CHUNK, per_worker=PATCH_SLICES)
     return patch, rect, depth, degree[patch], (nets, piece_nets, row)
 
 
@@ -252,7 +279,7 @@ def build_bvh(
         keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
         patch, rect, depth, degree, row = patch[keep], rect[keep], depth[keep], degree[keep], row[keep]
     box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
-    leaf_boxes(patch_net, piece_net, row, degree, float(padding), box_min, box_max, obb)
+    run_chunks(leaf_boxes, patch.size, patch_net, piece_net, row, degree, float(padding), box_min, box_max, obb)
     order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
     permute_rows(obb, order)  # into tree order in place: no second copy of the largest per-leaf table
     rect = rect[order]

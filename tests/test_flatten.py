@@ -1,0 +1,147 @@
+"""The hierarchy's leaf criterion (kernels/cones.py, kernels/flatten.py) on hand-computable cases."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+
+from bsrt.rendering import bvh as B
+from bsrt.geometry.bspline import make_surface
+from bsrt.rendering.bvh import build_bvh, intersect
+from bsrt.kernels import cones
+from bsrt.kernels.flatten import CONE_DEGREES, count_leaves
+from bsrt.geometry.patches import PatchSet
+
+
+@njit(cache=False)
+def _within(net, p, q, cos_gamma):
+    h, hu, hv, uv, nrm, binom = cones.scratch(net.shape[0], net.shape[1])
+    return cones.normal_cone_within(net, p, q, cos_gamma, h, hu, hv, uv, nrm, binom)
+
+
+def arc_by_line(theta, radius=2.0, length=3.0):
+    """Homogeneous (3, 2, 4) net: the rational quadratic arc of angle theta (u, centred on the
+    x axis) times a segment along z (v): a piece of a cylinder, whose normals span exactly theta."""
+    a = 0.5 * theta
+    xy = radius * np.array([[math.cos(a), -math.sin(a)], [1.0 / math.cos(a), 0.0], [math.cos(a), math.sin(a)]])
+    w = np.array([1.0, math.cos(a), 1.0])
+    net = np.zeros((3, 2, 4))
+    for i in range(3):
+        for j in range(2):
+            net[i, j] = w[i] * np.array([xy[i, 0], xy[i, 1], length * j, 1.0])
+    return net
+
+
+@pytest.mark.parametrize("degrees, within", [(10.0, True), (15.5, True), (16.5, False), (30.0, False)])
+def test_cylinder_piece_cone_is_its_angle(degrees, within):
+    """Normals of an arc of theta span theta: within 8 degrees of one axis iff theta <= 16 degrees
+    (the bound is exact here; every coefficient of U x V lies in the arc's plane of normals)."""
+    assert CONE_DEGREES == 8.0
+    assert _within(arc_by_line(math.radians(degrees)), 2, 1, math.cos(math.radians(CONE_DEGREES))) == within
+
+
+def _point(net, p, q, u, v):
+    """(N, 3) points of the homogeneous Bezier net (p + 1, q + 1, 4) at (u, v) (N,)."""
+    cu = np.stack([math.comb(p, i) * u**i * (1 - u) ** (p - i) for i in range(p + 1)], 1)
+    cv = np.stack([math.comb(q, j) * v**j * (1 - v) ** (q - j) for j in range(q + 1)], 1)
+    h = np.einsum("ni,nj,ijc->nc", cu, cv, net)
+    return h[:, :3] / h[:, 3:]
+
+
+def test_cone_holds_sampled_normals_of_random_rational_patches():
+    """Soundness: where the bound says 'within gamma of one axis', the normals at 400 points
+    (central differences of S = H / w) are pairwise within 2 gamma."""
+    rng = np.random.default_rng(3)
+    gamma = math.radians(20.0)
+    accepted = 0
+    for trial in range(200):
+        p, q = (2, 2) if trial % 2 else (3, 1)
+        base = np.stack(np.meshgrid(np.linspace(0, 1, p + 1), np.linspace(0, 1, q + 1), indexing="ij"), -1)
+        pts = np.concatenate([base, np.zeros((p + 1, q + 1, 1))], -1) + rng.normal(0, 0.06, (p + 1, q + 1, 3))
+        w = rng.uniform(0.4, 2.5, (p + 1, q + 1))
+        net = np.concatenate([pts * w[..., None], w[..., None]], -1)
+        if not _within(net, p, q, math.cos(gamma)):
+            continue
+        accepted += 1
+        s = np.linspace(0.02, 0.98, 20)
+        U, V = [x.ravel() for x in np.meshgrid(s, s, indexing="ij")]
+        e = 1e-6
+        n = np.cross(_point(net, p, q, U + e, V) - _point(net, p, q, U - e, V),
+                     _point(net, p, q, U, V + e) - _point(net, p, q, U, V - e))
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        assert (n @ n.T).min() >= math.cos(2 * gamma) - 1e-6
+    assert 50 < accepted < 200  # both answers occur
+
+
+def test_counts_at_every_depth_match_separate_counts():
+    """count_leaves' one walk per patch gives, for each depth bound d, what a walk cut at most d
+    times counts (here: the leaves the flattening makes with max_depth = d)."""
+    s = math.sqrt(0.5)
+    sphere_octant = make_surface(
+        (2, 2), [0, 0, 0, 1, 1, 1], [0, 0, 0, 1, 1, 1],
+        np.array([[[1, 0, 0], [1, 1, 0], [0, 1, 0]], [[1, 0, 1], [1, 1, 1], [0, 1, 1]], [[0, 0, 1]] * 3], float),
+        np.outer([1, s, 1], [1, s, 1]))
+    patches = PatchSet([sphere_octant])
+    nets, degree = B.padded_nets(patches)
+    eps = B.DEFAULT_FLATNESS * patches.scene_diagonal()
+    by_depth = np.zeros((patches.size, 13), dtype=np.int64)
+    count_leaves(0, patches.size, nets, degree, patches.bounds, eps, B.BEND, 12, by_depth)
+    for d in range(13):
+        assert B.flatten(patches, max_depth=d)[0].size == by_depth[:, d].sum()
+    assert by_depth[0, 0] == 1 and by_depth[0, 12] > 4
+
+
+def _exact_sphere(radius):
+    """The sphere of the given radius about the origin: a half circle (meridian) swept by the full
+    circle, rational quadratic, with a pole at each end of v."""
+    s = math.sqrt(0.5)
+    ring = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float)
+    mer = np.array([[0, -1], [1, -1], [1, 0], [1, 1], [0, 1]], float)
+    pts = np.zeros((9, 5, 3))
+    for i in range(9):
+        for j in range(5):
+            pts[i, j] = radius * np.array([ring[i, 0] * mer[j, 0], ring[i, 1] * mer[j, 0], mer[j, 1]])
+    knots_u = [0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 4]
+    return make_surface((2, 2), knots_u, [0, 0, 0, 1, 1, 2, 2, 2], pts,
+                        np.outer([1, s, 1, s, 1, s, 1, s, 1], [1, s, 1, s, 1]))
+
+
+def test_rational_sphere_hits_through_the_hierarchy_match_the_closed_form():
+    """Rays from outside toward random points of the box, grazing ones included, through the
+    hierarchy alone: every hit's S(u, v) is on the sphere to rounding and o + t d within the
+    solver's tolerance (1e-9 of the size), at the nearer root of
+    |o + t d| = R (t within the tolerance / |cos|, and 1e-8 of the size), and every ray whose
+    line passes inside the sphere hits."""
+    radius = 3.0
+    patches = PatchSet([_exact_sphere(radius)])
+    bvh = build_bvh(patches)
+    assert bvh.leaf_depth.max() < B.DEFAULT_MAX_DEPTH  # the pieces at the poles do not run to the depth bound
+    rng = np.random.default_rng(11)
+    n = 4000
+    away = rng.normal(size=(n, 3))
+    origins = 4.0 * radius * away / np.linalg.norm(away, axis=1, keepdims=True)
+    targets = rng.uniform(-1.05 * radius, 1.05 * radius, (n, 3))
+    d = targets - origins
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    hits = intersect(bvh, origins, d)
+    b = np.einsum("ij,ij->i", origins, d)
+    disc = b * b - (np.einsum("ij,ij->i", origins, origins) - radius**2)
+    inside = disc > (1e-6 * radius) ** 2
+    assert hits.hit[inside].all()
+    assert not hits.hit[disc < -(1e-6 * radius) ** 2].any()
+    h = hits.hit
+    size = 2.0 * radius * math.sqrt(3.0)
+    on_surface = patches.evaluate(hits.patch[h], hits.u[h], hits.v[h], derivatives=False).T
+    assert np.abs(np.linalg.norm(on_surface, axis=1) - radius).max() <= 1e-12 * size
+    position = origins[h] + hits.t[h, None] * d[h]  # within the solver's tolerance of the surface
+    assert np.abs(np.linalg.norm(position, axis=1) - radius).max() <= 1e-9 * size
+    t_near = -b[h] - np.sqrt(np.maximum(disc[h], 0.0))
+    cosine = np.abs(np.einsum("ij,ij->i", position / radius, d[h]))
+    err = np.abs(hits.t[h] - t_near)
+    tolerance = 1e-9 * patches.scene_diagonal()  # intersect's default: ray-surface distance
+    assert np.all(err * cosine <= 1.01 * tolerance)  # t is off by at most the distance / |cos|
+    assert err.max() <= 1e-8 * size  # grazing roots polished (the older code: 2.6e-8 here)
+    assert (cosine < 0.3).sum() > 50  # grazing rays were tried
