@@ -18,8 +18,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bsrt.kernels import compile as kernels
 from bsrt.settings import METHODS
+
+pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
 ROOT = Path(__file__).resolve().parent.parent
 INLINED = {"patches._horner", "roots.solve_one", "prelim._decode", "flatten.leaf_net"}  # inline="always": copied into their callers, never compiled alone

@@ -152,6 +152,7 @@ def _fuzz_cli():
     return fuzz_cli
 
 
+@pytest.mark.gl  # its cases render (a render failure, exit 1, would pass unmarked)
 def test_short_cli_fuzz_pass_keeps_every_promise(tmp_path):
     """40 mutated scenes and model files through `bsrt render` at 64 x 64 (tests/fuzz_cli.py; the long
     run is `python tests/fuzz_cli.py --cases 2000 --seed 1`)."""
