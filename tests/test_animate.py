@@ -95,6 +95,7 @@ def test_animate_without_a_path_is_usage_error(tmp_path):
         bsrt.animate(SCENES / "quad.toml", tmp_path / "out", orbit=90.0)
 
 
+@pytest.mark.gl
 def test_orbit_of_8_frames_with_animated_webp(tmp_path, cluster):
     out = tmp_path / "out"
     run = bsrt_cli("animate", SCENES / "column.toml", "--out", out, "--frames", 8, "--orbit", 360, "--width", 64,
@@ -118,6 +119,7 @@ def test_orbit_of_8_frames_with_animated_webp(tmp_path, cluster):
     assert [i["status"] for i in summary["items"]] == ["ok"] * 9
 
 
+@pytest.mark.gl
 def test_keyframes_as_animated_png(tmp_path, cluster):
     scene = tmp_path / "kf.toml"
     scene.write_text((SCENES / "quad.toml").read_text().replace(

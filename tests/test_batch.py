@@ -54,6 +54,7 @@ def single_render(source: Path, out: Path, *options) -> bytes:
     return out.read_bytes()
 
 
+@pytest.mark.gl
 def test_six_items_match_single_renders_and_one_failure_is_reported(tmp_path, cluster):  # cluster: kernels warm
     bad = tmp_path / "broken.obj"
     bad.write_text("v 1 2\nthis is not a model\n")
@@ -79,6 +80,7 @@ def test_six_items_match_single_renders_and_one_failure_is_reported(tmp_path, cl
     assert sorted(p.name for p in out.iterdir()) == sorted(f"{s.stem}.png" for s in inputs[:5])  # no temp files
 
 
+@pytest.mark.gl
 def test_resume_skips_complete_outputs_and_redoes_a_truncated_one(tmp_path, client):
     inputs = [SCENES / "quad.toml", SPHERE, TEACUP]
     out = tmp_path / "out"
@@ -120,6 +122,7 @@ def test_complete_png_checks_the_whole_file(tmp_path):
     assert not batching.complete_png(path)
 
 
+@pytest.mark.gl
 def test_a_killed_worker_does_not_lose_the_batch(tmp_path, client):
     inputs = []
     for k in range(6):  # six copies of the column: ~1 s tasks, so one is surely running when the worker dies
@@ -151,6 +154,7 @@ def test_a_killed_worker_does_not_lose_the_batch(tmp_path, client):
     client.wait_for_workers(2, timeout=120)  # the nanny restarts the killed worker for the next tests
 
 
+@pytest.mark.gl
 def test_files_travel_with_the_task_to_a_scheduler(tmp_path, cluster):
     project = tmp_path / "project"
     (project / "scenes").mkdir(parents=True)

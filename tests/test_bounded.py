@@ -75,6 +75,7 @@ def run_cli(*args, cwd):
 # High degree
 
 
+@pytest.mark.gl
 def test_plane_of_degree_10_hits_every_pixel_at_the_closed_form_depth_in_bounded_memory(tmp_path):
     path = write_plane(tmp_path / "plane.bpt", 10)
     for method in ("newton", "martin"):
@@ -89,6 +90,7 @@ def test_plane_of_degree_10_hits_every_pixel_at_the_closed_form_depth_in_bounded
         assert peak < 700, (method, peak)
 
 
+@pytest.mark.gl
 def test_highest_degree_surface_renders_in_bounded_memory(tmp_path):
     """The highest degree, curved: a wavy degree-25 patch's power-basis evaluation
     is off by about 1e-6 of its size, so the default tolerance is refused, naming
@@ -121,6 +123,7 @@ def test_prime_spp_is_a_tall_grid_so_a_band_is_one_film_row_of_samples():
     assert sample_grid(1) == (1, 1)
 
 
+@pytest.mark.gl
 def test_spp_251_peaks_as_low_as_spp_64_and_averages_to_the_plane(tmp_path):
     """96 x 96 pixels: 590k samples at spp 64, 2.3M at spp 251, both traced in
     bands of MAX_BAND_SAMPLES (a prime spp was one 251-samples-wide grid row
@@ -142,6 +145,7 @@ def test_spp_251_peaks_as_low_as_spp_64_and_averages_to_the_plane(tmp_path):
     assert np.ptp(many.linear[..., 0]) > 0.05  # the point light's falloff: a test of where the samples are
 
 
+@pytest.mark.gl
 def test_a_band_ending_inside_a_pixel_row_gives_the_same_image(monkeypatch):
     plane = ROOT / "scenes" / "quad.toml"
     scene = bsrt.load(plane, width=20, height=10)
@@ -156,6 +160,7 @@ def test_a_band_ending_inside_a_pixel_row_gives_the_same_image(monkeypatch):
 # Thin and wide films
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("width,height", [(7, 1), (1, 5), (1, 1)])
 def test_films_one_pixel_wide_or_high_hit_the_plane_at_the_closed_form_depth(tmp_path, width, height):
     plane = write_plane(tmp_path / "plane1.bpt", 1)
@@ -174,6 +179,7 @@ def test_tiles_tile_the_band_exactly():
     assert prelim.tiles(0, 130, 5, 64) == [((0, 64), (0, 5)), ((64, 128), (0, 5)), ((128, 130), (0, 5))]
 
 
+@pytest.mark.gl
 def test_a_map_drawn_in_tiles_is_the_map_drawn_at_once(monkeypatch):
     scene = bsrt.load(ROOT / "scenes" / "water-lily.toml", width=150, height=40)
     patches = PatchSet([s.geometry for s in scene.surfaces])
@@ -195,6 +201,7 @@ def test_a_map_drawn_in_tiles_is_the_map_drawn_at_once(monkeypatch):
     np.testing.assert_array_equal(render(scene, RenderOptions.resolve(scene)).pixels, want)
 
 
+@pytest.mark.gl
 def test_a_film_wider_than_the_gl_limit_renders_through_tiles(tmp_path):
     import bsrt.rendering.gl as gl
 
@@ -214,6 +221,7 @@ def test_a_film_wider_than_the_gl_limit_renders_through_tiles(tmp_path):
 # Stagnation
 
 
+@pytest.mark.gl
 def test_newton_stops_at_float64_resolution_whatever_max_iterations(tmp_path):
     """A degree-8 bumpy patch at the smallest legal tolerance: rounding noise
     keeps w above it, so before the stagnation exit Newton ran all 10,000

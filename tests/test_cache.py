@@ -351,6 +351,7 @@ def test_the_bar_starts_again_after_the_load(folder):
     ]
 
 
+@pytest.mark.gl
 def test_stats_show_the_load_stage(folder, tmp_path, step, capsys):
     for cached in (False, True):
         out = tmp_path / f"out-{cached}.png"

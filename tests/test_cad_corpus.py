@@ -114,6 +114,7 @@ def test_corpus_part_loads_with_every_face_trimmed(name):
     assert len(model.surfaces) > 0
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("name", CORPUS)
 def test_corpus_part_hits_agree_with_occt_away_from_edges(name):
     model, shape = _model(name), _shape(name)

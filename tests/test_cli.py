@@ -18,6 +18,7 @@ SCENES = Path(__file__).resolve().parents[1] / "scenes"
 QUAD = (SCENES / "quad.toml").read_text()
 
 
+@pytest.mark.gl
 def test_render_writes_png_stats_and_aov(tmp_path, capsys):
     out, aov = tmp_path / "quad.png", tmp_path / "quad.npz"
     clock = time.perf_counter()
@@ -40,6 +41,7 @@ def test_render_writes_png_stats_and_aov(tmp_path, capsys):
         assert np.all(np.abs(img[~data["hit"]] - np.rint(bg)) <= 1)
 
 
+@pytest.mark.gl
 def test_overrides_and_map_command(tmp_path):
     out = tmp_path / "small.png"
     assert main(["render", str(SCENES / "quad.toml"), "-o", str(out), "--width", "40", "--height", "30",
@@ -112,6 +114,7 @@ def test_usage_errors_exit_2(tmp_path, capsys):
     assert main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "nodir" / "x.png")]) == 2
 
 
+@pytest.mark.gl
 def test_console_script_runs_in_a_fresh_process(tmp_path):
     """The installed entry point, stderr quiet when not a terminal, no traceback on errors."""
     out = tmp_path / "q.png"
@@ -127,12 +130,14 @@ def test_console_script_runs_in_a_fresh_process(tmp_path):
     assert "Traceback" not in fail.stderr
 
 
+@pytest.mark.gl
 def test_doctor_reports_the_gl_renderer(capsys):
     assert main(["doctor"]) == 0
     out = capsys.readouterr().out
     assert "OpenGL renderer:" in out and "OK" in out
 
 
+@pytest.mark.gl
 def test_outputs_get_ordinary_permissions(tmp_path):
     """Written atomically, but with the usual mode (0o666 less the umask), not a temp file's 0o600."""
     import os
@@ -156,6 +161,7 @@ def test_version(capsys):
 NEGATIVE_CAMERA = [("--camera-eye", "-1.5,-4,0.5"), ("--camera-look-at", "-0.25,0,-0.125"), ("--camera-up", "-0.1,0,1")]
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("command", ["render", "map"])
 def test_vector_options_take_negative_first_components(tmp_path, command):
     """`--camera-eye -1.5,-4,0.5` (argparse alone takes '-1.5,...' for an option) gives
@@ -212,6 +218,7 @@ def test_negative_values_are_joined_only_to_a_preceding_long_option():
     assert join(["--", "--camera-eye", "-1,2,3"]) == ["--", "--camera-eye", "-1,2,3"]  # after '--': untouched
 
 
+@pytest.mark.gl
 def test_negative_vectors_in_a_fresh_process(tmp_path):
     """The console entry point (sys.argv, not an argument list) joins them too."""
     out = tmp_path / "q.png"

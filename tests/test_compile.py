@@ -2,7 +2,7 @@
 
 A kernel called with a read-only array here and a writable one there, or
 with a literal argument at one call site and a variable at another, is
-compiled (and cached) once per variant. ``scripts/kernel_signatures.py``
+compiled (and cached) once per variant. ``tests/kernel_signatures.py``
 runs the warm-up (``bsrt doctor``'s) and then renders every bundled scene
 (shadows, mirrors) and a trimmed IGES model with every method; it runs here
 in a new process with an empty numba cache, so that every kernel, called
@@ -18,8 +18,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bsrt.kernels import compile as kernels
 from bsrt.settings import METHODS
+
+pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
 ROOT = Path(__file__).resolve().parent.parent
 INLINED = {"patches._horner", "roots.solve_one", "prelim._decode", "flatten.leaf_net"}  # inline="always": copied into their callers, never compiled alone
@@ -29,7 +33,7 @@ def test_every_kernel_compiles_exactly_one_signature_and_the_warm_up_all_of_them
     assert METHODS == ("gradient", "fast", "newton", "martin")  # the script renders with each of these
     out = tmp_path / "signatures.json"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
-    subprocess.run([sys.executable, str(ROOT / "scripts" / "kernel_signatures.py"), "--size", "32", "--json", str(out)],
+    subprocess.run([sys.executable, str(ROOT / "tests" / "kernel_signatures.py"), "--size", "32", "--json", str(out)],
                    env=env, check=True, capture_output=True, timeout=1800)
     found = json.loads(out.read_text())
     renders, warm_up = found["renders"], found["warm_up"]
@@ -43,9 +47,6 @@ def test_every_kernel_compiles_exactly_one_signature_and_the_warm_up_all_of_them
 
 
 def _dispatchers():
-    sys.path.insert(0, str(ROOT / "scripts"))
-    try:
-        import kernel_signatures
-    finally:
-        sys.path.remove(str(ROOT / "scripts"))
-    return kernel_signatures.dispatchers()
+    from kernel_signatures import dispatchers  # tests/kernel_signatures.py, this test's helper
+
+    return dispatchers()

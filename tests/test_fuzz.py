@@ -1,5 +1,5 @@
 """Fuzzing (issue #16): Hypothesis over scene documents and over each model
-reader, and a short pass of scripts/fuzz_cli.py through the real command line.
+reader, and a short pass of tests/fuzz_cli.py (this module's helper) through the real command line.
 
 The property everywhere: the input is either accepted, and then valid (every
 surface within the limits, the render options resolve or are refused), or
@@ -10,9 +10,7 @@ and no Python warning (NumPy's floating-point warnings included).
 from __future__ import annotations
 
 import copy
-import importlib.util
 import re
-import sys
 import tomllib
 import warnings
 from pathlib import Path
@@ -149,16 +147,15 @@ def test_each_model_reader_gives_a_valid_model_or_an_input_error_naming_the_file
 
 
 def _fuzz_cli():
-    spec = importlib.util.spec_from_file_location("fuzz_cli", ROOT / "scripts" / "fuzz_cli.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    import fuzz_cli  # tests/fuzz_cli.py: the mutations and the promises' checker
+
+    return fuzz_cli
 
 
+@pytest.mark.gl  # its cases render (a render failure, exit 1, would pass unmarked)
 def test_short_cli_fuzz_pass_keeps_every_promise(tmp_path):
-    """40 mutated scenes and model files through `bsrt render` at 64 x 64 (scripts/fuzz_cli.py; the long
-    run is `python scripts/fuzz_cli.py --cases 2000 --seed 1`)."""
+    """40 mutated scenes and model files through `bsrt render` at 64 x 64 (tests/fuzz_cli.py; the long
+    run is `python tests/fuzz_cli.py --cases 2000 --seed 1`)."""
     fuzz = _fuzz_cli()
     result = fuzz.run(40, seed=16, jobs=1, timeout=120.0, memory_gb=8.0, keep=tmp_path / "broken", log=print)
     assert result["cases"] == 40 and sum(result["exits"].values()) == 40

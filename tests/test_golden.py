@@ -23,6 +23,8 @@ from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import render
 from bsrt.scene import load_scene
 
+pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
+
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).resolve().parent / "golden"
 CASES = [("column", 96, 1), ("water-lily", 128, 1), ("water-lily", 96, 4), ("quad", 64, 1)]

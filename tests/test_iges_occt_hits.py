@@ -43,6 +43,8 @@ from bsrt.io import load_model
 from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
 
+pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
+
 MODELS = Path(__file__).resolve().parent / "data" / "models" / "iges"
 FILES = {"bearing": MODELS / "occt" / "bearing.iges", "marsCapsule": MODELS / "overtureframework" / "marsCapsule.igs"}
 SIZE = 128

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from bsrt.scene.camera import pixel_rays
 from bsrt.rendering.options import RenderOptions
@@ -12,6 +13,8 @@ from bsrt.rendering.shade import shade
 
 from conftest import flat_patch
 from test_models import exact_sphere
+
+pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
 
 def _horizontal(x0, x1, y0, y1, z, **extra):

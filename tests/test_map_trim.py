@@ -82,6 +82,7 @@ def test_cad_parts_render_the_same_with_fewer_trimmed_roots(ctx, monkeypatch, pa
     assert b.stats["suspect"] < a.stats["suspect"]
 
 
+@pytest.mark.cad
 def test_a_step_part_renders_the_same(ctx, monkeypatch, tmp_path):
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut

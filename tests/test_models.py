@@ -21,6 +21,7 @@ from conftest import model_files
 FILES = list(model_files())
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("path", FILES, ids=[str(p.relative_to(DATA)) for p in FILES])
 def test_every_model_file_renders_headless_or_is_refused(tmp_path, capsys, path):
     out = tmp_path / "x.png"
@@ -76,6 +77,7 @@ def _render_model(surfaces, eye, look_at=(0.0, 0.0, 0.0), size=96, **kw):
     return scene, render(scene)
 
 
+@pytest.mark.gl
 def test_exact_sphere_hits_lie_on_the_unit_sphere_within_1e9():
     scene, res = _render_model([exact_sphere()], eye=(1.2, -3.1, 1.7))
     hit = res.hits.hit
@@ -87,6 +89,7 @@ def test_exact_sphere_hits_lie_on_the_unit_sphere_within_1e9():
     np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", res.normal[hit], res.position[hit])), 1.0, atol=1e-8)
 
 
+@pytest.mark.gl
 def test_sphere_g2_hits_lie_on_its_sphere_to_the_files_accuracy():
     """sphere.g2 stores 1/sqrt(2) as 0.707107, so the surface itself is a sphere only to
     5.31e-8 (test_io measures that bound); the hits are within 1e-9 of the surface."""
@@ -99,6 +102,7 @@ def test_sphere_g2_hits_lie_on_its_sphere_to_the_files_accuracy():
     assert err.max() <= 5.31e-8 + 1e-9 * np.sqrt(12.0)
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("source", ["exact", "torus.g2"])
 def test_torus_hits_lie_on_the_torus(source):
     if source == "exact":
@@ -114,6 +118,7 @@ def test_torus_hits_lie_on_the_torus(source):
     assert np.abs(tube - 1.0).max() <= bound + 1e-9 * diag
 
 
+@pytest.mark.gl
 def test_teapot_bez_and_g2_give_the_same_picture():
     """g2 = 40 (Newell - (0, 0, 0.15)) and bez = qt3d(Newell); both rendered from the same
     Newell-space camera. teapot.g2 has no bottom (qt3d patches 29-32), so those are left out;
@@ -137,6 +142,7 @@ def test_teapot_bez_and_g2_give_the_same_picture():
     assert np.abs(a.pixels.astype(int) - b.pixels.astype(int)).max() <= 1
 
 
+@pytest.mark.gl
 def test_poles_and_collapsed_edges_give_no_nan_and_no_holes():
     """The teapot's lid knob and bottom are poles; the duck's body has a pole row."""
     for path, eye in ((DATA / "bezier-teaset/qt3d/teapot.bez", (0.9, 2.4, 1.9)),
@@ -211,6 +217,7 @@ def test_info_command(capsys):
     assert "4 surfaces" in out and "(3,3) x 4" in out
 
 
+@pytest.mark.gl
 def test_camera_overrides_for_models(tmp_path):
     out = tmp_path / "s.png"
     args = ["render", str(DATA / "nurbs/splipy/sphere.g2"), "-o", str(out), "--width", "32", "--height", "32"]

@@ -539,6 +539,7 @@ def test_without_opencascade_one_message_names_the_extra(tmp_path, monkeypatch):
         assert str(err.value) == f"{tmp_path / name}: reading {what} needs OpenCASCADE: pip install 'bsrt[cad]'"
 
 
+@pytest.mark.gl
 def test_cli_info_and_render_a_step_file(tmp_path, capsys):
     path = write_step(box_with_filleted_hole(), tmp_path / "x.step")
     assert main(["info", str(path)]) == 0
@@ -566,6 +567,7 @@ def test_cli_garbage_step_exits_2_with_one_line(tmp_path, capsys):
 # Every pixel against OpenCASCADE's exact ray / shape intersector
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("name", list(SHAPES) + ["as1-oc-214"])
 def test_hits_agree_against_occt_intersector(tmp_path, name):
     """Every pixel's ray, traced by bsrt (trims included) and by OpenCASCADE's
@@ -598,6 +600,7 @@ def test_hits_agree_against_occt_intersector(tmp_path, name):
     assert np.max(np.abs(aovs["t"][both] - t[both])) < TOL * size
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("brep_mode", [0, 1])
 def test_step_and_iges_through_bsrts_own_reader_render_the_same_hits(tmp_path, brep_mode):
     """The box with a filleted hole written as STEP (read through OpenCASCADE) and as IGES

@@ -73,6 +73,7 @@ def _file_size_limit(limit):
     return apply
 
 
+@pytest.mark.gl
 def test_a_full_disk_is_one_message_naming_the_output_and_leaves_nothing(tmp_path):
     run = bsrt("render", QUAD, "-o", "out.png", "--width", 64, "--height", 64, "--aov", "out.npz",
                cwd=tmp_path, preexec_fn=_file_size_limit(300))
@@ -81,6 +82,7 @@ def test_a_full_disk_is_one_message_naming_the_output_and_leaves_nothing(tmp_pat
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.gl
 def test_stats_on_a_failing_stdout_leaves_no_image(tmp_path):
     with open("/dev/full", "w") as full:
         run = subprocess.run([sys.executable, "-m", "bsrt", "render", str(QUAD), "-o", "out.png", "--width", "16",
@@ -91,6 +93,7 @@ def test_stats_on_a_failing_stdout_leaves_no_image(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.gl
 def test_render_png_aov_and_stats_together(tmp_path):
     run = bsrt("render", QUAD, "-o", "out.png", "--width", 24, "--height", 16, "--aov", "out.npz", "--stats",
                cwd=tmp_path)
@@ -101,6 +104,7 @@ def test_render_png_aov_and_stats_together(tmp_path):
     assert '"seconds"' in run.stdout
 
 
+@pytest.mark.gl
 def test_a_legal_long_output_name_is_written(tmp_path):
     name = "x" * 251 + ".png"  # 255 bytes: the longest legal name; the temporary name must not grow from it
     run = bsrt("render", QUAD, "-o", name, "--width", 8, "--height", 8, cwd=tmp_path)

@@ -273,6 +273,7 @@ PLATE = parse_scene({
 }, "<plate>")
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("mode", ["float", "rgba8"])
 def test_map_framebuffers_are_reused_and_give_the_same_map(mode):
     ctx = gl.headless_context()

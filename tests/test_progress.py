@@ -197,6 +197,7 @@ def run_on_a_terminal(args, timeout=300.0, preexec_fn=None):
     return proc.returncode, received.decode("utf-8").replace("\r\n", "\n")
 
 
+@pytest.mark.gl
 def test_render_on_a_terminal_shows_the_bar_then_the_summary(tmp_path):
     out = tmp_path / "out.png"
     code, text = run_on_a_terminal(["render", str(SCENES / "column.toml"), "-o", str(out), "--width", "40",
@@ -212,12 +213,14 @@ def test_render_on_a_terminal_shows_the_bar_then_the_summary(tmp_path):
     assert bar.strip() == ""  # the bar was erased before the summary
 
 
+@pytest.mark.gl
 def test_no_progress_on_a_terminal(tmp_path):
     code, text = run_on_a_terminal(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "q.png"),
                                     "--no-progress"])
     assert code == 0 and "%" not in text and "rendered" not in text
 
 
+@pytest.mark.gl
 def test_a_failure_after_the_bar_started_gets_a_clean_line(tmp_path):
     out = tmp_path / "out.png"
 
@@ -233,6 +236,7 @@ def test_a_failure_after_the_bar_started_gets_a_clean_line(tmp_path):
     assert before.split("\r")[-1].strip() == ""  # the bar's line was blanked before the message
 
 
+@pytest.mark.gl
 def test_nothing_on_a_pipe(tmp_path):
     out = tmp_path / "q.png"
     done = subprocess.run(CLI + ["render", str(SCENES / "quad.toml"), "-o", str(out)], capture_output=True,
@@ -241,6 +245,7 @@ def test_nothing_on_a_pipe(tmp_path):
     assert done.stderr == "" and done.stdout == ""
 
 
+@pytest.mark.gl
 def test_progress_on_a_pipe_writes_lines(tmp_path):
     out = tmp_path / "q.png"
     done = subprocess.run(CLI + ["render", str(SCENES / "column.toml"), "-o", str(out), "--width", "40",
@@ -255,6 +260,7 @@ def test_progress_on_a_pipe_writes_lines(tmp_path):
     assert SUMMARY.match(lines[-1]) and SUMMARY.match(lines[-1]).group(1) == str(out)
 
 
+@pytest.mark.gl
 def test_progress_with_aov_names_both_files(tmp_path):
     out, aov = tmp_path / "q.png", tmp_path / "q.npz"
     done = subprocess.run(CLI + ["render", str(SCENES / "quad.toml"), "-o", str(out), "--aov", str(aov),

@@ -113,6 +113,7 @@ def test_readers_registry_feeds_loading_imports_and_errors(tmp_path):
         parse_scene({"camera": CAMERA, "import": [{"file": "x.bez", "format": "stl"}]}, "s.toml", tmp_path)
 
 
+@pytest.mark.gl  # doctor opens a context
 def test_doctor_lists_every_reader():
     out = subprocess.run([sys.executable, "-m", "bsrt", "doctor"], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr

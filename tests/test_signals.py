@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
+
 ROOT = Path(__file__).resolve().parents[1]
 COMMAND = [sys.executable, "-m", "bsrt", "render", str(ROOT / "scenes" / "column.toml"), "-o", "out.png",
            "--aov", "out.npz", "--width", "160", "--height", "160"]

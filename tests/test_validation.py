@@ -69,6 +69,7 @@ def test_tolerance_below_float64_is_refused_with_the_smallest_usable_value(tmp_p
     assert validate.FLOAT_STEPS * np.finfo(float).eps * 4 / (2 * 2**0.5) == pytest.approx(2.0e-14, rel=0.01), line
 
 
+@pytest.mark.gl
 def test_the_smallest_usable_tolerance_finds_every_hit(tmp_path):
     """The quad fills a closed-form pixel block at 64 x 64 (44 x 44 = 1936 pixels) at the floor as at 1e-9."""
     quad = bsrt.load(ROOT / "scenes" / "quad.toml")
@@ -151,6 +152,7 @@ def test_toml_nested_50000_deep_is_refused(tmp_path):
     refused(path, "invalid TOML", "nested too deeply")
 
 
+@pytest.mark.gl
 def test_a_chain_of_1500_iges_124_transforms_renders(tmp_path):
     """Legal IGES: each 124 moves by 0.001 along x, so the chain moves the unit square by 1.5."""
     move = [1, 0, 0, 0.001, 0, 1, 0, 0, 0, 0, 1, 0]
@@ -246,6 +248,7 @@ def test_iges_range_within_1e_9_past_the_knots_says_so(tmp_path):
     assert "points" not in line
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("name, text", [("bom.toml", QUAD), ("bom.bpt", BPT)])
 def test_a_utf8_byte_order_mark_is_accepted_in_scene_and_model_files(tmp_path, name, text):
     path = tmp_path / name
@@ -302,6 +305,7 @@ def test_bsrt_debug_shows_a_traceback_only_for_1_true_yes(monkeypatch, capsys, v
 # The legal extremes render without a warning
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("old, new", [
     ("[[surface]]", "[[surface]]\ntransform = { scale = 1e14 }"),
     ("fov = 40.0", "fov = 0.001"),

@@ -1,6 +1,6 @@
 """Which signatures each compiled kernel gets: after the warm-up, and after real renders.
 
-    python scripts/kernel_signatures.py [--size 64] [--json FILE]
+    python tests/kernel_signatures.py [--size 64] [--json FILE]
 
 Runs ``bsrt.rendering.warm_up.warm_up`` (what ``bsrt doctor`` runs), then
 renders every bundled scene (scenes/*.toml) and a trimmed IGES model with
@@ -10,6 +10,10 @@ empty cache (``NUMBA_CACHE_DIR`` set to a new folder): a kernel loaded from
 the cache does not compile the kernels it calls, so their signatures show
 only in a cold run. Each kernel should show exactly one signature, all of
 them already after the warm-up (a first render then compiles nothing).
+
+A helper of tests/test_compile.py (which runs it in a child process with an
+empty cache and imports ``dispatchers``); it lives beside the tests because
+they need it, and imports only the package.
 """
 
 from __future__ import annotations

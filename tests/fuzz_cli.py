@@ -9,7 +9,7 @@ limit, peak RSS from wait4) and check bsrt's promises on every case:
 - nothing is left in the (otherwise empty) output folder after a failure;
 - no case is killed by its timeout (a hang) or by a signal.
 
-Usage: python scripts/fuzz_cli.py --cases 2000 --seed 1 [--jobs 2]
+Usage: python tests/fuzz_cli.py --cases 2000 --seed 1 [--jobs 2]
 [--timeout 120] [--memory-gb 8] [--keep DIR] [--time-budget SECONDS] [--json FILE]
 
 Each case is reproducible from (seed, case number); broken cases are kept
