@@ -185,6 +185,7 @@ def test_render_result_shows_as_a_png(ctx):
     np.testing.assert_array_equal(np.asarray(image), result.pixels)
 
 
+@pytest.mark.gl
 def test_render_takes_what_scene_build_takes_and_refuses_the_rest():
     square = bsrt.Surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[0, 0, 0], [0, 0, 1]], [[1, 0, 0], [1, 0, 1]]])
     built = bsrt.render(bsrt.Scene.build([square]), width=24, height=16)
@@ -772,6 +773,7 @@ def test_errors_in_pythons_idiom(tmp_path):
         bsrt.Scene.build([])
 
 
+@pytest.mark.gl
 def test_save_writes_the_format_its_extension_names_or_nothing(tmp_path):
     result = bsrt.render(bsrt.load(SCENES / "quad.toml", width=32, height=24))
     for name, kind in [("a.png", "PNG"), ("b.JPG", "JPEG"), ("c.jpeg", "JPEG"), ("d.webp", "WEBP")]:
