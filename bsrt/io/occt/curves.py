@@ -67,11 +67,34 @@ def pcurve(edge, face) -> TrimCurve | None:
         weights[i] = weight(i + 1)
     knots = flat_knots(bc.Knot, bc.Multiplicity, bc.NbKnots())
     if edge.Orientation() == TopAbs_REVERSED:
-        points, weights, knots = points[::-1], weights[::-1], (knots[0] + knots[-1]) - knots[::-1]
-    try:
-        return make_trim_curve(bc.Degree(), knots, points, None if np.all(weights == 1.0) else weights)
-    except InputError as e:
-        raise TrimError(f"a pcurve is invalid ({e})") from None
+        points, weights, knots = points[::-1].copy(), weights[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
+    degree = bc.Degree()
+    why = _invalid(degree, knots, points, weights)
+    if why:
+        try:  # make_trim_curve's checks, for its message
+            make_trim_curve(degree, knots, points, None if np.all(weights == 1.0) else weights)
+        except InputError as e:
+            why = str(e)
+        raise TrimError(f"a pcurve is invalid ({why})")
+    rational = bool(np.any(weights != 1.0))
+    for a in (knots, points) + ((weights,) if rational else ()):
+        a.setflags(write=False)
+    return TrimCurve(degree, knots, points, weights if rational else None)
+
+
+def _invalid(p: int, knots: np.ndarray, points: np.ndarray, weights: np.ndarray) -> str:
+    """Why make_trim_curve would refuse the pcurve (its checks, in a few NumPy calls), or ""."""
+    n = points.shape[0]
+    if p < 1 or n < p + 1 or knots.size != n + p + 1:
+        return "its degree, knots and points do not fit together"
+    if not (np.isfinite(points).all() and np.isfinite(knots).all() and np.isfinite(weights).all()):
+        return "a non-finite number"
+    if np.any(knots[1:] < knots[:-1]) or not knots[p] < knots[n] or np.any(weights <= 0):
+        return "decreasing knots, an empty domain or a weight <= 0"
+    inner = knots[(knots > knots[p]) & (knots < knots[n])]
+    if inner.size > p and np.any(inner[p:] == inner[:-p]):  # sorted: p + 1 equal values in a row
+        return "an interior knot repeated more than the degree"
+    return ""
 
 
 def shifted(curve: TrimCurve, offset) -> TrimCurve:

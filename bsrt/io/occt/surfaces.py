@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...bspline import BSplineSurface, evaluate, insert_knot, make_surface
+from ...bspline import BSplineSurface, insert_knot, make_surface
 from ...errors import InputError
 from ..invert import invert
 
@@ -190,6 +190,52 @@ class ParamMap:
         return np.stack([self.fu(uv[:, 0]), self.fv(uv[:, 1])], axis=1)
 
 
+def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
+    """(span (N,), values (N, p + 1)): the non-zero basis functions at x, values only (Cox-de Boor's
+    triangle, as :func:`bsrt.bspline.basis_functions`, without the derivatives); spans clamped to
+    [p, n - 1] as :func:`bsrt.bspline.find_span` does (outside the domain the end spans extend)."""
+    x = np.asarray(x, dtype=np.float64)
+    span = np.clip(np.searchsorted(knots, x, side="right") - 1, p, n - 1)
+    vals = np.empty((x.shape[0], p + 1))
+    vals[:, 0] = 1.0
+    left = [None] * (p + 1)
+    right = [None] * (p + 1)
+    for j in range(1, p + 1):
+        left[j] = x - knots[span + 1 - j]
+        right[j] = knots[span + j] - x
+        saved = 0.0
+        for r in range(j):
+            denom = right[r + 1] + left[j - r]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                temp = np.where(denom != 0, vals[:, r] / denom, 0.0)
+            vals[:, r] = saved + right[r + 1] * temp
+            saved = left[j - r] * temp
+        vals[:, j] = saved
+    return span, vals
+
+
+def _basis_matrix(knots: np.ndarray, p: int, n: int, x: np.ndarray) -> np.ndarray:
+    """(N, n) float64: all n basis functions at x (zero off their support)."""
+    span, vals = basis_values(knots, p, n, x)
+    out = np.zeros((vals.shape[0], n))
+    np.put_along_axis(out, (span - p)[:, None] + np.arange(p + 1)[None, :], vals, axis=1)
+    return out
+
+
+def grid_points(surface: BSplineSurface, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(len(x), len(y), 3) float64: the surface's points at the grid x[i], y[j] (values outside the
+    domain extend the end spans, as :func:`bsrt.bspline.evaluate`)."""
+    (p, q), (nu, nv) = surface.degree, surface.shape
+    bu = _basis_matrix(surface.knots_u, p, nu, np.atleast_1d(x))
+    bv = _basis_matrix(surface.knots_v, q, nv, np.atleast_1d(y))
+    if surface.weights is None:
+        h = (bu @ surface.points.reshape(nu, nv * 3)).reshape(-1, nv, 3)
+        return np.einsum("avk,bv->abk", h, bv)
+    h = (bu @ surface.homogeneous().reshape(nu, nv * 4)).reshape(-1, nv, 4)
+    h = np.einsum("avk,bv->abk", h, bv)
+    return h[..., :3] / h[..., 3:4]
+
+
 def _points(original, u, v) -> np.ndarray:
     """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
     out = np.empty((len(u), 3))
@@ -219,8 +265,9 @@ def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others
     ss = np.tile(s, breaks.size - 1)
     candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
     y = np.repeat(others, x.size)
-    x_all = np.tile(x, others.size)
-    got = evaluate(whole, *((x_all, y) if axis == 0 else (y, x_all)))[0]
+    # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
+    got = (grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x))
+    got = got.reshape(-1, 3)
     tol = EXACT_TOLERANCE * size
     for kind, t in candidates.items():
         t_all = np.tile(t, others.size)
@@ -236,9 +283,7 @@ def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other
     from OCP.gp import gp_Pnt
     from OCP.ShapeAnalysis import ShapeAnalysis_Surface
 
-    y = np.full(breaks.size, other)
-    xy = (breaks, y) if axis == 0 else (y, breaks)
-    pts = evaluate(whole, *xy)[0]
+    pts = grid_points(whole, breaks, [other])[:, 0] if axis == 0 else grid_points(whole, [other], breaks)[0]
     analysis = ShapeAnalysis_Surface(original)
     t_breaks = np.empty(breaks.size)
     for k, p in enumerate(pts):
@@ -269,8 +314,32 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
     one period long in a periodic direction). size: the model's size in
     local units (the scale of the tolerances). Raises FaceError.
     """
-    umin, umax, vmin, vmax = bounds
     bs, approx_error = _to_bspline(original, bounds, size)
+    try:
+        return _converted(original, bounds, size, bs, approx_error, _keeps_parameters(original))
+    except FaceError:
+        if approx_error is not None or not _keeps_parameters(original):
+            raise
+    # (not expected: a plane's or B-spline's conversion keeps its parameters) test the maps after all
+    bs, approx_error = _to_bspline(original, bounds, size)
+    return _converted(original, bounds, size, bs, approx_error, False)
+
+
+def _keeps_parameters(original) -> bool:
+    """Whether OpenCASCADE's conversion keeps both parameters as they are (a plane, a B-spline or Bezier
+    surface, trimmed or not): their maps are the identity without testing (the deviation still checks)."""
+    from OCP.Geom import Geom_BezierSurface, Geom_BSplineSurface, Geom_Plane, Geom_RectangularTrimmedSurface
+
+    surface = original
+    while isinstance(surface, Geom_RectangularTrimmedSurface):
+        surface = surface.BasisSurface()
+    return isinstance(surface, (Geom_Plane, Geom_BSplineSurface, Geom_BezierSurface))
+
+
+def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
+    """convert_surface's work on OpenCASCADE's B-spline ``bs``; identity: take both maps to be the
+    identity (else each direction's kind is tested)."""
+    umin, umax, vmin, vmax = bounds
     approximated = approx_error is not None
     periodic = (bool(bs.IsUPeriodic()), bool(bs.IsVPeriodic()))
     whole = _extract(bs)
@@ -285,7 +354,7 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
         other_breaks = _breaks(*((whole.knots_v, whole.degree[1], whole.shape[1]) if axis == 0 else
                                  (whole.knots_u, whole.degree[0], whole.shape[0])))
         other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: a middle one (poles are at ends)
-        kind = "identity" if approximated else _kind(original, whole, axis, breaks, other_breaks, size)
+        kind = "identity" if approximated or identity else _kind(original, whole, axis, breaks, other_breaks, size)
         fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
         if kind == "table":
             fmap.table = _table(original, whole, axis, breaks, other, size)
@@ -421,14 +490,13 @@ def _deviation(original, local: BSplineSurface, pmap: ParamMap) -> float:
     """The largest distance between the original surface and the B-spline at mapped points of a grid."""
     umin, umax, vmin, vmax = pmap.bounds
     fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])
-    uu, vv = np.meshgrid(umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin), indexing="ij")
-    uv = np.stack([uu.ravel(), vv.ravel()], axis=1)
-    xy = pmap.map(uv)
-    (a0, a1), (b0, b1) = local.domain_u, local.domain_v
-    xy[:, 0] = np.clip(xy[:, 0], a0, a1)
-    xy[:, 1] = np.clip(xy[:, 1], b0, b1)
-    want = _points(original, uv[:, 0], uv[:, 1])
-    got = evaluate(local, xy[:, 0], xy[:, 1])[0]
+    us, vs = umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin)
+    uu, vv = np.meshgrid(us, vs, indexing="ij")
+    # the map is separable: the grid's (x, y) is the grid of f(u) and g(v)
+    x = np.clip(pmap.fu(us), *local.domain_u)
+    y = np.clip(pmap.fv(vs), *local.domain_v)
+    want = _points(original, uu.ravel(), vv.ravel())
+    got = grid_points(local, x, y).reshape(-1, 3)
     return float(np.max(np.linalg.norm(got - want, axis=1)))
 
 
