@@ -16,7 +16,9 @@ imports are done:
   OpenCASCADE modules bsrt's reader uses, and bsrt's reader modules, are
   imported before the clock starts (as OpenCASCADE's own are: with
   PYTHONDONTWRITEBYTECODE set, as on the development machines, importing
-  bsrt's readers would otherwise compile their source on every run); compiled kernels are loaded from numba's cache inside the call,
+  bsrt's readers would otherwise compile their source on every run; every module of
+  the ``bsrt.io`` package is imported, the IGES reader's helpers included, which
+  ``bsrt.io.iges`` imports on its first read); compiled kernels are loaded from numba's cache inside the call,
   as they are for a user's first load. ``--warm`` also times a second call
   in the same process.
 
@@ -68,6 +70,12 @@ BSRT_CHILD = textwrap.dedent("""
     import bsrt.io
     from bsrt.io import load_model
     import bsrt.io.iges, bsrt.io.cache  # the readers' modules: imported, not timed (as OpenCASCADE's are)
+    import importlib, pkgutil
+    for info in pkgutil.walk_packages(bsrt.io.__path__, "bsrt.io."):  # their helpers too (bsrt.io.iges_topology, ...)
+        try:
+            importlib.import_module(info.name)
+        except ImportError:
+            pass
     try:
         import bsrt.io.occt
         import OCP.STEPCAFControl, OCP.IGESCAFControl, OCP.XCAFPrs, OCP.XCAFDoc, OCP.XCAFApp, OCP.TDocStd

@@ -114,7 +114,15 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
     except (TrimError, InputError) as e:
         info.untrimmed_reason = str(e)
         surface = local
+    if trsf.Form() == _identity_form():  # (a no-op: skipped)
+        return surface, info
     return surface.transformed(matrix(trsf)), info
+
+
+def _identity_form():
+    from OCP.gp import gp_TrsfForm
+
+    return gp_TrsfForm.gp_Identity
 
 
 def matrix(trsf) -> np.ndarray:

@@ -40,17 +40,27 @@ class TrimError(Exception):
 
 def pcurve(edge, face) -> TrimCurve | None:
     """The edge's curve on the face, in the original (u, v), along the edge's direction; None for an empty range."""
-    from OCP.BRep import BRep_Tool
-    from OCP.Geom2d import Geom2d_TrimmedCurve
-    from OCP.Geom2dConvert import Geom2dConvert
-    from OCP.TopAbs import TopAbs_REVERSED
-
-    curve = BRep_Tool.CurveOnSurface_s(edge, face, 0.0, 0.0)
+    occ = _occ()
+    curve = occ.CurveOnSurface(edge, face, 0.0, 0.0)
     if curve is None:
         raise TrimError("an edge has no curve on the face")
-    first, last = BRep_Tool.Range_s(edge, face)
+    first, last = occ.Range(edge, face)
     if not first < last:
         return None
+    reverse = edge.Orientation() == occ.REVERSED
+    if type(curve) is occ.Line:
+        # Geom2dConvert makes a line from first to last the degree-1 B-spline through its ends (poles
+        # Value(first), Value(last), knots first, first, last, last): built here as it would be
+        a, b = curve.Value(first), curve.Value(last)
+        points = np.array([[a.X(), a.Y()], [b.X(), b.Y()]])
+        knots = np.array([first, first, last, last], dtype=np.float64)
+        if reverse:
+            points, knots = points[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
+        if np.isfinite(points.sum()):
+            points.setflags(write=False)
+            knots.setflags(write=False)
+            return TrimCurve(1, knots, points)
+    Geom2dConvert, Geom2d_TrimmedCurve = occ.Geom2dConvert, occ.TrimmedCurve
     try:
         bc = Geom2dConvert.CurveToBSplineCurve_s(Geom2d_TrimmedCurve(curve, first, last))
     except Exception as e:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
@@ -59,23 +69,18 @@ def pcurve(edge, face) -> TrimCurve | None:
         bc.SetNotPeriodic()
     n = bc.NbPoles()
     pole, weight = bc.Pole, bc.Weight
-    points = np.empty((n, 2))
-    weights = np.empty(n)
-    for i in range(n):
-        p = pole(i + 1)
-        points[i] = p.X(), p.Y()
-        weights[i] = weight(i + 1)
+    points = np.array([c for p in map(pole, range(1, n + 1)) for c in (p.X(), p.Y())], dtype=np.float64).reshape(n, 2)
+    weights = np.array(list(map(weight, range(1, n + 1))), dtype=np.float64) if bc.IsRational() else np.ones(n)
     knots = flat_knots(bc.Knot, bc.Multiplicity, bc.NbKnots())
-    if edge.Orientation() == TopAbs_REVERSED:
+    if reverse:
         points, weights, knots = points[::-1].copy(), weights[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
     degree = bc.Degree()
     why = _invalid(degree, knots, points, weights)
-    if why:
-        try:  # make_trim_curve's checks, for its message
-            make_trim_curve(degree, knots, points, None if np.all(weights == 1.0) else weights)
+    if why:  # make_trim_curve's checks decide (and give the message)
+        try:
+            return make_trim_curve(degree, knots, points, None if np.all(weights == 1.0) else weights)
         except InputError as e:
-            why = str(e)
-        raise TrimError(f"a pcurve is invalid ({why})")
+            raise TrimError(f"a pcurve is invalid ({e})") from None
     rational = bool(np.any(weights != 1.0))
     for a in (knots, points) + ((weights,) if rational else ()):
         a.setflags(write=False)
@@ -83,18 +88,39 @@ def pcurve(edge, face) -> TrimCurve | None:
 
 
 def _invalid(p: int, knots: np.ndarray, points: np.ndarray, weights: np.ndarray) -> str:
-    """Why make_trim_curve would refuse the pcurve (its checks, in a few NumPy calls), or ""."""
+    """"" when the pcurve passes make_trim_curve's checks (done here in a few NumPy calls), else
+    roughly why not (make_trim_curve then decides, and says why)."""
     n = points.shape[0]
     if p < 1 or n < p + 1 or knots.size != n + p + 1:
         return "its degree, knots and points do not fit together"
-    if not (np.isfinite(points).all() and np.isfinite(knots).all() and np.isfinite(weights).all()):
+    if not np.isfinite(points.sum() + knots.sum() + weights.sum()):  # (a sum that overflows: checked in full)
         return "a non-finite number"
-    if np.any(knots[1:] < knots[:-1]) or not knots[p] < knots[n] or np.any(weights <= 0):
+    if (knots[1:] < knots[:-1]).any() or not knots[p] < knots[n] or weights.min() <= 0:
         return "decreasing knots, an empty domain or a weight <= 0"
     inner = knots[(knots > knots[p]) & (knots < knots[n])]
     if inner.size > p and np.any(inner[p:] == inner[:-p]):  # sorted: p + 1 equal values in a row
         return "an interior knot repeated more than the degree"
     return ""
+
+
+_OCC = None
+
+
+def _occ():
+    """The OpenCASCADE names pcurve uses (imported once)."""
+    global _OCC
+    if _OCC is None:
+        from types import SimpleNamespace
+
+        from OCP.BRep import BRep_Tool
+        from OCP.Geom2d import Geom2d_Line, Geom2d_TrimmedCurve
+        from OCP.Geom2dConvert import Geom2dConvert
+        from OCP.TopAbs import TopAbs_REVERSED
+
+        _OCC = SimpleNamespace(CurveOnSurface=BRep_Tool.CurveOnSurface_s, Range=BRep_Tool.Range_s,
+                               Line=Geom2d_Line, TrimmedCurve=Geom2d_TrimmedCurve, Geom2dConvert=Geom2dConvert,
+                               REVERSED=TopAbs_REVERSED)
+    return _OCC
 
 
 def shifted(curve: TrimCurve, offset) -> TrimCurve:
@@ -146,15 +172,18 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
     if fu.kind == "identity" and fv.kind == "identity":
         return shifted(curve, (fu.shift, fv.shift))
     t0, t1 = curve.domain
-    spans = np.array([pmap.bounds[1] - pmap.bounds[0], pmap.bounds[3] - pmap.bounds[2]])
+    spans = (pmap.bounds[1] - pmap.bounds[0], pmap.bounds[3] - pmap.bounds[2])
+    lows, highs = curve.points.min(axis=0).tolist(), curve.points.max(axis=0).tolist()
     for axis in (0, 1):  # an iso-line (axis fixed): a straight segment, exactly
         # read from the control points: a coordinate is constant exactly when all its control values are
         # (positive weights), and a monotone control polygon makes a monotone curve (variation diminishing)
-        fixed, moving = curve.points[:, axis], curve.points[:, 1 - axis]
-        if np.ptp(fixed) <= 1e-13 * spans[axis] and (np.all(np.diff(moving) >= 0) or np.all(np.diff(moving) <= 0)):
-            ends = curve.ends()
-            ends[:, axis] = fixed.mean()
-            return segment(*pmap.map(ends))
+        if highs[axis] - lows[axis] <= 1e-13 * spans[axis]:
+            fixed, moving = curve.points[:, axis], curve.points[:, 1 - axis]
+            steps = moving[1:] - moving[:-1]
+            if (steps >= 0).all() or (steps <= 0).all():
+                ends = curve.ends()
+                ends[:, axis] = fixed.mean()
+                return segment(*pmap.map(ends))
     t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
     uv = curve.evaluate(t)
     breaks = [np.array([t0, t1]), np.unique(curve.knots[(curve.knots > t0) & (curve.knots < t1)])]

@@ -98,18 +98,19 @@ class AxisMap:
         else:
             lo = b[0]
             span_source = b
-        wraps = np.zeros_like(t)
+        wraps = None
         if self.period > 0:
             wraps = np.floor((t - lo) / self.period)
             t = t - wraps * self.period
-        span = np.clip(np.searchsorted(span_source, t, side="right") - 1, 0, b.size - 2)
+        span = np.minimum(np.maximum(np.searchsorted(span_source, t, side="right") - 1, 0), b.size - 2)
         if self.kind == "arc":
-            h = b[span + 1] - b[span]
-            m = 0.5 * (b[span] + b[span + 1])
-            x = b[span] + 0.5 * h * (1.0 + np.tan(0.5 * (t - m)) / np.tan(0.25 * h))
+            b0, b1 = b[span], b[span + 1]
+            h = b1 - b0
+            m = 0.5 * (b0 + b1)
+            x = b0 + 0.5 * h * (1.0 + np.tan(0.5 * (t - m)) / np.tan(0.25 * h))
         else:
             x = _barycentric(self.table[0][span], self.table[1][span], t)
-        return x + wraps * self.period
+        return x if wraps is None else x + wraps * self.period
 
     def inverse(self, x) -> np.ndarray:
         """(N,) t of (N,) x: f's inverse."""
@@ -195,7 +196,13 @@ def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
     triangle, as :func:`bsrt.bspline.basis_functions`, without the derivatives); spans clamped to
     [p, n - 1] as :func:`bsrt.bspline.find_span` does (outside the domain the end spans extend)."""
     x = np.asarray(x, dtype=np.float64)
-    span = np.clip(np.searchsorted(knots, x, side="right") - 1, p, n - 1)
+    span = np.minimum(np.maximum(np.searchsorted(knots, x, side="right") - 1, p), n - 1)
+    if p == 1:  # (planes, lines): the two hat functions
+        a, b = knots[span], knots[span + 1]
+        d = b - a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(d != 0, (x - a) / d, 0.0)
+        return span, np.stack([1.0 - s, s], axis=1)
     vals = np.empty((x.shape[0], p + 1))
     vals[:, 0] = 1.0
     left = [None] * (p + 1)
@@ -238,25 +245,24 @@ def grid_points(surface: BSplineSurface, x: np.ndarray, y: np.ndarray) -> np.nda
 
 def _points(original, u, v) -> np.ndarray:
     """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
-    out = np.empty((len(u), 3))
     value = original.Value
-    for k, (a, b) in enumerate(zip(np.asarray(u, float).tolist(), np.asarray(v, float).tolist())):
-        p = value(a, b)
-        out[k] = p.X(), p.Y(), p.Z()
-    return out
+    coords = [c for p in map(value, np.asarray(u, float).tolist(), np.asarray(v, float).tolist())
+              for c in (p.X(), p.Y(), p.Z())]
+    return np.array(coords, dtype=np.float64).reshape(-1, 3)
 
 
 def _breaks(knots: np.ndarray, degree: int, n: int) -> np.ndarray:
-    k = knots[degree: n + 1]
-    return np.unique(k)
+    k = knots[degree: n + 1]  # sorted: the distinct values are where it steps
+    return k[np.concatenate([[True], k[1:] != k[:-1]])]
 
 
-def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others: np.ndarray, size: float) -> str:
+def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others: np.ndarray, size: float,
+          arc_first: bool = False) -> str:
     """"identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
 
     Tested on the iso-lines of the other direction's knots (where its own
     parameter is unchanged), all of them: one may be degenerate (a pole),
-    where any model fits.
+    where any model fits. arc_first: test "arc" before "identity" (a periodic direction's likelier kind).
     """
     s = np.array([0.23, 0.71])
     x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
@@ -264,6 +270,8 @@ def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others
     m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
     ss = np.tile(s, breaks.size - 1)
     candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
+    if arc_first:  # (the same tests, the likelier first)
+        candidates = {"arc": candidates["arc"], "identity": x}
     y = np.repeat(others, x.size)
     # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
     got = (grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x))
@@ -347,14 +355,13 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
                original.VPeriod() if original.IsVPeriodic() else 0.0)
     maps = []
     doms = (whole.domain_u, whole.domain_v)
+    all_breaks = (_breaks(whole.knots_u, whole.degree[0], whole.shape[0]),
+                  _breaks(whole.knots_v, whole.degree[1], whole.shape[1]))
     for axis in (0, 1):
-        p, n = whole.degree[axis], whole.shape[axis]
-        knots = whole.knots_u if axis == 0 else whole.knots_v
-        breaks = _breaks(knots, p, n)
-        other_breaks = _breaks(*((whole.knots_v, whole.degree[1], whole.shape[1]) if axis == 0 else
-                                 (whole.knots_u, whole.degree[0], whole.shape[0])))
+        breaks, other_breaks = all_breaks[axis], all_breaks[1 - axis]
         other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: a middle one (poles are at ends)
-        kind = "identity" if approximated or identity else _kind(original, whole, axis, breaks, other_breaks, size)
+        kind = "identity" if approximated or identity else _kind(original, whole, axis, breaks, other_breaks, size,
+                                                                 periods[axis] > 0)
         fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
         if kind == "table":
             fmap.table = _table(original, whole, axis, breaks, other, size)
@@ -507,14 +514,14 @@ def _extract(bs) -> BSplineSurface:
     if bs.IsVPeriodic():
         bs.SetVNotPeriodic()
     nu, nv = bs.NbUPoles(), bs.NbVPoles()
-    points = np.empty((nu, nv, 3))
-    weights = np.empty((nu, nv))
     pole, weight = bs.Pole, bs.Weight
-    for i in range(nu):
-        for j in range(nv):
-            p = pole(i + 1, j + 1)
-            points[i, j] = p.X(), p.Y(), p.Z()
-            weights[i, j] = weight(i + 1, j + 1)
+    rows, cols = range(1, nu + 1), range(1, nv + 1)
+    points = np.array([c for i in rows for j in cols for p in (pole(i, j),) for c in (p.X(), p.Y(), p.Z())],
+                      dtype=np.float64).reshape(nu, nv, 3)
+    if bs.IsURational() or bs.IsVRational():
+        weights = np.array([weight(i, j) for i in rows for j in cols], dtype=np.float64).reshape(nu, nv)
+    else:
+        weights = np.ones((nu, nv))
     knots_u = flat_knots(bs.UKnot, bs.UMultiplicity, bs.NbUKnots())
     knots_v = flat_knots(bs.VKnot, bs.VMultiplicity, bs.NbVKnots())
     try:

@@ -31,6 +31,8 @@ becomes one or more :class:`~bsrt.trim.TrimLoop`, in steps:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...bspline import BSplineSurface, insert_knot
@@ -139,6 +141,7 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
     umin, umax, vmin, vmax = pmap.bounds
     scale = float(np.hypot(umax - umin, vmax - vmin))
     snap = 1e-6 * scale
+    periodic = bool(periods.any())
     out = [curves[0]]
     left = list(curves[1:])
     ordered = True
@@ -146,16 +149,17 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
         end = out[-1].ends()[1]
         if ordered:
             c = left.pop(0)
+            if periodic:
+                c = shifted(c, _nearest_shift(c.ends()[0], end, periods))
             start = c.ends()[0]
-            c = shifted(c, _nearest_shift(start, end, periods))
-            if np.hypot(*(c.ends()[0] - end)) > snap and _space_gap(original, c.ends()[0], end) > meet:
+            if _hypot(start - end) > snap and _space_gap(original, start, end) > meet:
                 ordered = False  # not in order along the wire: chain the rest greedily
                 left.insert(0, c)
                 continue
         else:
             c = _greedy_next(end, left, periods)
-        start = c.ends()[0]
-        if np.hypot(*(start - end)) > snap:
+            start = c.ends()[0]
+        if _hypot(start - end) > snap:
             if _space_gap(original, start, end) > meet:
                 raise TrimError(f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} "
                                 f"apart")
@@ -171,6 +175,12 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
             out.append(segment(last, first))
         return out, None
     raise TrimError(f"a wire does not close: its ends are {_space_gap(original, first, last):.3g} apart")
+
+
+def _hypot(d: np.ndarray) -> float:
+    """|d| of a (2,) vector (math.hypot: one call, no array)."""
+    x, y = d.tolist()
+    return math.hypot(x, y)
 
 
 def _greedy_next(end: np.ndarray, left: list[TrimCurve], periods: np.ndarray) -> TrimCurve:
@@ -290,21 +300,26 @@ def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
     """
     a0, a1, b0, b1 = domain
     span = np.array([a1 - a0, b1 - b0])
-    near = 1e-9 * span
-    push = 1e-9 * span
-    pts = [c.points.copy() for c in curves]
+    near = (1e-9 * span).tolist()
+    push = (1e-9 * span).tolist()
+    pts = [c.points for c in curves]
     moved = []
-    for p in pts:
+    for k, p in enumerate(pts):
         along = False
+        lows, highs = p.min(axis=0).tolist(), p.max(axis=0).tolist()
         for axis, (lo, hi) in enumerate(((a0, a1), (b0, b1))):
-            x = p[:, axis]
-            if np.all(np.abs(x - lo) <= near[axis]):
+            # every |x - lo| <= near: |x - lo| (rounded too) is largest at the smallest or the largest x
+            if abs(lows[axis] - lo) <= near[axis] and abs(highs[axis] - lo) <= near[axis]:
+                p = p.copy() if p is curves[k].points else p
                 p[:, axis], along = lo - push[axis], True
-            elif np.all(np.abs(x - hi) <= near[axis]):
+            elif abs(lows[axis] - hi) <= near[axis] and abs(highs[axis] - hi) <= near[axis]:
+                p = p.copy() if p is curves[k].points else p
                 p[:, axis], along = hi + push[axis], True
+        pts[k] = p
         moved.append(along)
     if not any(moved):
         return curves
+    pts = [p.copy() if p is c.points else p for p, c in zip(pts, curves)]
     n = len(pts)
     for i in range(n):  # a moved curve's ends carry its neighbours' ends along
         j = (i + 1) % n
@@ -340,12 +355,12 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     a0, a1, b0, b1 = domain
     eps = 1e-12 * np.hypot(a1 - a0, b1 - b0)  # a curve along the edge is inside, rounding aside
     p_all = curve.points
-    if (p_all[:, 0].min() >= a0 - eps and p_all[:, 0].max() <= a1 + eps and p_all[:, 1].min() >= b0 - eps
-            and p_all[:, 1].max() <= b1 + eps):
+    (x_lo, y_lo), (x_hi, y_hi) = p_all.min(axis=0).tolist(), p_all.max(axis=0).tolist()
+    if x_lo >= a0 - eps and x_hi <= a1 + eps and y_lo >= b0 - eps and y_hi <= b1 + eps:
         return curve  # the control points are inside: so is the curve (convex hull)
     near = 1e-9 * np.hypot(a1 - a0, b1 - b0)
-    if (p_all[:, 0].min() >= a0 - near and p_all[:, 0].max() <= a1 + near and p_all[:, 1].min() >= b0 - near
-            and p_all[:, 1].max() <= b1 + near):  # out by rounding of the bounds: onto the edge, moved <= that
+    if (x_lo >= a0 - near and x_hi <= a1 + near and y_lo >= b0 - near
+            and y_hi <= b1 + near):  # out by rounding of the bounds: onto the edge, moved <= that
         return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
