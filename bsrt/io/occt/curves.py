@@ -27,7 +27,7 @@ import numpy as np
 from ...bspline import BSplineSurface
 from ...errors import InputError
 from ...trim import TrimCurve, make_trim_curve
-from .surfaces import ParamMap, flat_knots
+from .surfaces import ParamMap, basis_values, flat_knots
 
 FIT_DEGREE = 7
 FIT_TOLERANCE = 1e-10  # fitted pcurves: largest 3-D error, as a fraction of the model's size
@@ -123,6 +123,46 @@ def _occ():
     return _OCC
 
 
+def curve_points(curve: TrimCurve, s) -> np.ndarray:
+    """(N, 2) points of the curve at parameters s (N,): TrimCurve.evaluate without the derivatives'
+    work (the same triangle of basis values)."""
+    s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+    p, n = curve.degree, curve.points.shape[0]
+    span, basis = basis_values(curve.knots, p, n, s)
+    index = (span - p)[:, None] + np.arange(p + 1)[None, :]
+    if curve.weights is None:
+        return np.einsum("na,nak->nk", basis, curve.points[index])
+    h = np.einsum("na,nak->nk", basis, curve.homogeneous()[index])
+    return h[:, :2] / h[:, 2:3]
+
+
+def evaluator(curve: TrimCurve):
+    """s (N,) -> (N, 2) points of the curve, for many calls on one curve: of a high degree, through its
+    Bezier pieces (extracted once; then a handful of NumPy calls per call whatever the degree), else
+    :func:`curve_points`."""
+    from ...bspline import _span_matrices
+
+    p, n = curve.degree, curve.points.shape[0]
+    if p < 4:
+        return lambda s: curve_points(curve, s)
+    matrices, spans = _span_matrices(curve.knots, n, p)
+    window = spans[:, None] - p + np.arange(p + 1)[None, :]
+    bezier = np.einsum("skj,sjc->skc", matrices, curve.homogeneous()[window])  # (S, p + 1, 3)
+    starts, ends = curve.knots[spans], curve.knots[spans + 1]
+    powers = np.arange(p + 1)
+    binomials = np.array([comb(p, int(k)) for k in powers], dtype=np.float64)
+
+    def points(s) -> np.ndarray:
+        s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+        k = np.minimum(np.maximum(np.searchsorted(starts, s, side="right") - 1, 0), starts.size - 1)
+        u = ((s - starts[k]) / (ends[k] - starts[k]))[:, None]
+        basis = binomials * u ** powers * (1.0 - u) ** (p - powers)
+        h = np.einsum("nk,nkc->nc", basis, bezier[k])
+        return h[:, :2] / h[:, 2:3]
+
+    return points
+
+
 def shifted(curve: TrimCurve, offset) -> TrimCurve:
     """The curve moved by ``offset`` (2,) in (u, v)."""
     if not np.any(offset):
@@ -185,15 +225,16 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
                 ends[:, axis] = fixed.mean()
                 return segment(*pmap.map(ends))
     t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
-    uv = curve.evaluate(t)
+    points = evaluator(curve)
+    uv = points(t)
     breaks = [np.array([t0, t1]), np.unique(curve.knots[(curve.knots > t0) & (curve.knots < t1)])]
     for axis, fmap in ((0, fu), (1, fv)):
         if fmap.kind == "identity":
             continue
         values = uv[:, axis]
         lines = _break_lines(fmap, float(values.min()), float(values.max()))
-        breaks.append(_crossings(curve, axis, lines, t, values))
-    return _fit(curve, pmap, np.unique(np.concatenate(breaks)), tolerance)
+        breaks.append(_crossings(points, axis, lines, t, values))
+    return _fit(points, pmap, np.unique(np.concatenate(breaks)), tolerance)
 
 
 def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
@@ -207,9 +248,9 @@ def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
     return t[(t > lo) & (t < hi)]
 
 
-def _crossings(curve: TrimCurve, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
-    """Curve parameters where coordinate ``axis`` equals one of ``lines`` (sign changes on the samples,
-    then bisection, all crossings at once). They only help the fit converge (its error is checked),
+def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Curve parameters where coordinate ``axis`` equals one of ``lines`` (``points``: the curve's
+    :func:`evaluator`; sign changes on the samples, then bisection, all crossings at once). They only help the fit converge (its error is checked),
     so a bracket of 1e-7 of a sample step is enough."""
     if lines.size == 0:
         return np.zeros(0)
@@ -223,7 +264,7 @@ def _crossings(curve: TrimCurve, axis: int, lines: np.ndarray, t: np.ndarray, sa
         if a.size == 0:
             break
         c = 0.5 * (a + b)
-        fc = curve.evaluate(c)[:, axis] - value
+        fc = points(c)[:, axis] - value
         left = (fc < 0) == (fa < 0)
         a = np.where(left, c, a)
         fa = np.where(left, fc, fa)
@@ -243,8 +284,9 @@ _CHECKS = (np.arange(24) + 0.5) / 24
 _AT_CHECKS = _bernstein(FIT_DEGREE, _CHECKS)
 
 
-def _fit(curve: TrimCurve, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
-    """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t))."""
+def _fit(points, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
+    """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t)) (``points``: the
+    curve's :func:`evaluator`)."""
     d = FIT_DEGREE
     todo = np.stack([breaks[:-1], breaks[1:]], axis=1)
     todo = todo[todo[:, 1] > todo[:, 0]]
@@ -256,10 +298,10 @@ def _fit(curve: TrimCurve, pmap: ParamMap, breaks: np.ndarray, tolerance) -> Tri
             break
         a, b = todo[:, :1], todo[:, 1:]
         nodes = (a + (b - a) * _NODES).ravel()
-        values = pmap.map(curve.evaluate(nodes)).reshape(-1, d + 1, 2)
+        values = pmap.map(points(nodes)).reshape(-1, d + 1, 2)
         ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
         checks = (a + (b - a) * _CHECKS).ravel()
-        want = pmap.map(curve.evaluate(checks)).reshape(-1, _CHECKS.size, 2)
+        want = pmap.map(points(checks)).reshape(-1, _CHECKS.size, 2)
         got = np.einsum("sk,pkc->psc", _AT_CHECKS, ctrl)
         error = (np.abs(got - want) / tol).max(axis=(1, 2))
         good = (error <= 1.0) | (rounds == _MAX_ROUNDS) | ((b - a)[:, 0] <= 1e-12 * length)

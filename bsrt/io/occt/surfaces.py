@@ -207,17 +207,17 @@ def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
     vals[:, 0] = 1.0
     left = [None] * (p + 1)
     right = [None] * (p + 1)
-    for j in range(1, p + 1):
-        left[j] = x - knots[span + 1 - j]
-        right[j] = knots[span + j] - x
-        saved = 0.0
-        for r in range(j):
-            denom = right[r + 1] + left[j - r]
-            with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j in range(1, p + 1):
+            left[j] = x - knots[span + 1 - j]
+            right[j] = knots[span + j] - x
+            saved = 0.0
+            for r in range(j):
+                denom = right[r + 1] + left[j - r]
                 temp = np.where(denom != 0, vals[:, r] / denom, 0.0)
-            vals[:, r] = saved + right[r + 1] * temp
-            saved = left[j - r] * temp
-        vals[:, j] = saved
+                vals[:, r] = saved + right[r + 1] * temp
+                saved = left[j - r] * temp
+            vals[:, j] = saved
     return span, vals
 
 
