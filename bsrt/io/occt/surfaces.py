@@ -205,6 +205,15 @@ def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
         return span, np.stack([1.0 - s, s], axis=1)
     vals = np.empty((x.shape[0], p + 1))
     vals[:, 0] = 1.0
+    vals = _triangle(knots, p, span, x, vals, False)
+    if not np.isfinite(vals).all():  # a zero denominator (an empty span: not in a valid clamped knot vector)
+        vals[:, 1:] = 0.0
+        vals[:, 0] = 1.0
+        vals = _triangle(knots, p, span, x, vals, True)  # (0 there, as bsrt.bspline.basis_functions)
+    return span, vals
+
+
+def _triangle(knots, p, span, x, vals, guard: bool) -> np.ndarray:
     left = [None] * (p + 1)
     right = [None] * (p + 1)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -214,18 +223,20 @@ def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
             saved = 0.0
             for r in range(j):
                 denom = right[r + 1] + left[j - r]
-                temp = np.where(denom != 0, vals[:, r] / denom, 0.0)
+                temp = vals[:, r] / denom
+                if guard:
+                    temp = np.where(denom != 0, temp, 0.0)
                 vals[:, r] = saved + right[r + 1] * temp
                 saved = left[j - r] * temp
             vals[:, j] = saved
-    return span, vals
+    return vals
 
 
 def _basis_matrix(knots: np.ndarray, p: int, n: int, x: np.ndarray) -> np.ndarray:
     """(N, n) float64: all n basis functions at x (zero off their support)."""
     span, vals = basis_values(knots, p, n, x)
     out = np.zeros((vals.shape[0], n))
-    np.put_along_axis(out, (span - p)[:, None] + np.arange(p + 1)[None, :], vals, axis=1)
+    out[np.arange(vals.shape[0])[:, None], (span - p)[:, None] + np.arange(p + 1)[None, :]] = vals
     return out
 
 
