@@ -347,7 +347,12 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
 def _keeps_parameters(original) -> bool:
     """Whether OpenCASCADE's conversion keeps both parameters as they are (a plane, a B-spline or Bezier
     surface, trimmed or not): their maps are the identity without testing (the deviation still checks)."""
-    from OCP.Geom import Geom_BezierSurface, Geom_BSplineSurface, Geom_Plane, Geom_RectangularTrimmedSurface
+    from OCP.Geom import (
+        Geom_BezierSurface,
+        Geom_BSplineSurface,
+        Geom_Plane,
+        Geom_RectangularTrimmedSurface,
+    )
 
     surface = original
     while isinstance(surface, Geom_RectangularTrimmedSurface):

@@ -37,7 +37,16 @@ import numpy as np
 
 from ...bspline import BSplineSurface, insert_knot
 from ...trim import TrimCurve, TrimLoop, point_outside
-from .curves import TrimError, curve_points, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
+from .curves import (
+    TrimError,
+    derivative_bounds,
+    evaluator,
+    map_curve,
+    pcurve,
+    reversed_curve,
+    segment,
+    shifted,
+)
 from .reading import cast
 from .surfaces import ParamMap
 
@@ -364,12 +373,13 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
+    curve_at = evaluator(curve)
 
     def inside(x):
-        uv = curve_points(curve, np.atleast_1d(x))
+        uv = curve_at(np.atleast_1d(x))
         return (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
 
-    uv = curve_points(curve, t)
+    uv = curve_at(t)
     state = (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
     k = np.flatnonzero(state[:-1] != state[1:])
     # each crossing is of one edge line, the one the outside sample is past: solve coordinate = line there
@@ -391,7 +401,7 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         with np.errstate(all="ignore"):
             m = b - fb * (b - a) / (fb - fa)
         m = np.where((m > a) & (m < b), m, 0.5 * (a + b))
-        fm = curve_points(curve, m)[np.arange(m.size), axis] - line
+        fm = curve_at(m)[np.arange(m.size), axis] - line
         better = np.abs(fm) < best_f
         best, best_f = np.where(better, m, best), np.where(better, np.abs(fm), best_f)
         right = np.sign(fm) == np.sign(fa)  # the crossing is in [m, b]: b kept, its value halved
