@@ -16,13 +16,18 @@ imports are done:
   OpenCASCADE modules bsrt's reader uses, and bsrt's reader modules, are
   imported before the clock starts (as OpenCASCADE's own are: with
   PYTHONDONTWRITEBYTECODE set, as on the development machines, importing
-  bsrt's readers would otherwise compile their source on every run); compiled kernels are loaded from numba's cache inside the call,
+  bsrt's readers would otherwise compile their source on every run; every module of
+  the ``bsrt.io`` package is imported, the IGES reader's helpers included, which
+  ``bsrt.io.iges`` imports on its first read); compiled kernels are loaded from numba's cache inside the call,
   as they are for a user's first load. ``--warm`` also times a second call
   in the same process.
 
 Prints the medians and the ratio bsrt / occ per file (the goal: at most 4),
 with the load average (``os.getloadavg()``) before and after: on a shared
-machine, compare ratios measured together, not seconds across runs.
+machine, compare ratios measured together, not seconds across runs. The
+``cpu`` column is the same ratio of the processes' CPU time
+(``time.process_time()``), which a loaded machine disturbs much less than the
+wall clock (both readers run on one thread).
 """
 
 from __future__ import annotations
@@ -48,7 +53,7 @@ OCC_CHILD = textwrap.dedent("""
     from OCP.BRepTools import BRepTools
     from OCP.BRep import BRep_Builder
     from OCP.TopoDS import TopoDS_Shape
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     if ext in ("brep", "brp"):
         shape = TopoDS_Shape()
         ok = BRepTools.Read_s(shape, path, BRep_Builder())
@@ -57,9 +62,10 @@ OCC_CHILD = textwrap.dedent("""
         ok = reader.ReadFile(path) == IFSelect_RetDone
         reader.TransferRoots()
         shape = reader.OneShape()
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     assert ok and not shape.IsNull(), "OpenCASCADE could not read the file"
     print("LOAD-SECONDS", seconds)
+    print("CPU-SECONDS", cpu)
 """)
 
 BSRT_CHILD = textwrap.dedent("""
@@ -68,6 +74,12 @@ BSRT_CHILD = textwrap.dedent("""
     import bsrt.io
     from bsrt.io import load_model
     import bsrt.io.iges, bsrt.io.cache  # the readers' modules: imported, not timed (as OpenCASCADE's are)
+    import importlib, pkgutil
+    for info in pkgutil.walk_packages(bsrt.io.__path__, "bsrt.io."):  # their helpers too (bsrt.io.iges.topology, ...)
+        try:
+            importlib.import_module(info.name)
+        except ImportError:
+            pass
     try:
         import bsrt.io.occt
         import OCP.STEPCAFControl, OCP.IGESCAFControl, OCP.XCAFPrs, OCP.XCAFDoc, OCP.XCAFApp, OCP.TDocStd
@@ -76,9 +88,10 @@ BSRT_CHILD = textwrap.dedent("""
     except ImportError:
         pass
     kwargs = {"cache": False} if "cache" in inspect.signature(load_model).parameters else {}
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     model = load_model(path, **kwargs)
     print("LOAD-SECONDS", time.perf_counter() - start)
+    print("CPU-SECONDS", time.process_time() - cpu)
     if warm:
         start = time.perf_counter()
         load_model(path, **kwargs)
@@ -109,6 +122,8 @@ def child(code: str, args: list[str], timeout: float) -> dict:
         words = line.split()
         if words and words[0] == "LOAD-SECONDS":
             out["seconds"] = float(words[1])
+        elif words and words[0] == "CPU-SECONDS":
+            out["cpu"] = float(words[1])
         elif words and words[0] == "WARM-SECONDS":
             out["warm"] = float(words[1])
         elif words and words[0] == "SURFACES":
@@ -131,11 +146,12 @@ def main(argv=None) -> int:
     files = collect(args.paths)
     before = os.getloadavg()
     print(f"load average before: {before[0]:.2f} {before[1]:.2f} {before[2]:.2f} ({os.cpu_count()} CPUs)")
-    print(f"{'file':40} {'occ s':>8} {'bsrt s':>8} {'ratio':>7}" + (f" {'warm s':>8}" if args.warm else "")
+    print(f"{'file':40} {'occ s':>8} {'bsrt s':>8} {'ratio':>7} {'cpu':>7}" + (f" {'warm s':>8}" if args.warm else "")
           + "  surfaces")
     results = []
     for path in files:
         occ, ours, warm, info, errors = [], [], [], {}, []
+        occ_cpu, ours_cpu = [], []
         for _ in range(args.repeat):
             a = child(OCC_CHILD, [str(path)], args.timeout)
             b = child(BSRT_CHILD, [str(path), "1" if args.warm else "0"], args.timeout)
@@ -144,10 +160,14 @@ def main(argv=None) -> int:
                     errors.append(r["error"])
                 else:
                     into.append(r["seconds"])
+            if "cpu" in a and "cpu" in b:
+                occ_cpu.append(a["cpu"])
+                ours_cpu.append(b["cpu"])
             if "warm" in b:
                 warm.append(b["warm"])
             info = {k: b[k] for k in ("surfaces", "untrimmed", "cache_keyword") if k in b} or info
-        r = {"file": str(path), "occ_s": occ, "bsrt_s": ours, "warm_s": warm, **info}
+        r = {"file": str(path), "occ_s": occ, "bsrt_s": ours, "warm_s": warm, "occ_cpu_s": occ_cpu,
+             "bsrt_cpu_s": ours_cpu, **info}
         if errors:
             r["errors"] = errors
         name = path.name[:40]
@@ -155,6 +175,11 @@ def main(argv=None) -> int:
             r["occ_median"], r["bsrt_median"] = statistics.median(occ), statistics.median(ours)
             r["ratio"] = r["bsrt_median"] / max(r["occ_median"], 1e-9)
             line = f"{name:40} {r['occ_median']:8.3f} {r['bsrt_median']:8.3f} {r['ratio']:7.1f}"
+            if occ_cpu:
+                r["cpu_ratio"] = statistics.median(ours_cpu) / max(statistics.median(occ_cpu), 1e-9)
+                line += f" {r['cpu_ratio']:7.1f}"
+            else:
+                line += f" {'-':>7}"
             if args.warm:
                 line += f" {statistics.median(warm):8.3f}" if warm else f" {'-':>8}"
             print(line + f"  {info.get('surfaces', '?')}", flush=True)
@@ -168,6 +193,11 @@ def main(argv=None) -> int:
         over = [Path(r["file"]).name for r in results if r.get("ratio", 0) > 4]
         print(f"ratio median {statistics.median(ratios):.1f}, max {max(ratios):.1f}; over 4x: "
               f"{len(over)} of {len(ratios)}" + (f" ({', '.join(over)})" if over else ""))
+        cpus = [r["cpu_ratio"] for r in results if "cpu_ratio" in r]
+        if cpus:
+            over = [Path(r["file"]).name for r in results if r.get("cpu_ratio", 0) > 4]
+            print(f"cpu ratio median {statistics.median(cpus):.1f}, max {max(cpus):.1f}; over 4x: "
+                  f"{len(over)} of {len(cpus)}" + (f" ({', '.join(over)})" if over else ""))
     if args.json:
         Path(args.json).write_text(json.dumps({"load_average_before": before, "load_average_after": after,
                                                "repeat": args.repeat, "files": results}, indent=1))

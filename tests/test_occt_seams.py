@@ -966,7 +966,7 @@ def test_chains_once_round_are_closed_into_the_band_between_them(flip):
     chains start; reversed (flip: the face outside the band) they keep the rest."""
     from bsrt.geometry.bspline import make_surface
     from bsrt.io.occt.curves import segment
-    from bsrt.io.occt.surfaces import AxisMap, ParamMap
+    from bsrt.io.occt.param_map import AxisMap, ParamMap
     from bsrt.io.occt.topology import _close, _closed_around
     from bsrt.geometry.trim import TrimLoop, kept
 

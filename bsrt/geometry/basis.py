@@ -73,3 +73,52 @@ def insert_knot(knots: np.ndarray, ctrl: np.ndarray, p: int, x: float):
         a = (x - knots[i]) / denom if denom != 0 else 0.0
         new[i] = a * ctrl[i] + (1.0 - a) * ctrl[i - 1]
     return np.insert(knots, k + 1, x), new
+
+
+def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
+    """(span (N,), values (N, p + 1)): the non-zero basis functions at x, values only (Cox-de Boor's
+    triangle, as :func:`bsrt.geometry.bspline.basis_functions`, without the derivatives); spans clamped to
+    [p, n - 1] as :func:`bsrt.geometry.bspline.find_span` does (outside the domain the end spans extend)."""
+    x = np.asarray(x, dtype=np.float64)
+    span = np.minimum(np.maximum(np.searchsorted(knots, x, side="right") - 1, p), n - 1)
+    if p == 1:  # (planes, lines): the two hat functions
+        a, b = knots[span], knots[span + 1]
+        d = b - a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(d != 0, (x - a) / d, 0.0)
+        return span, np.stack([1.0 - s, s], axis=1)
+    vals = np.empty((x.shape[0], p + 1))
+    vals[:, 0] = 1.0
+    vals = _triangle(knots, p, span, x, vals, False)
+    if not np.isfinite(vals).all():  # a zero denominator (an empty span: not in a valid clamped knot vector)
+        vals[:, 1:] = 0.0
+        vals[:, 0] = 1.0
+        vals = _triangle(knots, p, span, x, vals, True)  # (0 there, as bsrt.geometry.bspline.basis_functions)
+    return span, vals
+
+
+def _triangle(knots, p, span, x, vals, guard: bool) -> np.ndarray:
+    left = [None] * (p + 1)
+    right = [None] * (p + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for j in range(1, p + 1):
+            left[j] = x - knots[span + 1 - j]
+            right[j] = knots[span + j] - x
+            saved = 0.0
+            for r in range(j):
+                denom = right[r + 1] + left[j - r]
+                temp = vals[:, r] / denom
+                if guard:
+                    temp = np.where(denom != 0, temp, 0.0)
+                vals[:, r] = saved + right[r + 1] * temp
+                saved = left[j - r] * temp
+            vals[:, j] = saved
+    return vals
+
+
+def basis_matrix(knots: np.ndarray, p: int, n: int, x: np.ndarray) -> np.ndarray:
+    """(N, n) float64: all n basis functions at x (zero off their support)."""
+    span, vals = basis_values(knots, p, n, x)
+    out = np.zeros((vals.shape[0], n))
+    out[np.arange(vals.shape[0])[:, None], (span - p)[:, None] + np.arange(p + 1)[None, :]] = vals
+    return out

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.geometry.basis import basis_functions, find_span, insert_knot  # noqa: F401  (re-exported: the readers')
+from bsrt.geometry.basis import basis_functions, basis_matrix, find_span, insert_knot  # noqa: F401  (re-exported: the readers')
 from bsrt.errors import InputError
 
 
@@ -319,3 +319,17 @@ def restrict(surface: BSplineSurface, range_u, range_v) -> BSplineSurface:
     with np.errstate(all="ignore"):  # extreme weights give non-finite points, which make_surface reports
         pts = ctrl[..., :3] / w[..., None]
     return make_surface(surface.degree, knots[0], knots[1], pts, weights)
+
+
+def grid_points(surface: BSplineSurface, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(len(x), len(y), 3) float64: the surface's points at the grid x[i], y[j] (values outside the
+    domain extend the end spans, as :func:`bsrt.geometry.bspline.evaluate`)."""
+    (p, q), (nu, nv) = surface.degree, surface.shape
+    bu = basis_matrix(surface.knots_u, p, nu, np.atleast_1d(x))
+    bv = basis_matrix(surface.knots_v, q, nv, np.atleast_1d(y))
+    if surface.weights is None:
+        h = (bu @ surface.points.reshape(nu, nv * 3)).reshape(-1, nv, 3)
+        return np.einsum("avk,bv->abk", h, bv)
+    h = (bu @ surface.homogeneous().reshape(nu, nv * 4)).reshape(-1, nv, 4)
+    h = np.einsum("avk,bv->abk", h, bv)
+    return h[..., :3] / h[..., 3:4]

@@ -33,17 +33,14 @@ import numpy as np
 from bsrt.geometry.bspline import BSplineSurface
 from bsrt.errors import InputError
 from bsrt.files import check_input_file
+from bsrt.io.formats import READERS
 from bsrt.io.occt.curves import TrimError
 from bsrt.io.occt.reading import ShapeKey, cast, count_free_edges, diagonal, faces, read_leaves
 from bsrt.io.occt.surfaces import EXACT_TOLERANCE, FaceError, convert_surface
 from bsrt.io.occt.topology import face_loops
 
-#: format name -> the extensions it reads (lower case, with the dot)
-EXTENSIONS = {
-    "step": (".step", ".stp", ".p21"),
-    "brep": (".brep", ".brp"),
-    "iges": (".igs", ".iges"),
-}
+#: kind -> the extensions OpenCASCADE reads it from (the reader registry's; IGES is bsrt's own "iges" format)
+EXTENSIONS = {kind: READERS[kind].extensions for kind in ("step", "brep", "iges")}
 
 _WHAT = {"step": "STEP", "brep": "BREP", "iges": "IGES with format 'occt'"}
 
@@ -114,7 +111,15 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
     except (TrimError, InputError) as e:
         info.untrimmed_reason = str(e)
         surface = local
+    if trsf.Form() == _identity_form():  # (a no-op: skipped)
+        return surface, info
     return surface.transformed(matrix(trsf)), info
+
+
+def _identity_form():
+    from OCP.gp import gp_TrsfForm
+
+    return gp_TrsfForm.gp_Identity
 
 
 def matrix(trsf) -> np.ndarray:

@@ -27,7 +27,9 @@ import numpy as np
 from bsrt.geometry.bspline import BSplineSurface
 from bsrt.errors import InputError
 from bsrt.geometry.trim import TrimCurve, make_trim_curve
-from bsrt.io.occt.surfaces import ParamMap, flat_knots
+from bsrt.geometry.basis import basis_values
+from bsrt.io.occt.param_map import ParamMap
+from bsrt.io.occt.surfaces import flat_knots
 
 FIT_DEGREE = 7
 FIT_TOLERANCE = 1e-10  # fitted pcurves: largest 3-D error, as a fraction of the model's size
@@ -40,17 +42,27 @@ class TrimError(Exception):
 
 def pcurve(edge, face) -> TrimCurve | None:
     """The edge's curve on the face, in the original (u, v), along the edge's direction; None for an empty range."""
-    from OCP.BRep import BRep_Tool
-    from OCP.Geom2d import Geom2d_TrimmedCurve
-    from OCP.Geom2dConvert import Geom2dConvert
-    from OCP.TopAbs import TopAbs_REVERSED
-
-    curve = BRep_Tool.CurveOnSurface_s(edge, face, 0.0, 0.0)
+    occ = _occ()
+    curve = occ.CurveOnSurface(edge, face, 0.0, 0.0)
     if curve is None:
         raise TrimError("an edge has no curve on the face")
-    first, last = BRep_Tool.Range_s(edge, face)
+    first, last = occ.Range(edge, face)
     if not first < last:
         return None
+    reverse = edge.Orientation() == occ.REVERSED
+    if type(curve) is occ.Line:
+        # Geom2dConvert makes a line from first to last the degree-1 B-spline through its ends (poles
+        # Value(first), Value(last), knots first, first, last, last): built here as it would be
+        a, b = curve.Value(first), curve.Value(last)
+        points = np.array([[a.X(), a.Y()], [b.X(), b.Y()]])
+        knots = np.array([first, first, last, last], dtype=np.float64)
+        if reverse:
+            points, knots = points[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
+        if np.isfinite(points.sum()):
+            points.setflags(write=False)
+            knots.setflags(write=False)
+            return TrimCurve(1, knots, points)
+    Geom2dConvert, Geom2d_TrimmedCurve = occ.Geom2dConvert, occ.TrimmedCurve
     try:
         bc = Geom2dConvert.CurveToBSplineCurve_s(Geom2d_TrimmedCurve(curve, first, last))
     except Exception as e:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
@@ -59,19 +71,98 @@ def pcurve(edge, face) -> TrimCurve | None:
         bc.SetNotPeriodic()
     n = bc.NbPoles()
     pole, weight = bc.Pole, bc.Weight
-    points = np.empty((n, 2))
-    weights = np.empty(n)
-    for i in range(n):
-        p = pole(i + 1)
-        points[i] = p.X(), p.Y()
-        weights[i] = weight(i + 1)
+    points = np.array([c for p in map(pole, range(1, n + 1)) for c in (p.X(), p.Y())], dtype=np.float64).reshape(n, 2)
+    weights = np.array(list(map(weight, range(1, n + 1))), dtype=np.float64) if bc.IsRational() else np.ones(n)
     knots = flat_knots(bc.Knot, bc.Multiplicity, bc.NbKnots())
-    if edge.Orientation() == TopAbs_REVERSED:
-        points, weights, knots = points[::-1], weights[::-1], (knots[0] + knots[-1]) - knots[::-1]
-    try:
-        return make_trim_curve(bc.Degree(), knots, points, None if np.all(weights == 1.0) else weights)
-    except InputError as e:
-        raise TrimError(f"a pcurve is invalid ({e})") from None
+    if reverse:
+        points, weights, knots = points[::-1].copy(), weights[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
+    degree = bc.Degree()
+    why = _invalid(degree, knots, points, weights)
+    if why:  # make_trim_curve's checks decide (and give the message)
+        try:
+            return make_trim_curve(degree, knots, points, None if np.all(weights == 1.0) else weights)
+        except InputError as e:
+            raise TrimError(f"a pcurve is invalid ({e})") from None
+    rational = bool(np.any(weights != 1.0))
+    for a in (knots, points) + ((weights,) if rational else ()):
+        a.setflags(write=False)
+    return TrimCurve(degree, knots, points, weights if rational else None)
+
+
+def _invalid(p: int, knots: np.ndarray, points: np.ndarray, weights: np.ndarray) -> str:
+    """"" when the pcurve passes make_trim_curve's checks (done here in a few NumPy calls), else
+    roughly why not (make_trim_curve then decides, and says why)."""
+    n = points.shape[0]
+    if p < 1 or n < p + 1 or knots.size != n + p + 1:
+        return "its degree, knots and points do not fit together"
+    if not np.isfinite(points.sum() + knots.sum() + weights.sum()):  # (a sum that overflows: checked in full)
+        return "a non-finite number"
+    if (knots[1:] < knots[:-1]).any() or not knots[p] < knots[n] or weights.min() <= 0:
+        return "decreasing knots, an empty domain or a weight <= 0"
+    inner = knots[(knots > knots[p]) & (knots < knots[n])]
+    if inner.size > p and np.any(inner[p:] == inner[:-p]):  # sorted: p + 1 equal values in a row
+        return "an interior knot repeated more than the degree"
+    return ""
+
+
+_OCC = None
+
+
+def _occ():
+    """The OpenCASCADE names pcurve uses (imported once)."""
+    global _OCC
+    if _OCC is None:
+        from types import SimpleNamespace
+
+        from OCP.BRep import BRep_Tool
+        from OCP.Geom2d import Geom2d_Line, Geom2d_TrimmedCurve
+        from OCP.Geom2dConvert import Geom2dConvert
+        from OCP.TopAbs import TopAbs_REVERSED
+
+        _OCC = SimpleNamespace(CurveOnSurface=BRep_Tool.CurveOnSurface_s, Range=BRep_Tool.Range_s,
+                               Line=Geom2d_Line, TrimmedCurve=Geom2d_TrimmedCurve, Geom2dConvert=Geom2dConvert,
+                               REVERSED=TopAbs_REVERSED)
+    return _OCC
+
+
+def curve_points(curve: TrimCurve, s) -> np.ndarray:
+    """(N, 2) points of the curve at parameters s (N,): TrimCurve.evaluate without the derivatives'
+    work (the same triangle of basis values)."""
+    s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+    p, n = curve.degree, curve.points.shape[0]
+    span, basis = basis_values(curve.knots, p, n, s)
+    index = (span - p)[:, None] + np.arange(p + 1)[None, :]
+    if curve.weights is None:
+        return np.einsum("na,nak->nk", basis, curve.points[index])
+    h = np.einsum("na,nak->nk", basis, curve.homogeneous()[index])
+    return h[:, :2] / h[:, 2:3]
+
+
+def evaluator(curve: TrimCurve):
+    """s (N,) -> (N, 2) points of the curve, for many calls on one curve: of a high degree, through its
+    Bezier pieces (extracted once; then a handful of NumPy calls per call whatever the degree), else
+    :func:`curve_points`."""
+    from bsrt.geometry.bspline import _span_matrices
+
+    p, n = curve.degree, curve.points.shape[0]
+    if p < 4:
+        return lambda s: curve_points(curve, s)
+    matrices, spans = _span_matrices(curve.knots, n, p)
+    window = spans[:, None] - p + np.arange(p + 1)[None, :]
+    bezier = np.einsum("skj,sjc->skc", matrices, curve.homogeneous()[window])  # (S, p + 1, 3)
+    starts, ends = curve.knots[spans], curve.knots[spans + 1]
+    powers = np.arange(p + 1)
+    binomials = np.array([comb(p, int(k)) for k in powers], dtype=np.float64)
+
+    def points(s) -> np.ndarray:
+        s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+        k = np.minimum(np.maximum(np.searchsorted(starts, s, side="right") - 1, 0), starts.size - 1)
+        u = ((s - starts[k]) / (ends[k] - starts[k]))[:, None]
+        basis = binomials * u ** powers * (1.0 - u) ** (p - powers)
+        h = np.einsum("nk,nkc->nc", basis, bezier[k])
+        return h[:, :2] / h[:, 2:3]
+
+    return points
 
 
 def shifted(curve: TrimCurve, offset) -> TrimCurve:
@@ -123,25 +214,29 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
     if fu.kind == "identity" and fv.kind == "identity":
         return shifted(curve, (fu.shift, fv.shift))
     t0, t1 = curve.domain
-    spans = np.array([pmap.bounds[1] - pmap.bounds[0], pmap.bounds[3] - pmap.bounds[2]])
+    spans = (pmap.bounds[1] - pmap.bounds[0], pmap.bounds[3] - pmap.bounds[2])
+    lows, highs = curve.points.min(axis=0).tolist(), curve.points.max(axis=0).tolist()
     for axis in (0, 1):  # an iso-line (axis fixed): a straight segment, exactly
         # read from the control points: a coordinate is constant exactly when all its control values are
         # (positive weights), and a monotone control polygon makes a monotone curve (variation diminishing)
-        fixed, moving = curve.points[:, axis], curve.points[:, 1 - axis]
-        if np.ptp(fixed) <= 1e-13 * spans[axis] and (np.all(np.diff(moving) >= 0) or np.all(np.diff(moving) <= 0)):
-            ends = curve.ends()
-            ends[:, axis] = fixed.mean()
-            return segment(*pmap.map(ends))
+        if highs[axis] - lows[axis] <= 1e-13 * spans[axis]:
+            fixed, moving = curve.points[:, axis], curve.points[:, 1 - axis]
+            steps = moving[1:] - moving[:-1]
+            if (steps >= 0).all() or (steps <= 0).all():
+                ends = curve.ends()
+                ends[:, axis] = fixed.mean()
+                return segment(*pmap.map(ends))
     t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
-    uv = curve.evaluate(t)
+    points = evaluator(curve)
+    uv = points(t)
     breaks = [np.array([t0, t1]), np.unique(curve.knots[(curve.knots > t0) & (curve.knots < t1)])]
     for axis, fmap in ((0, fu), (1, fv)):
         if fmap.kind == "identity":
             continue
         values = uv[:, axis]
         lines = _break_lines(fmap, float(values.min()), float(values.max()))
-        breaks.append(_crossings(curve, axis, lines, t, values))
-    return _fit(curve, pmap, np.unique(np.concatenate(breaks)), tolerance)
+        breaks.append(_crossings(points, axis, lines, t, values))
+    return _fit(points, pmap, np.unique(np.concatenate(breaks)), tolerance)
 
 
 def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
@@ -155,9 +250,9 @@ def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
     return t[(t > lo) & (t < hi)]
 
 
-def _crossings(curve: TrimCurve, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
-    """Curve parameters where coordinate ``axis`` equals one of ``lines`` (sign changes on the samples,
-    then bisection, all crossings at once). They only help the fit converge (its error is checked),
+def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """Curve parameters where coordinate ``axis`` equals one of ``lines`` (``points``: the curve's
+    :func:`evaluator`; sign changes on the samples, then bisection, all crossings at once). They only help the fit converge (its error is checked),
     so a bracket of 1e-7 of a sample step is enough."""
     if lines.size == 0:
         return np.zeros(0)
@@ -171,7 +266,7 @@ def _crossings(curve: TrimCurve, axis: int, lines: np.ndarray, t: np.ndarray, sa
         if a.size == 0:
             break
         c = 0.5 * (a + b)
-        fc = curve.evaluate(c)[:, axis] - value
+        fc = points(c)[:, axis] - value
         left = (fc < 0) == (fa < 0)
         a = np.where(left, c, a)
         fa = np.where(left, fc, fa)
@@ -191,8 +286,9 @@ _CHECKS = (np.arange(24) + 0.5) / 24
 _AT_CHECKS = _bernstein(FIT_DEGREE, _CHECKS)
 
 
-def _fit(curve: TrimCurve, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
-    """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t))."""
+def _fit(points, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
+    """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t)) (``points``: the
+    curve's :func:`evaluator`)."""
     d = FIT_DEGREE
     todo = np.stack([breaks[:-1], breaks[1:]], axis=1)
     todo = todo[todo[:, 1] > todo[:, 0]]
@@ -204,10 +300,10 @@ def _fit(curve: TrimCurve, pmap: ParamMap, breaks: np.ndarray, tolerance) -> Tri
             break
         a, b = todo[:, :1], todo[:, 1:]
         nodes = (a + (b - a) * _NODES).ravel()
-        values = pmap.map(curve.evaluate(nodes)).reshape(-1, d + 1, 2)
+        values = pmap.map(points(nodes)).reshape(-1, d + 1, 2)
         ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
         checks = (a + (b - a) * _CHECKS).ravel()
-        want = pmap.map(curve.evaluate(checks)).reshape(-1, _CHECKS.size, 2)
+        want = pmap.map(points(checks)).reshape(-1, _CHECKS.size, 2)
         got = np.einsum("sk,pkc->psc", _AT_CHECKS, ctrl)
         error = (np.abs(got - want) / tol).max(axis=(1, 2))
         good = (error <= 1.0) | (rounds == _MAX_ROUNDS) | ((b - a)[:, 0] <= 1e-12 * length)

@@ -256,11 +256,17 @@ def count_free_edges(shape) -> int:
     return n
 
 
+_CASTS: dict = {}
+
+
 def cast(kind: str, shape):
     """TopoDS.Face(shape) (OCCT 8) or TopoDS.Face_s(shape) (OCCT 7)."""
-    from OCP.TopoDS import TopoDS
+    f = _CASTS.get(kind)
+    if f is None:
+        from OCP.TopoDS import TopoDS
 
-    return (getattr(TopoDS, kind, None) or getattr(TopoDS, kind + "_s"))(shape)
+        f = _CASTS[kind] = getattr(TopoDS, kind, None) or getattr(TopoDS, kind + "_s")
+    return f(shape)
 
 
 def diagonal(leaves) -> float:

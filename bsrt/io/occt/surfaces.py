@@ -43,17 +43,16 @@ outside the face's bounds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, evaluate, insert_knot, make_surface
+from bsrt.geometry.bspline import BSplineSurface, grid_points, insert_knot, make_surface
 from bsrt.errors import InputError
 from bsrt.io.invert import invert
+from bsrt.io.occt.param_map import _TABLE_NODES, AxisMap, ParamMap, _chebyshev_lobatto
 
 EXACT_TOLERANCE = 1e-9  # the conversion counts as exact below this, as a fraction of the model's size
 OFFSET_TOLERANCE = 1e-8  # approximated offsets: the requested tolerance, as a fraction of the model's size
-_TABLE_NODES = 17  # Chebyshev-Lobatto points per span of a tabulated map
 
 
 class FaceError(Exception):
@@ -64,153 +63,26 @@ class FaceError(Exception):
 # One direction's map
 
 
-@dataclass
-class AxisMap:
-    """x = f(t): one direction's increasing map from the original parameter t to the B-spline's x.
-
-    kind: "identity", "arc" or "table" (see the module doc).
-    breaks: (K,) float64, the B-spline's distinct knots in this direction
-      (before any rotation), the ends of the spans of f.
-    period: the B-spline's period in x (0 when it is not periodic); f is
-      extended by f(t + period) = f(t) + period.
-    shift: added to t before the spans are looked up (a whole number of
-      the original surface's periods).
-    table: for kind "table", (K - 1, N) t-values and (K - 1, N) x-values of
-      the Chebyshev-Lobatto points of each span; else None.
-    """
-
-    kind: str
-    breaks: np.ndarray
-    period: float = 0.0
-    shift: float = 0.0
-    table: tuple[np.ndarray, np.ndarray] | None = None
-
-    def __call__(self, t) -> np.ndarray:
-        """(N,) x of (N,) t."""
-        t = np.asarray(t, dtype=np.float64) + self.shift
-        if self.kind == "identity":
-            return t.copy()
-        b = self.breaks
-        if self.table is not None:
-            ends = self.table[0][:, 0]
-            lo = ends[0]
-            span_source = np.append(ends, self.table[0][-1, -1])
-        else:
-            lo = b[0]
-            span_source = b
-        wraps = np.zeros_like(t)
-        if self.period > 0:
-            wraps = np.floor((t - lo) / self.period)
-            t = t - wraps * self.period
-        span = np.clip(np.searchsorted(span_source, t, side="right") - 1, 0, b.size - 2)
-        if self.kind == "arc":
-            h = b[span + 1] - b[span]
-            m = 0.5 * (b[span] + b[span + 1])
-            x = b[span] + 0.5 * h * (1.0 + np.tan(0.5 * (t - m)) / np.tan(0.25 * h))
-        else:
-            x = _barycentric(self.table[0][span], self.table[1][span], t)
-        return x + wraps * self.period
-
-    def inverse(self, x) -> np.ndarray:
-        """(N,) t of (N,) x: f's inverse."""
-        x = np.asarray(x, dtype=np.float64)
-        if self.kind == "identity":
-            return x - self.shift
-        b = self.breaks
-        wraps = np.zeros_like(x)
-        if self.period > 0:
-            wraps = np.floor((x - b[0]) / self.period)
-            x = x - wraps * self.period
-        span = np.clip(np.searchsorted(b, x, side="right") - 1, 0, b.size - 2)
-        if self.kind == "arc":
-            h = b[span + 1] - b[span]
-            m = 0.5 * (b[span] + b[span + 1])
-            s = (x - b[span]) / h
-            t = m + 2.0 * np.arctan((2.0 * s - 1.0) * np.tan(0.25 * h))
-        else:
-            t = _barycentric(self.table[1][span], self.table[0][span], x)
-        return t + wraps * self.period - self.shift
-
-
-def _chebyshev_lobatto(a, b, n: int) -> np.ndarray:
-    """(..., n) Chebyshev-Lobatto points from a to b (increasing)."""
-    s = 0.5 - 0.5 * np.cos(np.pi * np.arange(n) / (n - 1))
-    return np.asarray(a)[..., None] + (np.asarray(b) - np.asarray(a))[..., None] * s
-
-
-def _barycentric(nodes: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Interpolate values (N, n) given at Chebyshev-Lobatto nodes (N, n) at t (N,) (barycentric formula)."""
-    n = nodes.shape[1]
-    w = (-1.0) ** np.arange(n)
-    w[0] *= 0.5
-    w[-1] *= 0.5
-    d = t[:, None] - nodes
-    exact = d == 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        c = w / d
-        out = (c * values).sum(axis=1) / c.sum(axis=1)
-    hit = exact.any(axis=1)
-    if hit.any():
-        out[hit] = values[hit][exact[hit]]
-    return out
-
-
-# ---------------------------------------------------------------------------
-# The whole map
-
-
-@dataclass
-class ParamMap:
-    """The map (u, v) -> (x, y) from the original surface's parameters to the B-spline's.
-
-    fu, fv: the two directions' maps. bounds: the face's (umin, umax, vmin,
-    vmax) in the original parameters. u_period, v_period: the original
-    surface's periods (0 where not periodic). deviation: the largest distance
-    (local units) between the original surface at (u, v) and the B-spline at
-    the mapped (x, y), on a grid over the bounds (for an approximated offset,
-    at least the approximation's own error). approximated: the B-spline
-    approximates an offset of a free-form surface. identity: both maps are
-    the identity (planes, B-splines): the pcurves are used as they are.
-    """
-
-    fu: AxisMap
-    fv: AxisMap
-    bounds: tuple[float, float, float, float]
-    u_period: float
-    v_period: float
-    deviation: float = 0.0
-    approximated: bool = False
-
-    @property
-    def identity(self) -> bool:
-        return self.fu.kind == "identity" and self.fv.kind == "identity" and not self.fu.shift and not self.fv.shift
-
-    def map(self, uv: np.ndarray) -> np.ndarray:
-        """(N, 2) original (u, v) -> (N, 2) B-spline (x, y)."""
-        return np.stack([self.fu(uv[:, 0]), self.fv(uv[:, 1])], axis=1)
-
-
 def _points(original, u, v) -> np.ndarray:
     """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
-    out = np.empty((len(u), 3))
     value = original.Value
-    for k, (a, b) in enumerate(zip(np.asarray(u, float).tolist(), np.asarray(v, float).tolist())):
-        p = value(a, b)
-        out[k] = p.X(), p.Y(), p.Z()
-    return out
+    coords = [c for p in map(value, np.asarray(u, float).tolist(), np.asarray(v, float).tolist())
+              for c in (p.X(), p.Y(), p.Z())]
+    return np.array(coords, dtype=np.float64).reshape(-1, 3)
 
 
 def _breaks(knots: np.ndarray, degree: int, n: int) -> np.ndarray:
-    k = knots[degree: n + 1]
-    return np.unique(k)
+    k = knots[degree: n + 1]  # sorted: the distinct values are where it steps
+    return k[np.concatenate([[True], k[1:] != k[:-1]])]
 
 
-def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others: np.ndarray, size: float) -> str:
+def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others: np.ndarray, size: float,
+          arc_first: bool = False) -> str:
     """"identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
 
     Tested on the iso-lines of the other direction's knots (where its own
     parameter is unchanged), all of them: one may be degenerate (a pole),
-    where any model fits.
+    where any model fits. arc_first: test "arc" before "identity" (a periodic direction's likelier kind).
     """
     s = np.array([0.23, 0.71])
     x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
@@ -218,9 +90,12 @@ def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others
     m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
     ss = np.tile(s, breaks.size - 1)
     candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
+    if arc_first:  # (the same tests, the likelier first)
+        candidates = {"arc": candidates["arc"], "identity": x}
     y = np.repeat(others, x.size)
-    x_all = np.tile(x, others.size)
-    got = evaluate(whole, *((x_all, y) if axis == 0 else (y, x_all)))[0]
+    # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
+    got = (grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x))
+    got = got.reshape(-1, 3)
     tol = EXACT_TOLERANCE * size
     for kind, t in candidates.items():
         t_all = np.tile(t, others.size)
@@ -236,9 +111,7 @@ def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other
     from OCP.gp import gp_Pnt
     from OCP.ShapeAnalysis import ShapeAnalysis_Surface
 
-    y = np.full(breaks.size, other)
-    xy = (breaks, y) if axis == 0 else (y, breaks)
-    pts = evaluate(whole, *xy)[0]
+    pts = grid_points(whole, breaks, [other])[:, 0] if axis == 0 else grid_points(whole, [other], breaks)[0]
     analysis = ShapeAnalysis_Surface(original)
     t_breaks = np.empty(breaks.size)
     for k, p in enumerate(pts):
@@ -269,8 +142,37 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
     one period long in a periodic direction). size: the model's size in
     local units (the scale of the tolerances). Raises FaceError.
     """
-    umin, umax, vmin, vmax = bounds
     bs, approx_error = _to_bspline(original, bounds, size)
+    try:
+        return _converted(original, bounds, size, bs, approx_error, _keeps_parameters(original))
+    except FaceError:
+        if approx_error is not None or not _keeps_parameters(original):
+            raise
+    # (not expected: a plane's or B-spline's conversion keeps its parameters) test the maps after all
+    bs, approx_error = _to_bspline(original, bounds, size)
+    return _converted(original, bounds, size, bs, approx_error, False)
+
+
+def _keeps_parameters(original) -> bool:
+    """Whether OpenCASCADE's conversion keeps both parameters as they are (a plane, a B-spline or Bezier
+    surface, trimmed or not): their maps are the identity without testing (the deviation still checks)."""
+    from OCP.Geom import (
+        Geom_BezierSurface,
+        Geom_BSplineSurface,
+        Geom_Plane,
+        Geom_RectangularTrimmedSurface,
+    )
+
+    surface = original
+    while isinstance(surface, Geom_RectangularTrimmedSurface):
+        surface = surface.BasisSurface()
+    return isinstance(surface, (Geom_Plane, Geom_BSplineSurface, Geom_BezierSurface))
+
+
+def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
+    """convert_surface's work on OpenCASCADE's B-spline ``bs``; identity: take both maps to be the
+    identity (else each direction's kind is tested)."""
+    umin, umax, vmin, vmax = bounds
     approximated = approx_error is not None
     periodic = (bool(bs.IsUPeriodic()), bool(bs.IsVPeriodic()))
     whole = _extract(bs)
@@ -278,14 +180,13 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Para
                original.VPeriod() if original.IsVPeriodic() else 0.0)
     maps = []
     doms = (whole.domain_u, whole.domain_v)
+    all_breaks = (_breaks(whole.knots_u, whole.degree[0], whole.shape[0]),
+                  _breaks(whole.knots_v, whole.degree[1], whole.shape[1]))
     for axis in (0, 1):
-        p, n = whole.degree[axis], whole.shape[axis]
-        knots = whole.knots_u if axis == 0 else whole.knots_v
-        breaks = _breaks(knots, p, n)
-        other_breaks = _breaks(*((whole.knots_v, whole.degree[1], whole.shape[1]) if axis == 0 else
-                                 (whole.knots_u, whole.degree[0], whole.shape[0])))
+        breaks, other_breaks = all_breaks[axis], all_breaks[1 - axis]
         other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: a middle one (poles are at ends)
-        kind = "identity" if approximated else _kind(original, whole, axis, breaks, other_breaks, size)
+        kind = "identity" if approximated or identity else _kind(original, whole, axis, breaks, other_breaks, size,
+                                                                 periods[axis] > 0)
         fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
         if kind == "table":
             fmap.table = _table(original, whole, axis, breaks, other, size)
@@ -421,14 +322,13 @@ def _deviation(original, local: BSplineSurface, pmap: ParamMap) -> float:
     """The largest distance between the original surface and the B-spline at mapped points of a grid."""
     umin, umax, vmin, vmax = pmap.bounds
     fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])
-    uu, vv = np.meshgrid(umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin), indexing="ij")
-    uv = np.stack([uu.ravel(), vv.ravel()], axis=1)
-    xy = pmap.map(uv)
-    (a0, a1), (b0, b1) = local.domain_u, local.domain_v
-    xy[:, 0] = np.clip(xy[:, 0], a0, a1)
-    xy[:, 1] = np.clip(xy[:, 1], b0, b1)
-    want = _points(original, uv[:, 0], uv[:, 1])
-    got = evaluate(local, xy[:, 0], xy[:, 1])[0]
+    us, vs = umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin)
+    uu, vv = np.meshgrid(us, vs, indexing="ij")
+    # the map is separable: the grid's (x, y) is the grid of f(u) and g(v)
+    x = np.clip(pmap.fu(us), *local.domain_u)
+    y = np.clip(pmap.fv(vs), *local.domain_v)
+    want = _points(original, uu.ravel(), vv.ravel())
+    got = grid_points(local, x, y).reshape(-1, 3)
     return float(np.max(np.linalg.norm(got - want, axis=1)))
 
 
@@ -439,14 +339,14 @@ def _extract(bs) -> BSplineSurface:
     if bs.IsVPeriodic():
         bs.SetVNotPeriodic()
     nu, nv = bs.NbUPoles(), bs.NbVPoles()
-    points = np.empty((nu, nv, 3))
-    weights = np.empty((nu, nv))
     pole, weight = bs.Pole, bs.Weight
-    for i in range(nu):
-        for j in range(nv):
-            p = pole(i + 1, j + 1)
-            points[i, j] = p.X(), p.Y(), p.Z()
-            weights[i, j] = weight(i + 1, j + 1)
+    rows, cols = range(1, nu + 1), range(1, nv + 1)
+    points = np.array([c for i in rows for j in cols for p in (pole(i, j),) for c in (p.X(), p.Y(), p.Z())],
+                      dtype=np.float64).reshape(nu, nv, 3)
+    if bs.IsURational() or bs.IsVRational():
+        weights = np.array([weight(i, j) for i in rows for j in cols], dtype=np.float64).reshape(nu, nv)
+    else:
+        weights = np.ones((nu, nv))
     knots_u = flat_knots(bs.UKnot, bs.UMultiplicity, bs.NbUKnots())
     knots_v = flat_knots(bs.VKnot, bs.VMultiplicity, bs.NbVKnots())
     try:

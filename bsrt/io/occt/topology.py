@@ -31,13 +31,24 @@ becomes one or more :class:`~bsrt.geometry.trim.TrimLoop`, in steps:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from bsrt.geometry.bspline import BSplineSurface, insert_knot
 from bsrt.geometry.trim import TrimCurve, TrimLoop, point_outside
-from bsrt.io.occt.curves import TrimError, derivative_bounds, map_curve, pcurve, reversed_curve, segment, shifted
+from bsrt.io.occt.curves import (
+    TrimError,
+    derivative_bounds,
+    evaluator,
+    map_curve,
+    pcurve,
+    reversed_curve,
+    segment,
+    shifted,
+)
 from bsrt.io.occt.reading import cast
-from bsrt.io.occt.surfaces import ParamMap
+from bsrt.io.occt.param_map import ParamMap
 
 _MEET = 1e-7  # ends closer than this (a fraction of the model's size) meet, in space
 
@@ -139,6 +150,7 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
     umin, umax, vmin, vmax = pmap.bounds
     scale = float(np.hypot(umax - umin, vmax - vmin))
     snap = 1e-6 * scale
+    periodic = bool(periods.any())
     out = [curves[0]]
     left = list(curves[1:])
     ordered = True
@@ -146,16 +158,17 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
         end = out[-1].ends()[1]
         if ordered:
             c = left.pop(0)
+            if periodic:
+                c = shifted(c, _nearest_shift(c.ends()[0], end, periods))
             start = c.ends()[0]
-            c = shifted(c, _nearest_shift(start, end, periods))
-            if np.hypot(*(c.ends()[0] - end)) > snap and _space_gap(original, c.ends()[0], end) > meet:
+            if _hypot(start - end) > snap and _space_gap(original, start, end) > meet:
                 ordered = False  # not in order along the wire: chain the rest greedily
                 left.insert(0, c)
                 continue
         else:
             c = _greedy_next(end, left, periods)
-        start = c.ends()[0]
-        if np.hypot(*(start - end)) > snap:
+            start = c.ends()[0]
+        if _hypot(start - end) > snap:
             if _space_gap(original, start, end) > meet:
                 raise TrimError(f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} "
                                 f"apart")
@@ -171,6 +184,12 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
             out.append(segment(last, first))
         return out, None
     raise TrimError(f"a wire does not close: its ends are {_space_gap(original, first, last):.3g} apart")
+
+
+def _hypot(d: np.ndarray) -> float:
+    """|d| of a (2,) vector (math.hypot: one call, no array)."""
+    x, y = d.tolist()
+    return math.hypot(x, y)
 
 
 def _greedy_next(end: np.ndarray, left: list[TrimCurve], periods: np.ndarray) -> TrimCurve:
@@ -290,21 +309,26 @@ def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
     """
     a0, a1, b0, b1 = domain
     span = np.array([a1 - a0, b1 - b0])
-    near = 1e-9 * span
-    push = 1e-9 * span
-    pts = [c.points.copy() for c in curves]
+    near = (1e-9 * span).tolist()
+    push = (1e-9 * span).tolist()
+    pts = [c.points for c in curves]
     moved = []
-    for p in pts:
+    for k, p in enumerate(pts):
         along = False
+        lows, highs = p.min(axis=0).tolist(), p.max(axis=0).tolist()
         for axis, (lo, hi) in enumerate(((a0, a1), (b0, b1))):
-            x = p[:, axis]
-            if np.all(np.abs(x - lo) <= near[axis]):
+            # every |x - lo| <= near: |x - lo| (rounded too) is largest at the smallest or the largest x
+            if abs(lows[axis] - lo) <= near[axis] and abs(highs[axis] - lo) <= near[axis]:
+                p = p.copy() if p is curves[k].points else p
                 p[:, axis], along = lo - push[axis], True
-            elif np.all(np.abs(x - hi) <= near[axis]):
+            elif abs(lows[axis] - hi) <= near[axis] and abs(highs[axis] - hi) <= near[axis]:
+                p = p.copy() if p is curves[k].points else p
                 p[:, axis], along = hi + push[axis], True
+        pts[k] = p
         moved.append(along)
     if not any(moved):
         return curves
+    pts = [p.copy() if p is c.points else p for p, c in zip(pts, curves)]
     n = len(pts)
     for i in range(n):  # a moved curve's ends carry its neighbours' ends along
         j = (i + 1) % n
@@ -340,21 +364,22 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     a0, a1, b0, b1 = domain
     eps = 1e-12 * np.hypot(a1 - a0, b1 - b0)  # a curve along the edge is inside, rounding aside
     p_all = curve.points
-    if (p_all[:, 0].min() >= a0 - eps and p_all[:, 0].max() <= a1 + eps and p_all[:, 1].min() >= b0 - eps
-            and p_all[:, 1].max() <= b1 + eps):
+    (x_lo, y_lo), (x_hi, y_hi) = p_all.min(axis=0).tolist(), p_all.max(axis=0).tolist()
+    if x_lo >= a0 - eps and x_hi <= a1 + eps and y_lo >= b0 - eps and y_hi <= b1 + eps:
         return curve  # the control points are inside: so is the curve (convex hull)
     near = 1e-9 * np.hypot(a1 - a0, b1 - b0)
-    if (p_all[:, 0].min() >= a0 - near and p_all[:, 0].max() <= a1 + near and p_all[:, 1].min() >= b0 - near
-            and p_all[:, 1].max() <= b1 + near):  # out by rounding of the bounds: onto the edge, moved <= that
+    if (x_lo >= a0 - near and x_hi <= a1 + near and y_lo >= b0 - near
+            and y_hi <= b1 + near):  # out by rounding of the bounds: onto the edge, moved <= that
         return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
+    curve_at = evaluator(curve)
 
     def inside(x):
-        uv = curve.evaluate(np.atleast_1d(x))
+        uv = curve_at(np.atleast_1d(x))
         return (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
 
-    uv = curve.evaluate(t)
+    uv = curve_at(t)
     state = (uv[:, 0] >= a0 - eps) & (uv[:, 0] <= a1 + eps) & (uv[:, 1] >= b0 - eps) & (uv[:, 1] <= b1 + eps)
     k = np.flatnonzero(state[:-1] != state[1:])
     # each crossing is of one edge line, the one the outside sample is past: solve coordinate = line there
@@ -376,7 +401,7 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         with np.errstate(all="ignore"):
             m = b - fb * (b - a) / (fb - fa)
         m = np.where((m > a) & (m < b), m, 0.5 * (a + b))
-        fm = curve.evaluate(m)[np.arange(m.size), axis] - line
+        fm = curve_at(m)[np.arange(m.size), axis] - line
         better = np.abs(fm) < best_f
         best, best_f = np.where(better, m, best), np.where(better, np.abs(fm), best_f)
         right = np.sign(fm) == np.sign(fa)  # the crossing is in [m, b]: b kept, its value halved
