@@ -25,7 +25,7 @@ def _horizontal(x0, x1, y0, y1, z, **extra):
 
 def _scene(surfaces, lights, materials, size=96, eye=(0.0, -3.0, 6.0), look_at=(0.0, 0.0, 0.0), **render_keys):
     return parse_scene({
-        "film": {"width": size, "height": size},
+        "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},  # the sky the mirrors show
         "camera": {"eye": list(eye), "look_at": list(look_at), "fov": 50.0},
         "render": render_keys,
         "material": materials,

@@ -176,7 +176,7 @@ def test_an_import_that_is_a_fifo_is_refused(tmp_path):
 
 @pytest.mark.parametrize("args, message", [
     (["render", "q.toml", "-o", "q.png", "--width", "0"],
-     "bsrt render: error: argument --width: must be at least 1, got 0"),
+     "bsrt render: error: argument --width: expected a whole number >= 1, got 0"),
     (["render"], "bsrt render: error: the following arguments are required: scene, -o/--output"),
     (["render", "q.toml", "-o", "q.png", "--method", "euler"],
      "bsrt render: error: argument --method: invalid choice: 'euler' (choose from 'gradient', 'fast', 'newton', "

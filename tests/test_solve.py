@@ -8,7 +8,8 @@ import pytest
 from bsrt.geometry.bspline import evaluate, make_surface
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.roots import ray_frame
-from bsrt.rendering.solve import METHODS, Rays, find_roots
+from bsrt.methods import MAP_METHODS as METHODS
+from bsrt.rendering.solve import Rays, find_roots
 
 np.seterr(all="raise", under="ignore")
 

@@ -65,7 +65,7 @@ def top_view(surface, size, half=0.6, height=10.0):
     """A camera straight above (0.5, 0.5) seeing [-half, half] around it at z = 0."""
     fov = 2 * math.degrees(math.atan(half / height))
     return parse_scene({
-        "film": {"width": size, "height": size},
+        "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},
         "camera": {"eye": [0.5, 0.5, height], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0], "fov": fov},
         "light": [{"kind": "ambient", "intensity": 1.0}],
         "surface": [surface],
