@@ -27,19 +27,42 @@ TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing (5 ms); c
 __version__ = "0.3.0"
 
 _LAZY = {
-    "load": "api", "Scene": "api", "Surface": "api", "Camera": "api", "Light": "api", "Material": "api",
-    "Film": "api", "RenderSettings": "api", "Import": "api",
-    "from_splipy": "api", "from_geomdl": "api",
-    "InputError": "errors", "RenderError": "errors",
-    "render": "api", "RenderResult": "rendering.pipeline",
-    "batch": "batches.api", "animate": "batches.api",
+    "load": "api",
+    "Scene": "api",
+    "Surface": "api",
+    "Camera": "api",
+    "Light": "api",
+    "Material": "api",
+    "Film": "api",
+    "RenderSettings": "api",
+    "Import": "api",
+    "from_splipy": "api",
+    "from_geomdl": "api",
+    "InputError": "errors",
+    "RenderError": "errors",
+    "render": "api",
+    "RenderResult": "rendering.pipeline",
+    "batch": "batches.api",
+    "animate": "batches.api",
 }
 
 __all__ = sorted([*_LAZY, "__version__"])
 
 if TYPE_CHECKING:  # what type checkers and IDEs see (the names of _LAZY)
-    from bsrt.api import (Camera, Film, Import, Light, Material, RenderSettings, Scene, Surface, from_geomdl,
-                          from_splipy, load, render)
+    from bsrt.api import (
+        Camera,
+        Film,
+        Import,
+        Light,
+        Material,
+        RenderSettings,
+        Scene,
+        Surface,
+        from_geomdl,
+        from_splipy,
+        load,
+        render,
+    )
     from bsrt.batches.api import animate, batch
     from bsrt.errors import InputError, RenderError
     from bsrt.rendering.pipeline import RenderResult

@@ -57,17 +57,23 @@ def geomdl_fields(surface, trims_given: bool = False) -> dict:
     if not all(hasattr(surface, k) for k in needed):
         raise TypeError(f"expected a geomdl BSpline.Surface or NURBS.Surface, got {type(surface).__name__}")
     if getattr(surface, "trims", None) and not trims_given:
-        raise InputError("geomdl: the surface has trim curves, which bsrt does not convert "
-                         "(their sense follows geomdl's own rules); pass trims=[...] (loops of curves) instead")
+        raise InputError(
+            "geomdl: the surface has trim curves, which bsrt does not convert "
+            "(their sense follows geomdl's own rules); pass trims=[...] (loops of curves) instead"
+        )
     nu, nv = int(surface.ctrlpts_size_u), int(surface.ctrlpts_size_v)
     rational = bool(getattr(surface, "rational", False))
     flat = np.array(surface.ctrlptsw if rational else surface.ctrlpts, dtype=np.float64)
     if flat.ndim != 2 or flat.shape[0] != nu * nv:
         raise InputError(f"geomdl: expected {nu} x {nv} control points, got an array of shape {flat.shape}")
     points, weights = _split(flat.reshape(nu, nv, -1), rational, "geomdl")
-    return dict(degree=(int(surface.degree_u), int(surface.degree_v)),
-                knots_u=np.array(surface.knotvector_u, dtype=np.float64),
-                knots_v=np.array(surface.knotvector_v, dtype=np.float64), points=points, weights=weights)
+    return dict(
+        degree=(int(surface.degree_u), int(surface.degree_v)),
+        knots_u=np.array(surface.knotvector_u, dtype=np.float64),
+        knots_v=np.array(surface.knotvector_v, dtype=np.float64),
+        points=points,
+        weights=weights,
+    )
 
 
 def object_fields(obj, trims_given: bool = False) -> dict:
@@ -79,14 +85,22 @@ def object_fields(obj, trims_given: bool = False) -> dict:
     if isinstance(obj, SceneSurface):
         return {"name": obj.name, **object_fields(obj.geometry)}
     if isinstance(obj, BSplineSurface):
-        return dict(degree=obj.degree, knots_u=obj.knots_u, knots_v=obj.knots_v, points=obj.points,
-                    weights=obj.weights, trims=obj.trims)
+        return dict(
+            degree=obj.degree,
+            knots_u=obj.knots_u,
+            knots_v=obj.knots_v,
+            points=obj.points,
+            weights=obj.weights,
+            trims=obj.trims,
+        )
     if hasattr(obj, "bases") and hasattr(obj, "controlpoints"):
         return splipy_fields(obj)
     if hasattr(obj, "degree_u") and hasattr(obj, "knotvector_u"):
         return geomdl_fields(obj, trims_given)
-    raise TypeError(f"cannot make a bsrt.Surface from {type(obj).__name__}: expected a Splipy Surface, a geomdl "
-                    f"Surface, a bsrt BSplineSurface or SceneSurface")
+    raise TypeError(
+        f"cannot make a bsrt.Surface from {type(obj).__name__}: expected a Splipy Surface, a geomdl "
+        f"Surface, a bsrt BSplineSurface or SceneSurface"
+    )
 
 
 def _split(cps: np.ndarray, rational: bool, source: str):
@@ -123,5 +137,9 @@ def _splipy_curve(curve) -> dict:
         points = cps[:, :-1] / weights[:, None]
     else:
         weights, points = None, cps
-    return {"degree": int(basis.order) - 1, "knots": np.array(basis.knots, dtype=np.float64), "points": points,
-            "weights": weights}
+    return {
+        "degree": int(basis.order) - 1,
+        "knots": np.array(basis.knots, dtype=np.float64),
+        "points": points,
+        "weights": weights,
+    }

@@ -30,13 +30,23 @@ class Method:
     stops_on_growth: bool = False
 
 
-METHODS: dict[str, Method] = {m.name: m for m in (
-    Method("gradient", True, GRADIENT, "the paper's gradient descent from the map's (u, v), steps in arc length"),
-    Method("fast", True, FAST, "the paper's fast variant: derivatives at every other step, the previous direction kept"),
-    Method("newton", True, NEWTON, "Newton from the map's (u, v) (the default: fewest steps, exact)",
-           stops_on_growth=True),
-    Method("martin", False, None, "Martin et al. 2000: hierarchy + Newton for every ray, no map (the baseline)"),
-)}
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method("gradient", True, GRADIENT, "the paper's gradient descent from the map's (u, v), steps in arc length"),
+        Method(
+            "fast", True, FAST, "the paper's fast variant: derivatives at every other step, the previous direction kept"
+        ),
+        Method(
+            "newton",
+            True,
+            NEWTON,
+            "Newton from the map's (u, v) (the default: fewest steps, exact)",
+            stops_on_growth=True,
+        ),
+        Method("martin", False, None, "Martin et al. 2000: hierarchy + Newton for every ray, no map (the baseline)"),
+    )
+}
 
 DEFAULT_METHOD = "newton"
 #: the seeded method that repairs and checks the others (hard pixels, the benchmark's reference)

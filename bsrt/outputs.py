@@ -89,7 +89,7 @@ class Outputs:
     def __init__(self):
         self._staged: list[_Staged] = []
 
-    def __enter__(self) -> "Outputs":
+    def __enter__(self) -> Outputs:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -36,10 +36,10 @@ LINE_INTERVAL = 1.0  # seconds between progress lines when not on a terminal
 BAR_CELLS = 20
 LOAD = "load"  # the stage of the model load, before the render's own
 
-_active: "Progress | None" = None
+_active: Progress | None = None
 
 
-def wanted(stream, flag: bool | None) -> "Progress | None":
+def wanted(stream, flag: bool | None) -> Progress | None:
     """The progress display for ``stream`` and the command line's ``--progress`` /
     ``--no-progress`` (flag True / False; None: automatic).
 

@@ -82,8 +82,12 @@ class Setting:
             if value not in self.choices:
                 raise InputError(f"{label}: expected one of {', '.join(self.choices)}, got {validate.show(value)}")
             return value
-        if (isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 3
-                or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)):
+        if (
+            isinstance(value, (str, bytes))
+            or not hasattr(value, "__len__")
+            or len(value) != 3
+            or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in value)
+        ):
             raise InputError(f"{label}: expected three numbers (linear RGB), got {validate.show(value)}")
         if not all(math.isfinite(x) and x >= 0 for x in value):
             raise InputError(f"{label}: expected three finite numbers >= 0 (linear RGB), got {validate.show(value)}")
@@ -102,26 +106,63 @@ class Setting:
 
 
 def _shown(value) -> str:
-    return ",".join(f"{x:g}" for x in value) if isinstance(value, tuple) else f"{value:g}" if isinstance(
-        value, float) else str(value)
+    return (
+        ",".join(f"{x:g}" for x in value)
+        if isinstance(value, tuple)
+        else f"{value:g}"
+        if isinstance(value, float)
+        else str(value)
+    )
 
 
 SETTINGS: tuple[Setting, ...] = (
-    Setting("width", "film", "int", 512, "film width", 1, validate.MAX_FILM_SIDE, unit="pixels",
-            commands=("render", "map")),
-    Setting("height", "film", "int", 512, "film height", 1, validate.MAX_FILM_SIDE, unit="pixels",
-            commands=("render", "map")),
+    Setting(
+        "width", "film", "int", 512, "film width", 1, validate.MAX_FILM_SIDE, unit="pixels", commands=("render", "map")
+    ),
+    Setting(
+        "height",
+        "film",
+        "int",
+        512,
+        "film height",
+        1,
+        validate.MAX_FILM_SIDE,
+        unit="pixels",
+        commands=("render", "map"),
+    ),
     Setting("background", "film", "color", (0.03, 0.03, 0.04), "colour where no surface is hit, linear RGB"),
-    Setting("method", "render", "choice", DEFAULT_METHOD, "root finder (the methods are listed at the end of `bsrt render --help`)",
-            choices=tuple(METHODS)),
-    Setting("map", "render", "choice", "float", "precision of the preliminary map", choices=MAP_MODES,
-            commands=("render", "map", "preview")),
-    Setting("tolerance", "render", "float", 1e-9, "largest ray-surface distance of a hit", 0.0, 1.0, lo_open=True,
-            unit="of the scene's diagonal"),
-    Setting("max_iterations", "render", "int", 64, "root-finder steps per pixel and start", 1,
-            validate.MAX_ITERATIONS),
-    Setting("spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP,
-            commands=("render",)),  # the preview traces one sample per pixel
+    Setting(
+        "method",
+        "render",
+        "choice",
+        DEFAULT_METHOD,
+        "root finder (the methods are listed at the end of `bsrt render --help`)",
+        choices=tuple(METHODS),
+    ),
+    Setting(
+        "map",
+        "render",
+        "choice",
+        "float",
+        "precision of the preliminary map",
+        choices=MAP_MODES,
+        commands=("render", "map", "preview"),
+    ),
+    Setting(
+        "tolerance",
+        "render",
+        "float",
+        1e-9,
+        "largest ray-surface distance of a hit",
+        0.0,
+        1.0,
+        lo_open=True,
+        unit="of the scene's diagonal",
+    ),
+    Setting("max_iterations", "render", "int", 64, "root-finder steps per pixel and start", 1, validate.MAX_ITERATIONS),
+    Setting(
+        "spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP, commands=("render",)
+    ),  # the preview traces one sample per pixel
     Setting("max_depth", "render", "int", 3, "mirror-reflection bounces", 0, validate.MAX_DEPTH),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
@@ -129,8 +170,9 @@ BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
 
 def _table_class(name: str, table: str, doc: str) -> type:
     """A frozen dataclass with one field per setting of ``table``, in registry order, with its default."""
-    cls = make_dataclass(name, [(s.name, s.python_type, field(default=s.default)) for s in SETTINGS
-                                if s.table == table], frozen=True)
+    cls = make_dataclass(
+        name, [(s.name, s.python_type, field(default=s.default)) for s in SETTINGS if s.table == table], frozen=True
+    )
     cls.__module__ = __name__  # make_dataclass's own module otherwise: pickling (batches) needs the real one
     cls.__doc__ = doc + "\n\n" + "\n".join(f"{s.name}: {s.describe()}" for s in SETTINGS if s.table == table)
     return cls
@@ -188,8 +230,13 @@ def _parse_flag(setting: Setting):
             else:
                 value = int(text) if setting.kind == "int" else float(text)
         except ValueError:
-            what = "a whole number" if setting.kind == "int" else "three numbers like 1,1,1" \
-                if setting.kind == "color" else "a number"
+            what = (
+                "a whole number"
+                if setting.kind == "int"
+                else "three numbers like 1,1,1"
+                if setting.kind == "color"
+                else "a number"
+            )
             raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
         try:
             return setting.check(value, "")
@@ -202,8 +249,11 @@ def _parse_flag(setting: Setting):
 
 def flag_values(args, command: str) -> dict:
     """The settings given on the command line (argparse namespace): name -> value."""
-    return {s.name: getattr(args, s.name) for s in SETTINGS
-            if command in s.commands and getattr(args, s.name, None) is not None}
+    return {
+        s.name: getattr(args, s.name)
+        for s in SETTINGS
+        if command in s.commands and getattr(args, s.name, None) is not None
+    }
 
 
 # ---------------------------------------------------------------------------

@@ -19,7 +19,9 @@ from bsrt.errors import InputError
 # The limits (docs/scene-format.md, "Limits"), each with its reason there.
 MAX_COORDINATE = 1e15  # |x|, |y|, |z| of points, eye, look_at, lights, translations
 MAX_DEGREE = 25  # OpenCASCADE's Geom_BSplineSurface::MaxDegree() (docs/scene-format.md, Limits)
-CHECKED_DEGREE = 9  # above this, the power-basis evaluation is measured against the reference (docs/scene-format.md, Limits)
+CHECKED_DEGREE = (
+    9  # above this, the power-basis evaluation is measured against the reference (docs/scene-format.md, Limits)
+)
 MAX_WEIGHT_RATIO = 1e12  # largest / smallest weight of one surface
 MAX_SPP = 256  # 8-bit output: a coverage step finer than 1/256 cannot show
 MAX_ITERATIONS = 10_000  # root finders converge in tens of steps
@@ -39,8 +41,15 @@ def whole(key: str, value, lo: int, hi: int) -> int:
     return int(value)
 
 
-def real(key: str, value, lo: float | None = None, hi: float | None = None, lo_open=False, hi_open=False,
-         expected: str | None = None) -> float:
+def real(
+    key: str,
+    value,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open=False,
+    hi_open=False,
+    expected: str | None = None,
+) -> float:
     """``value`` as a finite float in [lo, hi] (open ends with lo_open / hi_open); ``expected``
     replaces the message's own description of the range ("a number in (0, 1]")."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
@@ -49,11 +58,17 @@ def real(key: str, value, lo: float | None = None, hi: float | None = None, lo_o
     if not math.isfinite(number):
         raise InputError(f"{key}: expected {expected or 'a finite number'}, got {show(value)}")
     if lo is not None and (number < lo or (lo_open and number == lo)):
-        raise InputError(f"{key}: expected {expected}, got {show(value)}" if expected else
-                         f"{key}: must be {'>' if lo_open else '>='} {lo:g}, got {number:g}")
+        raise InputError(
+            f"{key}: expected {expected}, got {show(value)}"
+            if expected
+            else f"{key}: must be {'>' if lo_open else '>='} {lo:g}, got {number:g}"
+        )
     if hi is not None and (number > hi or (hi_open and number == hi)):
-        raise InputError(f"{key}: expected {expected}, got {show(value)}" if expected else
-                         f"{key}: must be {'<' if hi_open else '<='} {hi:g}, got {number:g}")
+        raise InputError(
+            f"{key}: expected {expected}, got {show(value)}"
+            if expected
+            else f"{key}: must be {'<' if hi_open else '<='} {hi:g}, got {number:g}"
+        )
     return number
 
 
@@ -97,8 +112,10 @@ def finite(key: str, array: np.ndarray, limit: float | None = None) -> None:
     if limit is not None and array.size:
         big = np.abs(array) > limit
         if big.any():
-            raise InputError(f"{key}: value {_index(big)} ({array[big].flat[0]:g}) is beyond +-{limit:g} "
-                             "(see Limits in docs/scene-format.md)")
+            raise InputError(
+                f"{key}: value {_index(big)} ({array[big].flat[0]:g}) is beyond +-{limit:g} "
+                "(see Limits in docs/scene-format.md)"
+            )
 
 
 def _index(mask: np.ndarray) -> str:
@@ -117,8 +134,10 @@ def surface(geometry) -> None:
         w = geometry.weights
         finite("weights", w)
         if w.min() <= 0 or w.max() / w.min() > MAX_WEIGHT_RATIO:
-            raise InputError(f"weights: must be > 0, the largest at most {MAX_WEIGHT_RATIO:g} times the smallest; "
-                             f"got {w.min():g} .. {w.max():g}")
+            raise InputError(
+                f"weights: must be > 0, the largest at most {MAX_WEIGHT_RATIO:g} times the smallest; "
+                f"got {w.min():g} .. {w.max():g}"
+            )
 
 
 def camera(cam) -> None:
@@ -140,13 +159,18 @@ def camera(cam) -> None:
 
 def fov(value, key: str = "fov") -> float:
     """A field of view in degrees: a number in [MIN_FOV, 180)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not 0.0 < float(value) < MAX_FOV:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not 0.0 < float(value) < MAX_FOV
+    ):
         shown = show(value) if isinstance(value, bool) or not isinstance(value, (int, float)) else f"{value:g}"
         raise InputError(f"{key}: must be between 0 and 180 degrees, got {shown}")
     value = float(value)
     if value < MIN_FOV:
-        raise InputError(f"{key}: must be at least {MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {value:g}")
+        raise InputError(
+            f"{key}: must be at least {MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {value:g}"
+        )
     return value
 
 
@@ -155,8 +179,10 @@ def film(width: int, height: int) -> None:
     need = BYTES_PER_PIXEL * width * height
     have = physical_memory()
     if have and need > have:
-        raise InputError(f"film: {width} x {height} pixels would need about {need / 1e9:.3g} GB of memory "
-                         f"(~{BYTES_PER_PIXEL} bytes per pixel); this machine has {have / 1e9:.3g} GB")
+        raise InputError(
+            f"film: {width} x {height} pixels would need about {need / 1e9:.3g} GB of memory "
+            f"(~{BYTES_PER_PIXEL} bytes per pixel); this machine has {have / 1e9:.3g} GB"
+        )
 
 
 def physical_memory() -> int:
@@ -184,8 +210,9 @@ def environment() -> None:
     for name in ("BSRT_EGL_DEVICE", "GLCONTEXT_DEVICE_INDEX"):
         value = os.environ.get(name)
         if value is not None and not (value.strip().isascii() and value.strip().isdigit()):
-            raise InputError(f"environment variable {name}: expected an EGL device index (0, 1, ...), "
-                             f"got {show(value)}")
+            raise InputError(
+                f"environment variable {name}: expected an EGL device index (0, 1, ...), got {show(value)}"
+            )
 
 
 def show(value) -> str:

@@ -163,8 +163,14 @@ def surface(name, material, knots_u, knots_v, points, degree=(DEGREE, DEGREE)) -
     assert pts.ndim == 3 and pts.shape[2] == 3, (name, pts.shape)
     assert len(knots_u) == pts.shape[0] + degree[0] + 1, name
     assert len(knots_v) == pts.shape[1] + degree[1] + 1, name
-    return {"name": name, "material": material, "degree": list(degree),
-            "knots_u": list(knots_u), "knots_v": list(knots_v), "points": pts}
+    return {
+        "name": name,
+        "material": material,
+        "degree": list(degree),
+        "knots_u": list(knots_u),
+        "knots_v": list(knots_v),
+        "points": pts,
+    }
 
 
 def revolve(name, material, profile, n_arc=5, rim=None) -> list[dict]:
@@ -215,21 +221,68 @@ def column_profile() -> list[tuple[str, str, list]]:
     astragal = arc_points((0.80, 8.66), 0.09, -90.0, 90.0, 6)
     pieces = [
         ("bottom", base, [(0.0, 0.0), (0.35, 0.0), (0.75, 0.0), (1.15, 0.0), (1.43, 0.0)]),
-        ("plinth", base, [(1.43, 0.0), (1.55, 0.0), (1.55, 0.1), (1.55, 0.28), (1.55, 0.45),
-                          (1.55, plinth_top), (1.42, plinth_top), lower_torus[0]]),
+        (
+            "plinth",
+            base,
+            [
+                (1.43, 0.0),
+                (1.55, 0.0),
+                (1.55, 0.1),
+                (1.55, 0.28),
+                (1.55, 0.45),
+                (1.55, plinth_top),
+                (1.42, plinth_top),
+                lower_torus[0],
+            ],
+        ),
         ("lower-torus", base, lower_torus),
-        ("scotia", base, [lower_torus[-1], (1.08, 1.075), (1.00, 1.10), (0.96, 1.16),
-                          (0.98, 1.23), (1.03, 1.255), upper_torus[0]]),
+        (
+            "scotia",
+            base,
+            [lower_torus[-1], (1.08, 1.075), (1.00, 1.10), (0.96, 1.16), (0.98, 1.23), (1.03, 1.255), upper_torus[0]],
+        ),
         ("upper-torus", base, upper_torus),
-        ("shaft", shaft, [upper_torus[-1], (0.95, 1.60), (0.92, 1.66), (0.92, 2.2), (0.93, 3.6),
-                          (0.91, 5.2), (0.86, 6.8), (0.80, 8.1), (0.785, 8.45), (0.79, 8.56),
-                          astragal[0]]),
+        (
+            "shaft",
+            shaft,
+            [
+                upper_torus[-1],
+                (0.95, 1.60),
+                (0.92, 1.66),
+                (0.92, 2.2),
+                (0.93, 3.6),
+                (0.91, 5.2),
+                (0.86, 6.8),
+                (0.80, 8.1),
+                (0.785, 8.45),
+                (0.79, 8.56),
+                astragal[0],
+            ],
+        ),
         ("astragal", base, astragal),
-        ("echinus", base, [astragal[-1], (0.84, 8.76), (0.98, 8.80), (1.15, 8.87), (1.28, 8.98),
-                           (1.33, 9.08), (1.33, 9.16)]),
-        ("abacus", base, [(1.33, 9.16), (1.44, 9.16), (1.46, 9.16), (1.46, 9.26), (1.46, 9.46),
-                          (1.46, 9.56), (1.44, 9.56), (1.30, 9.56), (0.95, 9.56), (0.55, 9.56),
-                          (0.2, 9.56), (0.0, 9.56)]),
+        (
+            "echinus",
+            base,
+            [astragal[-1], (0.84, 8.76), (0.98, 8.80), (1.15, 8.87), (1.28, 8.98), (1.33, 9.08), (1.33, 9.16)],
+        ),
+        (
+            "abacus",
+            base,
+            [
+                (1.33, 9.16),
+                (1.44, 9.16),
+                (1.46, 9.16),
+                (1.46, 9.26),
+                (1.46, 9.46),
+                (1.46, 9.56),
+                (1.44, 9.56),
+                (1.30, 9.56),
+                (0.95, 9.56),
+                (0.55, 9.56),
+                (0.2, 9.56),
+                (0.0, 9.56),
+            ],
+        ),
     ]
     for (_, _, a), (_, _, b) in zip(pieces, pieces[1:]):
         assert a[-1] == b[0], (a[-1], b[0])
@@ -244,8 +297,7 @@ def column_scene() -> dict:
     return {
         "comment": "Column: Attic base, entasis shaft, Doric capital (9 profile pieces x 4 quarters) on a polished floor.",
         "film": {"width": 512, "height": 512, "background": [0.02, 0.02, 0.03]},
-        "camera": {"eye": [13.0, -17.0, 10.0], "look_at": [0.0, 0.0, 4.75], "up": [0.0, 0.0, 1.0],
-                   "fov": 32.0},
+        "camera": {"eye": [13.0, -17.0, 10.0], "look_at": [0.0, 0.0, 4.75], "up": [0.0, 0.0, 1.0], "fov": 32.0},
         "render": {"method": "newton"},
         "materials": [
             material_table("marble", [0.93, 0.87, 0.78], 0.35, 60.0),
@@ -255,8 +307,7 @@ def column_scene() -> dict:
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
             {"kind": "point", "position": [14.0, -9.0, 16.0], "color": [1.0, 0.96, 0.9], "intensity": 400.0},
-            {"kind": "directional", "direction": [1.0, 1.2, -0.6], "color": [0.75, 0.82, 1.0],
-             "intensity": 0.35},
+            {"kind": "directional", "direction": [1.0, 1.2, -0.6], "color": [0.75, 0.82, 1.0], "intensity": 0.35},
         ],
         "surfaces": surfaces,
     }
@@ -328,16 +379,34 @@ def water_lily_scene() -> dict:
     for ring, (count, phase, length, base_r, base_z, e0, e1, hw, cup) in enumerate(rings):
         for m in range(count):
             wobble = 4.0 * math.sin(2.3 * m + ring)  # break the perfect symmetry a little
-            surfaces.append(petal(f"petal-{ring + 1}-{m + 1}", "petal", phase + 360.0 * m / count + wobble,
-                                  length * (1.0 + 0.04 * math.cos(1.7 * m)), base_r, base_z,
-                                  e0 + 0.5 * wobble, e1, hw, cup))
+            surfaces.append(
+                petal(
+                    f"petal-{ring + 1}-{m + 1}",
+                    "petal",
+                    phase + 360.0 * m / count + wobble,
+                    length * (1.0 + 0.04 * math.cos(1.7 * m)),
+                    base_r,
+                    base_z,
+                    e0 + 0.5 * wobble,
+                    e1,
+                    hw,
+                    cup,
+                )
+            )
     # Seed pod: a flattened dome closed by a pole at the top and a pole at the bottom.
-    surfaces += revolve("pod", "centre", [(0.0, 0.10), (0.10, 0.10), (0.17, 0.12), (0.19, 0.22),
-                                                     (0.17, 0.33), (0.10, 0.37), (0.0, 0.38)])
+    surfaces += revolve(
+        "pod",
+        "centre",
+        [(0.0, 0.10), (0.10, 0.10), (0.17, 0.12), (0.19, 0.22), (0.17, 0.33), (0.10, 0.37), (0.0, 0.38)],
+    )
     # Stamens: a flaring open ring with a crown of 12 points around its rim.
     surfaces += revolve(
-        "stamens", "centre", [(0.18, 0.10), (0.20, 0.22), (0.24, 0.36), (0.30, 0.47), (0.35, 0.55)],
-        n_arc=15, rim=lambda phi: (0.05 * math.cos(12 * phi), 0.07 * math.cos(12 * phi)))
+        "stamens",
+        "centre",
+        [(0.18, 0.10), (0.20, 0.22), (0.24, 0.36), (0.30, 0.47), (0.35, 0.55)],
+        n_arc=15,
+        rim=lambda phi: (0.05 * math.cos(12 * phi), 0.07 * math.cos(12 * phi)),
+    )
     flower_scale = 1.3  # the flower was modelled 2.8 units across
     for s in surfaces:
         s["points"] = s["points"] * flower_scale
@@ -353,8 +422,7 @@ def water_lily_scene() -> dict:
     return {
         "comment": "Water-lily: 22 petals in three rings, seed pod, stamens, 4 lily pads on reflective water.",
         "film": {"width": 512, "height": 512, "background": [0.01, 0.03, 0.05]},
-        "camera": {"eye": [5.3, -9.3, 9.4], "look_at": [0.0, -0.3, 0.1], "up": [0.0, 0.0, 1.0],
-                   "fov": 30.0},
+        "camera": {"eye": [5.3, -9.3, 9.4], "look_at": [0.0, -0.3, 0.1], "up": [0.0, 0.0, 1.0], "fov": 30.0},
         "render": {"method": "newton"},
         "materials": [
             material_table("petal", [0.96, 0.82, 0.87], 0.25, 30.0),
@@ -365,8 +433,7 @@ def water_lily_scene() -> dict:
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
             {"kind": "point", "position": [6.0, -5.0, 10.0], "color": [1.0, 0.97, 0.92], "intensity": 160.0},
-            {"kind": "directional", "direction": [1.0, 1.0, -1.0], "color": [0.8, 0.85, 1.0],
-             "intensity": 0.35},
+            {"kind": "directional", "direction": [1.0, 1.0, -1.0], "color": [0.8, 0.85, 1.0], "intensity": 0.35},
         ],
         "surfaces": surfaces,
     }
@@ -392,8 +459,7 @@ def bench_scene() -> dict:
     return {
         "comment": "Benchmark: one bicubic surface with 8 x 8 knot spans (64 patches), 11 x 11 points.",
         "film": {"width": 512, "height": 512, "background": [0.02, 0.02, 0.03]},
-        "camera": {"eye": [0.0, -1.2, 6.2], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 0.0, 1.0],
-                   "fov": 36.0},
+        "camera": {"eye": [0.0, -1.2, 6.2], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 0.0, 1.0], "fov": 36.0},
         "render": {"method": "newton"},
         "materials": [
             material_table("clay", [0.78, 0.55, 0.42], 0.3, 40.0),
@@ -401,8 +467,7 @@ def bench_scene() -> dict:
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
             {"kind": "point", "position": [5.0, -3.0, 7.0], "color": [1.0, 0.97, 0.92], "intensity": 90.0},
-            {"kind": "directional", "direction": [-1.0, 1.0, -1.0], "color": [0.8, 0.85, 1.0],
-             "intensity": 0.3},
+            {"kind": "directional", "direction": [-1.0, 1.0, -1.0], "color": [0.8, 0.85, 1.0], "intensity": 0.3},
         ],
         "surfaces": [surface("height-field", "clay", knots, knots, pts)],
     }
@@ -421,11 +486,9 @@ def quad_scene() -> dict:
         "lights": [
             {"kind": "ambient", "color": [1.0, 1.0, 1.0], "intensity": 0.15},
             {"kind": "point", "position": [1.0, -4.0, 2.0], "color": [1.0, 1.0, 1.0], "intensity": 20.0},
-            {"kind": "directional", "direction": [0.5, 1.0, -0.5], "color": [1.0, 1.0, 1.0],
-             "intensity": 0.3},
+            {"kind": "directional", "direction": [0.5, 1.0, -0.5], "color": [1.0, 1.0, 1.0], "intensity": 0.3},
         ],
-        "surfaces": [surface("square", "white", [0.0, 0.0, 1.0, 1.0], [0.0, 0.0, 1.0, 1.0], pts,
-                             degree=(1, 1))],
+        "surfaces": [surface("square", "white", [0.0, 0.0, 1.0, 1.0], [0.0, 0.0, 1.0, 1.0], pts, degree=(1, 1))],
     }
 
 
@@ -478,8 +541,11 @@ def table(name: str, entries: dict, array: bool = False) -> list[str]:
 
 
 def to_toml(scene: dict, filename: str) -> str:
-    lines = [f"# {filename}: {scene['comment']}",
-             "# Generated by scenes/generate.py; edit that script, not this file.", ""]
+    lines = [
+        f"# {filename}: {scene['comment']}",
+        "# Generated by scenes/generate.py; edit that script, not this file.",
+        "",
+    ]
     lines += table("film", scene["film"])
     lines += table("camera", scene["camera"])
     lines += table("render", scene["render"])
@@ -590,12 +656,15 @@ def check(path: Path) -> bool:
     degrees = sorted({tuple(s.degree) for s in surfs})
     print(f"{path.name}: {len(surfs)} surfaces, degrees {degrees}, materials ok {ok}, finite {finite}")
     print(f"  box {np.round(lo, 3).tolist()} .. {np.round(hi, 3).tolist()}, diagonal {diag:.4g}")
-    print(f"  seams {seams}, max seam gap {gap:.3g}, open (unmatched) edges {open_edges}, "
-          f"collapsed edges {degenerate}")
-    print(f"  control points on screen: x {ctrl[:, 0].min():+.3f} .. {ctrl[:, 0].max():+.3f}, "
-          f"y {ctrl[:, 1].min():+.3f} .. {ctrl[:, 1].max():+.3f}")
-    print(f"  bounding box on screen: x {box[:, 0].min():+.3f} .. {box[:, 0].max():+.3f}, "
-          f"y {box[:, 1].min():+.3f} .. {box[:, 1].max():+.3f}; inside the frame {in_frame}")
+    print(f"  seams {seams}, max seam gap {gap:.3g}, open (unmatched) edges {open_edges}, collapsed edges {degenerate}")
+    print(
+        f"  control points on screen: x {ctrl[:, 0].min():+.3f} .. {ctrl[:, 0].max():+.3f}, "
+        f"y {ctrl[:, 1].min():+.3f} .. {ctrl[:, 1].max():+.3f}"
+    )
+    print(
+        f"  bounding box on screen: x {box[:, 0].min():+.3f} .. {box[:, 0].max():+.3f}, "
+        f"y {box[:, 1].min():+.3f} .. {box[:, 1].max():+.3f}; inside the frame {in_frame}"
+    )
     return ok and finite and in_frame and gap <= 1e-9 * diag
 
 

@@ -42,8 +42,23 @@ def inputs(folder: Path, count: int) -> list[Path]:
 def loop(files, out: Path, size: int) -> float:
     start = time.perf_counter()
     for f in files:
-        subprocess.run([sys.executable, "-m", "bsrt", "render", str(f), "-o", str(out / f"{f.stem}.png"),
-                        "--width", str(size), "--height", str(size)], check=True, capture_output=True)
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "bsrt",
+                "render",
+                str(f),
+                "-o",
+                str(out / f"{f.stem}.png"),
+                "--width",
+                str(size),
+                "--height",
+                str(size),
+            ],
+            check=True,
+            capture_output=True,
+        )
     return time.perf_counter() - start
 
 
@@ -63,8 +78,8 @@ def overhead(files, out: Path) -> tuple[float, float]:
     from distributed import Client, LocalCluster
 
     import bsrt
-    from bsrt.rendering.pipeline import render
     from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import render
 
     warm = bsrt.load(files[0], width=8, height=8)
     render(warm, RenderOptions.resolve(warm))  # this process's kernels and GL loaded, as the worker's will be
@@ -73,8 +88,10 @@ def overhead(files, out: Path) -> tuple[float, float]:
         scene = bsrt.load(f, width=8, height=8)
         render(scene, RenderOptions.resolve(scene)).png_bytes()
     in_process = time.perf_counter() - start
-    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=":0", silence_logs=logging.ERROR) as c, \
-            Client(c) as client:
+    with (
+        LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=":0", silence_logs=logging.ERROR) as c,
+        Client(c) as client,
+    ):
         bsrt.batch(files[:2], out / "warm", width=8, height=8, client=client)  # the worker's kernels and GL loaded
         start = time.perf_counter()
         bsrt.batch(files, out / "cluster", width=8, height=8, client=client)
@@ -89,15 +106,23 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--json", help="also write the timings as JSON")
     args = parser.parse_args()
-    runs: dict[str, list[float]] = {"loop": [], "1 worker": [], "2 workers": [], "cluster 8x8": [], "in-process 8x8": []}
+    runs: dict[str, list[float]] = {
+        "loop": [],
+        "1 worker": [],
+        "2 workers": [],
+        "cluster 8x8": [],
+        "in-process 8x8": [],
+    }
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         files = inputs(folder, args.count)
         quads = [shutil.copy(SCENES / "quad.toml", folder / f"q{k:03d}.toml") for k in range(args.count)]
         for r in range(args.repeat):
-            for name, call in (("loop", lambda o: loop(files, o, args.size)),
-                               ("1 worker", lambda o: batch(files, o, args.size, 1)),
-                               ("2 workers", lambda o: batch(files, o, args.size, 2))):
+            for name, call in (
+                ("loop", lambda o: loop(files, o, args.size)),
+                ("1 worker", lambda o: batch(files, o, args.size, 1)),
+                ("2 workers", lambda o: batch(files, o, args.size, 2)),
+            ):
                 out = folder / f"out-{r}-{name.replace(' ', '')}"
                 out.mkdir()
                 runs[name].append(call(out))
@@ -111,8 +136,10 @@ def main() -> int:
         print(f"  {name:10s} {med[name]:7.1f} s   loop / this = {med['loop'] / med[name]:.2f}")
     print(f"  2 workers vs 1 worker: {med['1 worker'] / med['2 workers']:.2f}x faster")
     per_task = (med["cluster 8x8"] - med["in-process 8x8"]) / args.count
-    print(f"per-task overhead of the cluster ({args.count} renders of 8x8): {med['cluster 8x8']:.2f} s through "
-          f"it vs {med['in-process 8x8']:.2f} s in-process: {per_task * 1000:.0f} ms per task")
+    print(
+        f"per-task overhead of the cluster ({args.count} renders of 8x8): {med['cluster 8x8']:.2f} s through "
+        f"it vs {med['in-process 8x8']:.2f} s in-process: {per_task * 1000:.0f} ms per task"
+    )
     if args.json:
         Path(args.json).write_text(json.dumps({"runs": runs, "medians": med, "per_task_overhead": per_task}, indent=2))
     return 0

@@ -51,11 +51,33 @@ def main() -> int:
         model = where / f"surface-{args.spans}.nurbs"
         t0 = time.perf_counter()
         write_surface(model, args.spans)
-        print(f"wrote {model.name}: {args.spans ** 2} patches, {model.stat().st_size / 1e6:.1f} MB "
-              f"in {time.perf_counter() - t0:.1f} s", flush=True)
-        cmd = [sys.executable, "-m", "bsrt", "render", str(model), "-o", str(where / "big.png"), "--width",
-               str(args.width), "--height", str(args.width), "--method", args.method, "--stats",
-               "--camera-eye", "0.5,-0.8,1.2", "--camera-look-at", "0.5,0.5,0", "--camera-up", "0,0,1"]
+        print(
+            f"wrote {model.name}: {args.spans**2} patches, {model.stat().st_size / 1e6:.1f} MB "
+            f"in {time.perf_counter() - t0:.1f} s",
+            flush=True,
+        )
+        cmd = [
+            sys.executable,
+            "-m",
+            "bsrt",
+            "render",
+            str(model),
+            "-o",
+            str(where / "big.png"),
+            "--width",
+            str(args.width),
+            "--height",
+            str(args.width),
+            "--method",
+            args.method,
+            "--stats",
+            "--camera-eye",
+            "0.5,-0.8,1.2",
+            "--camera-look-at",
+            "0.5,0.5,0",
+            "--camera-up",
+            "0,0,1",
+        ]
         t0 = time.perf_counter()
         proc = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
@@ -65,8 +87,10 @@ def main() -> int:
         stats = json.loads(proc.stdout)
         peak_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
         print("stages (s):", json.dumps({k: round(v, 2) for k, v in stats["seconds"].items()}))
-        print(f"hits {stats['hits']} of {stats['pixels']}; wall {wall:.1f} s (reading the model included); "
-              f"peak RSS {peak_mb:.0f} MB")
+        print(
+            f"hits {stats['hits']} of {stats['pixels']}; wall {wall:.1f} s (reading the model included); "
+            f"peak RSS {peak_mb:.0f} MB"
+        )
     return 0
 
 

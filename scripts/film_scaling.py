@@ -34,9 +34,9 @@ print(json.dumps({"code": run.returncode, "peak_mb": peak, "stderr": run.stderr[
 
 def timed_rounds(scene_path: Path, sizes: list[int], rounds: int) -> dict[int, list[float]]:
     """Whole-render seconds per size, rendered in alternating rounds in this process."""
+    from bsrt.rendering.options import RenderOptions
     from bsrt.rendering.pipeline import Geometry, render
     from bsrt.scene import load_scene
-    from bsrt.rendering.options import RenderOptions
 
     scene = load_scene(scene_path)
     geometry = Geometry(scene)
@@ -55,8 +55,19 @@ def timed_rounds(scene_path: Path, sizes: list[int], rounds: int) -> dict[int, l
 def peak_mb(scene_path: Path, size: int) -> float:
     """Peak RSS (MB) of `bsrt render SCENE --width size --height size` in a fresh process."""
     with tempfile.TemporaryDirectory() as tmp:
-        cmd = [sys.executable, "-m", "bsrt", "render", str(scene_path), "-o", os.path.join(tmp, "out.png"),
-               "--width", str(size), "--height", str(size)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "bsrt",
+            "render",
+            str(scene_path),
+            "-o",
+            os.path.join(tmp, "out.png"),
+            "--width",
+            str(size),
+            "--height",
+            str(size),
+        ]
         out = subprocess.run([sys.executable, "-c", PEAK_CHILD, *cmd], capture_output=True, text=True, check=True)
     result = json.loads(out.stdout)
     if result["code"] != 0:
@@ -75,9 +86,12 @@ def main() -> int:
     small, large = a.sizes
     times = timed_rounds(scene, [small, large], a.rounds)
     ratios = [b / s for s, b in zip(times[small], times[large])]
-    print(f"{scene.name}: whole render, median of {a.rounds} rounds: {small}x{small} {statistics.median(times[small]):.2f} s, "
-          f"{large}x{large} {statistics.median(times[large]):.2f} s; ratio {statistics.median(ratios):.1f}x "
-          f"(pixels {(large / small) ** 2:.0f}x; per round {', '.join(f'{r:.1f}' for r in ratios)})", flush=True)
+    print(
+        f"{scene.name}: whole render, median of {a.rounds} rounds: {small}x{small} {statistics.median(times[small]):.2f} s, "
+        f"{large}x{large} {statistics.median(times[large]):.2f} s; ratio {statistics.median(ratios):.1f}x "
+        f"(pixels {(large / small) ** 2:.0f}x; per round {', '.join(f'{r:.1f}' for r in ratios)})",
+        flush=True,
+    )
     for n in a.peak_sizes:
         print(f"{scene.name}: peak memory of bsrt render at {n}x{n}: {peak_mb(scene, n):.0f} MB", flush=True)
     return 0

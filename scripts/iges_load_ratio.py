@@ -57,8 +57,14 @@ def _run(code: str, path: str, pythonpath: str | None = None) -> tuple[float, in
     if pythonpath is not None:
         env["PYTHONPATH"] = pythonpath
     # run outside any checkout: ``python -c`` puts the working directory first on sys.path
-    out = subprocess.run([sys.executable, "-c", code, os.path.abspath(path)], capture_output=True, text=True,
-                         check=True, env=env, cwd=tempfile.gettempdir())
+    out = subprocess.run(
+        [sys.executable, "-c", code, os.path.abspath(path)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+        cwd=tempfile.gettempdir(),
+    )
     seconds, faces = out.stdout.split()[-2:]
     return float(seconds), int(faces), out.stdout.split()[-3]
 
@@ -67,8 +73,13 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("files", nargs="+")
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--variant", action="append", default=[], metavar="NAME=PYTHONPATH",
-                        help="a bsrt checkout to time (repeatable; default: the current environment's)")
+    parser.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="NAME=PYTHONPATH",
+        help="a bsrt checkout to time (repeatable; default: the current environment's)",
+    )
     args = parser.parse_args(argv)
     variants = [tuple(v.split("=", 1)) for v in args.variant] or [("bsrt", None)]
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -86,8 +97,11 @@ def main(argv=None) -> int:
         mt = statistics.median(theirs)
         for name, _ in variants:
             mo = statistics.median(ours[name])
-            print(f"{os.path.basename(path):32s} {name:8s} {mo:8.3f} {mt:8.3f} {mo / mt:6.2f} "
-                  f"{faces[name]:5d}/{nb:<5d} {os.path.dirname(os.path.dirname(where[name]))}", flush=True)
+            print(
+                f"{os.path.basename(path):32s} {name:8s} {mo:8.3f} {mt:8.3f} {mo / mt:6.2f} "
+                f"{faces[name]:5d}/{nb:<5d} {os.path.dirname(os.path.dirname(where[name]))}",
+                flush=True,
+            )
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

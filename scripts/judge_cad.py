@@ -59,10 +59,21 @@ AGREE = 1e-6  # |dt| and the distance of a hit to the shape, as a fraction of th
 CLASSES = ("agree", "extra", "missed", "wrong_depth")
 
 # IGES Global section, parameter 14 (units flag) -> millimetres per unit
-IGES_UNIT_MM = {1: 25.4, 2: 1.0, 4: 304.8, 5: 1609344.0, 6: 1000.0, 7: 1e6, 8: 0.0254, 9: 0.001, 10: 10.0,
-                11: 2.54e-5}
-IGES_UNIT_NAMES = {"IN": 25.4, "INCH": 25.4, "MM": 1.0, "FT": 304.8, "MI": 1609344.0, "M": 1000.0, "KM": 1e6,
-                   "MIL": 0.0254, "UM": 0.001, "MICRON": 0.001, "CM": 10.0, "UIN": 2.54e-5}
+IGES_UNIT_MM = {1: 25.4, 2: 1.0, 4: 304.8, 5: 1609344.0, 6: 1000.0, 7: 1e6, 8: 0.0254, 9: 0.001, 10: 10.0, 11: 2.54e-5}
+IGES_UNIT_NAMES = {
+    "IN": 25.4,
+    "INCH": 25.4,
+    "MM": 1.0,
+    "FT": 304.8,
+    "MI": 1609344.0,
+    "M": 1000.0,
+    "KM": 1e6,
+    "MIL": 0.0254,
+    "UM": 0.001,
+    "MICRON": 0.001,
+    "CM": 10.0,
+    "UIN": 2.54e-5,
+}
 
 
 # ---------------------------------------------------------------------------
@@ -82,7 +93,7 @@ def step_header(path: Path) -> dict:
     while i < len(body):
         c = body[i]
         if quoted:
-            if c == "'" and body[i + 1: i + 2] == "'":
+            if c == "'" and body[i + 1 : i + 2] == "'":
                 cur += "'"
                 i += 1
             elif c == "'":
@@ -103,8 +114,11 @@ def step_header(path: Path) -> dict:
         i += 1
     fields.append(cur.strip())
     fields += [""] * (7 - len(fields))
-    return {"name": " ".join(fields[0].split()), "preprocessor": " ".join(fields[4].split()),
-            "system": " ".join(fields[5].split())}
+    return {
+        "name": " ".join(fields[0].split()),
+        "preprocessor": " ".join(fields[4].split()),
+        "system": " ".join(fields[5].split()),
+    }
 
 
 def iges_globals(path: Path) -> list[str]:
@@ -125,7 +139,7 @@ def iges_globals(path: Path) -> list[str]:
         if m:
             n = int(m.group(1))
             start = i + m.end()
-            fields.append(text[start: start + n])
+            fields.append(text[start : start + n])
             i = start + n
         else:
             ends = [k for k in (text.find(pdelim, i), text.find(rdelim, i)) if k >= 0]
@@ -141,8 +155,13 @@ def iges_globals(path: Path) -> list[str]:
 def iges_header(path: Path) -> dict:
     g = iges_globals(path)
     g += [""] * (15 - len(g))
-    return {"name": g[3].strip(), "system": g[4].strip(), "preprocessor": g[5].strip(),
-            "unit_flag": g[13].strip(), "unit_name": g[14].strip()}
+    return {
+        "name": g[3].strip(),
+        "system": g[4].strip(),
+        "preprocessor": g[5].strip(),
+        "unit_flag": g[13].strip(),
+        "unit_name": g[14].strip(),
+    }
 
 
 def iges_mm_per_unit(header: dict) -> float:
@@ -326,7 +345,7 @@ def interior(labels):
     same = np.ones((h, w), dtype=bool)
     for di in (-1, 0, 1):
         for dj in (-1, 0, 1):
-            same &= pad[1 + di: 1 + di + h, 1 + dj: 1 + dj + w] == labels
+            same &= pad[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] == labels
     return same
 
 
@@ -346,7 +365,7 @@ def classify(hit_b, t_b, hit_o, t_o, size):
 
 
 def decide(kind, d_b, d_o, t_b, t_o, tol):
-    """"bsrt", "occ" or "undecided" for one disagreeing pixel (distances to the shape, NaN where no hit)."""
+    """ "bsrt", "occ" or "undecided" for one disagreeing pixel (distances to the shape, NaN where no hit)."""
     on_b, on_o = d_b <= tol, d_o <= tol
     if kind == "extra":
         return "bsrt" if on_b else "occ"
@@ -364,13 +383,12 @@ def decide(kind, d_b, d_o, t_b, t_o, tol):
 def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> dict:
     import numpy as np
 
-    from bsrt.scene.camera import pixel_rays
     from bsrt.io import load_model
     from bsrt.rendering.pipeline import render
     from bsrt.scene import model_box, scene_for_model
+    from bsrt.scene.camera import pixel_rays
 
-    out: dict = {"file": str(path), "bytes": path.stat().st_size, "kind": kind_of(path), "size": size,
-                 "format": format}
+    out: dict = {"file": str(path), "bytes": path.stat().st_size, "kind": kind_of(path), "size": size, "format": format}
     out["header"] = header(path)
     start = time.perf_counter()
     model = load_model(path, format)
@@ -422,8 +440,9 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
     eye = np.asarray(scene.camera.eye, dtype=np.float64)
     dirs = directions.reshape(size, size, 3)
     tol = AGREE * diag
-    decisions = {c: {"bsrt": 0, "occ": 0, "undecided": 0, "at_edges": {"bsrt": 0, "occ": 0, "undecided": 0}}
-                 for c in CLASSES[1:]}
+    decisions = {
+        c: {"bsrt": 0, "occ": 0, "undecided": 0, "at_edges": {"bsrt": 0, "occ": 0, "undecided": 0}} for c in CLASSES[1:]
+    }
     examples = []
     start = time.perf_counter()
     for i, j in bad:
@@ -433,13 +452,19 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
         who = decide(kind, d_b, d_o, t_b[i, j], t_o[i, j], tol)
         (decisions[kind] if inner[i, j] else decisions[kind]["at_edges"])[who] += 1
         if len(examples) < 20 and inner[i, j]:
-            examples.append({"pixel": [int(i), int(j)], "class": kind, "winner": who,
-                             "bsrt_t": None if not hit_b[i, j] else float(t_b[i, j]),
-                             "occ_t": None if not hit_o[i, j] else float(t_o[i, j]),
-                             "bsrt_distance": None if math.isnan(d_b) else d_b / diag,
-                             "occ_distance": None if math.isnan(d_o) else d_o / diag,
-                             "bsrt_surface": None if not hit_b[i, j] else model.names[int(surf_b[i, j])],
-                             "occ_face": None if not hit_o[i, j] else int(face_o[i, j])})
+            examples.append(
+                {
+                    "pixel": [int(i), int(j)],
+                    "class": kind,
+                    "winner": who,
+                    "bsrt_t": None if not hit_b[i, j] else float(t_b[i, j]),
+                    "occ_t": None if not hit_o[i, j] else float(t_o[i, j]),
+                    "bsrt_distance": None if math.isnan(d_b) else d_b / diag,
+                    "occ_distance": None if math.isnan(d_o) else d_o / diag,
+                    "bsrt_surface": None if not hit_b[i, j] else model.names[int(surf_b[i, j])],
+                    "occ_face": None if not hit_o[i, j] else int(face_o[i, j]),
+                }
+            )
     out["decide_s"] = time.perf_counter() - start
     out["decisions"] = decisions
     out["examples"] = examples  # interior disagreements; distances as fractions of the diagonal
@@ -467,8 +492,20 @@ def collect(args: list[str]) -> list[Path]:
 
 
 def run_child(path: Path, size: int, max_decide: int, timeout: float, format: str = "auto") -> dict:
-    cmd = [sys.executable, os.path.abspath(__file__), "--one", str(path), "--size", str(size),
-           "--max-decide", str(max_decide), "--format", format, "--occ-select", OCC_SELECT]
+    cmd = [
+        sys.executable,
+        os.path.abspath(__file__),
+        "--one",
+        str(path),
+        "--size",
+        str(size),
+        "--max-decide",
+        str(max_decide),
+        "--format",
+        format,
+        "--occ-select",
+        OCC_SELECT,
+    ]
     start = time.perf_counter()
     try:
         proc = subprocess.run(cmd, check=False, capture_output=True, text=True, timeout=timeout)
@@ -476,7 +513,7 @@ def run_child(path: Path, size: int, max_decide: int, timeout: float, format: st
         return {"file": str(path), "error": f"timed out after {timeout:g} s"}
     for line in reversed(proc.stdout.splitlines()):
         if line.startswith("JUDGE-RESULT "):
-            result = json.loads(line[len("JUDGE-RESULT "):])
+            result = json.loads(line[len("JUDGE-RESULT ") :])
             result["process_s"] = time.perf_counter() - start
             return result
     tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
@@ -495,31 +532,45 @@ def row(r: dict) -> str:
     c, d = r["counts"], r["decided"]
     edges = sum(c[k + "_at_edges"] for k in CLASSES[1:])
     skipped = sum(r["skipped"].values())
-    return (f"{name:34} {short_system(r['header']):28} {r['faces']:5d} {r['periodic_faces']:5d} "
-            f"{r['load_s']:7.2f} {r['occ_read_s']:6.2f} {r['untrimmed']:4d} {skipped:4d} {len(r['warnings']):3d} "
-            f"{c['agree']:6d} {c['extra']:5d} {c['missed']:5d} {c['wrong_depth']:5d} {edges:6d} "
-            f"{d['bsrt']:5d} {d['occ']:5d} {d['undecided']:5d}{'' if r['units_ok'] else '  UNITS?'}")
+    return (
+        f"{name:34} {short_system(r['header']):28} {r['faces']:5d} {r['periodic_faces']:5d} "
+        f"{r['load_s']:7.2f} {r['occ_read_s']:6.2f} {r['untrimmed']:4d} {skipped:4d} {len(r['warnings']):3d} "
+        f"{c['agree']:6d} {c['extra']:5d} {c['missed']:5d} {c['wrong_depth']:5d} {edges:6d} "
+        f"{d['bsrt']:5d} {d['occ']:5d} {d['undecided']:5d}{'' if r['units_ok'] else '  UNITS?'}"
+    )
 
 
-HEAD = (f"{'part':34} {'system':28} {'faces':>5} {'perio':>5} {'load s':>7} {'occ s':>6} {'untr':>4} {'skip':>4} "
-        f"{'wrn':>3} {'agree':>6} {'extra':>5} {'missd':>5} {'depth':>5} {'edges':>6} {'bsrt':>5} {'occ':>5} {'?':>5}")
+HEAD = (
+    f"{'part':34} {'system':28} {'faces':>5} {'perio':>5} {'load s':>7} {'occ s':>6} {'untr':>4} {'skip':>4} "
+    f"{'wrn':>3} {'agree':>6} {'extra':>5} {'missd':>5} {'depth':>5} {'edges':>6} {'bsrt':>5} {'occ':>5} {'?':>5}"
+)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("paths", nargs="*", help="STEP/IGES/BREP files or folders (searched recursively)")
     parser.add_argument("--size", type=int, default=128, help="film width and height in pixels (default 128)")
     parser.add_argument("--json", help="write every result to this JSON file")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per part (default 300)")
-    parser.add_argument("--max-decide", type=int, default=2000,
-                        help="disagreeing pixels measured per part; a seeded sample beyond (default 2000)")
-    parser.add_argument("--format", default="auto",
-                        help='load_model\'s format: "auto" (by extension, as users do) or "occt" (IGES too '
-                             'through OpenCASCADE)')
-    parser.add_argument("--occ-select", default="",
-                        help='IGES: the entities OpenCASCADE transfers, as an XSTEP selection such as '
-                             '"iges-type(144)" (default: the file\'s roots)')
+    parser.add_argument(
+        "--max-decide",
+        type=int,
+        default=2000,
+        help="disagreeing pixels measured per part; a seeded sample beyond (default 2000)",
+    )
+    parser.add_argument(
+        "--format",
+        default="auto",
+        help='load_model\'s format: "auto" (by extension, as users do) or "occt" (IGES too through OpenCASCADE)',
+    )
+    parser.add_argument(
+        "--occ-select",
+        default="",
+        help="IGES: the entities OpenCASCADE transfers, as an XSTEP selection such as "
+        '"iges-type(144)" (default: the file\'s roots)',
+    )
     parser.add_argument("--one", help=argparse.SUPPRESS)  # the child process: judge one file, print JSON
     args = parser.parse_args(argv)
     global OCC_SELECT
@@ -531,8 +582,11 @@ def main(argv=None) -> int:
     files = collect(args.paths)
     if not files:
         parser.error("no STEP, IGES or BREP files given")
-    print(f"{len(files)} parts, {args.size}x{args.size} rays each; counts away from edges, 'edges' = all "
-          f"disagreements at edges; bsrt/occ/? = disagreements decided by distance to the shape", flush=True)
+    print(
+        f"{len(files)} parts, {args.size}x{args.size} rays each; counts away from edges, 'edges' = all "
+        f"disagreements at edges; bsrt/occ/? = disagreements decided by distance to the shape",
+        flush=True,
+    )
     print(HEAD, flush=True)
     results = []
     for path in files:
@@ -551,8 +605,9 @@ def main(argv=None) -> int:
         for r in skipped:
             print(f"  {Path(r['file']).name}: {r['skipped']}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"size": args.size, "load_average": os.getloadavg(),
-                                               "parts": results}, indent=1))
+        Path(args.json).write_text(
+            json.dumps({"size": args.size, "load_average": os.getloadavg(), "parts": results}, indent=1)
+        )
     return 0
 
 

@@ -113,8 +113,9 @@ def collect(args: list[str]) -> list[Path]:
 
 def child(code: str, args: list[str], timeout: float) -> dict:
     try:
-        proc = subprocess.run([sys.executable, "-c", code, *args], check=False, capture_output=True,
-                              text=True, timeout=timeout)
+        proc = subprocess.run(
+            [sys.executable, "-c", code, *args], check=False, capture_output=True, text=True, timeout=timeout
+        )
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:g} s"}
     out = {}
@@ -135,8 +136,9 @@ def child(code: str, args: list[str], timeout: float) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("paths", nargs="+", help="STEP/IGES/BREP files or folders (searched recursively)")
     parser.add_argument("--repeat", type=int, default=3, help="fresh-process pairs per file (default 3)")
     parser.add_argument("--warm", action="store_true", help="also time a second load_model in the same process")
@@ -146,8 +148,11 @@ def main(argv=None) -> int:
     files = collect(args.paths)
     before = os.getloadavg()
     print(f"load average before: {before[0]:.2f} {before[1]:.2f} {before[2]:.2f} ({os.cpu_count()} CPUs)")
-    print(f"{'file':40} {'occ s':>8} {'bsrt s':>8} {'ratio':>7} {'cpu':>7}" + (f" {'warm s':>8}" if args.warm else "")
-          + "  surfaces")
+    print(
+        f"{'file':40} {'occ s':>8} {'bsrt s':>8} {'ratio':>7} {'cpu':>7}"
+        + (f" {'warm s':>8}" if args.warm else "")
+        + "  surfaces"
+    )
     results = []
     for path in files:
         occ, ours, warm, info, errors = [], [], [], {}, []
@@ -166,8 +171,15 @@ def main(argv=None) -> int:
             if "warm" in b:
                 warm.append(b["warm"])
             info = {k: b[k] for k in ("surfaces", "untrimmed", "cache_keyword") if k in b} or info
-        r = {"file": str(path), "occ_s": occ, "bsrt_s": ours, "warm_s": warm, "occ_cpu_s": occ_cpu,
-             "bsrt_cpu_s": ours_cpu, **info}
+        r = {
+            "file": str(path),
+            "occ_s": occ,
+            "bsrt_s": ours,
+            "warm_s": warm,
+            "occ_cpu_s": occ_cpu,
+            "bsrt_cpu_s": ours_cpu,
+            **info,
+        }
         if errors:
             r["errors"] = errors
         name = path.name[:40]
@@ -191,16 +203,24 @@ def main(argv=None) -> int:
     ratios = [r["ratio"] for r in results if "ratio" in r]
     if ratios:
         over = [Path(r["file"]).name for r in results if r.get("ratio", 0) > 4]
-        print(f"ratio median {statistics.median(ratios):.1f}, max {max(ratios):.1f}; over 4x: "
-              f"{len(over)} of {len(ratios)}" + (f" ({', '.join(over)})" if over else ""))
+        print(
+            f"ratio median {statistics.median(ratios):.1f}, max {max(ratios):.1f}; over 4x: "
+            f"{len(over)} of {len(ratios)}" + (f" ({', '.join(over)})" if over else "")
+        )
         cpus = [r["cpu_ratio"] for r in results if "cpu_ratio" in r]
         if cpus:
             over = [Path(r["file"]).name for r in results if r.get("cpu_ratio", 0) > 4]
-            print(f"cpu ratio median {statistics.median(cpus):.1f}, max {max(cpus):.1f}; over 4x: "
-                  f"{len(over)} of {len(cpus)}" + (f" ({', '.join(over)})" if over else ""))
+            print(
+                f"cpu ratio median {statistics.median(cpus):.1f}, max {max(cpus):.1f}; over 4x: "
+                f"{len(over)} of {len(cpus)}" + (f" ({', '.join(over)})" if over else "")
+            )
     if args.json:
-        Path(args.json).write_text(json.dumps({"load_average_before": before, "load_average_after": after,
-                                               "repeat": args.repeat, "files": results}, indent=1))
+        Path(args.json).write_text(
+            json.dumps(
+                {"load_average_before": before, "load_average_after": after, "repeat": args.repeat, "files": results},
+                indent=1,
+            )
+        )
     return 0
 
 

@@ -54,8 +54,21 @@ def main() -> int:
     for run in range(a.runs):
         with tempfile.TemporaryDirectory() as tmp:
             log_path = Path(tmp) / "log.json"
-            cmd = [sys.executable, "-m", "bsrt", "preview", a.scene, "--width", width, "--height", height,
-                   "--events", events, "--frame-log", str(log_path)]
+            cmd = [
+                sys.executable,
+                "-m",
+                "bsrt",
+                "preview",
+                a.scene,
+                "--width",
+                width,
+                "--height",
+                height,
+                "--events",
+                events,
+                "--frame-log",
+                str(log_path),
+            ]
             result = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ))
             if result.returncode != 0:
                 print(result.stderr, file=sys.stderr)
@@ -65,10 +78,15 @@ def main() -> int:
         gaps = gaps_ms(log)
         all_lat += lat
         all_gaps += gaps
-        print(f"run {run + 1}: settle-to-exact {[round(x, 3) for x in lat]} s; refining gaps median "
-              f"{statistics.median(gaps):.1f} ms, max {max(gaps):.1f} ms ({len(gaps)} frames)", flush=True)
-    print(f"median settle-to-exact {statistics.median(all_lat):.3f} s over {len(all_lat)}; "
-          f"refining gaps median {statistics.median(all_gaps):.1f} ms, max {max(all_gaps):.1f} ms")
+        print(
+            f"run {run + 1}: settle-to-exact {[round(x, 3) for x in lat]} s; refining gaps median "
+            f"{statistics.median(gaps):.1f} ms, max {max(gaps):.1f} ms ({len(gaps)} frames)",
+            flush=True,
+        )
+    print(
+        f"median settle-to-exact {statistics.median(all_lat):.3f} s over {len(all_lat)}; "
+        f"refining gaps median {statistics.median(all_gaps):.1f} ms, max {max(all_gaps):.1f} ms"
+    )
     return 0
 
 

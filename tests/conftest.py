@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from bsrt.rendering import gl
+
 # The converted-model cache (bsrt/io/cache.py) of this test session: a fresh
 # temporary folder, never the user's ~/.cache. Set at import, so the CLI's
 # child processes inherit it; removed when the session ends.
@@ -26,6 +27,7 @@ os.environ["BSRT_CACHE_DIR"] = _CACHE_DIR
 def _model_cache_folder():
     yield _CACHE_DIR
     shutil.rmtree(_CACHE_DIR, ignore_errors=True)
+
 
 MODELS = Path(__file__).resolve().parent / "data" / "models"
 """Third-party model files (IGES, STEP, .bez, .g2, .nurbs) kept in the repository
@@ -53,8 +55,12 @@ def model_files() -> tuple[Path, ...]:
     names = {name for name, _ in listed}
     for path in sorted(MODELS.rglob("*")):
         rel = path.relative_to(MODELS)
-        if path.is_file() and rel.parts[0] != "LICENSES" and rel.name not in ("SOURCES.md", ".gitattributes") \
-                and rel.as_posix() not in names:
+        if (
+            path.is_file()
+            and rel.parts[0] != "LICENSES"
+            and rel.name not in ("SOURCES.md", ".gitattributes")
+            and rel.as_posix() not in names
+        ):
             problems.append(f"{rel.as_posix()}: not listed in SOURCES.md")
     if problems or not listed:
         raise AssertionError(f"{MODELS}: " + ("; ".join(problems) or "SOURCES.md lists no files"))
@@ -70,8 +76,18 @@ def ctx():
     assert context.error == "GL_NO_ERROR"
 
 
-def scene_dict(surfaces, *, width=64, height=64, eye=(0.0, -4.0, 0.0), look_at=(0.0, 0.0, 0.0),
-               up=(0.0, 0.0, 1.0), fov=40.0, method="newton", **render):
+def scene_dict(
+    surfaces,
+    *,
+    width=64,
+    height=64,
+    eye=(0.0, -4.0, 0.0),
+    look_at=(0.0, 0.0, 0.0),
+    up=(0.0, 0.0, 1.0),
+    fov=40.0,
+    method="newton",
+    **render,
+):
     """A minimal scene document (as tomllib would return it)."""
     return {
         "film": {"width": width, "height": height},
@@ -292,16 +308,20 @@ def pytest_collection_modifyitems(config, items):
         if "ctx" in fixtures:  # the headless EGL context fixture above
             needs.add("gl")
         callspec = getattr(item, "callspec", None)  # a case over model files: STEP and BREP read through OCP
-        if callspec is not None and any(isinstance(v, (str, os.PathLike)) and os.fspath(v).lower().endswith(OCCT_SUFFIXES)
-                                        for v in callspec.params.values()):
+        if callspec is not None and any(
+            isinstance(v, (str, os.PathLike)) and os.fspath(v).lower().endswith(OCCT_SUFFIXES)
+            for v in callspec.params.values()
+        ):
             needs.add("cad")
         for name in sorted(needs):
             if item.get_closest_marker(name) is None:
                 item.add_marker(getattr(pytest.mark, name))
 
 
-_MODULE_IMPORTS = {"cad": re.compile(r"^(import OCP|from OCP[ .]|from occ_reference |import occ_reference)", re.M),
-                   "dask": re.compile(r"^(import (dask|distributed)|from (dask|distributed)[ .])", re.M)}
+_MODULE_IMPORTS = {
+    "cad": re.compile(r"^(import OCP|from OCP[ .]|from occ_reference |import occ_reference)", re.M),
+    "dask": re.compile(r"^(import (dask|distributed)|from (dask|distributed)[ .])", re.M),
+}
 _PART_MODULES = {"cad": "OCP", "dask": "distributed"}
 
 
@@ -317,6 +337,7 @@ def pytest_ignore_collect(collection_path, config):
     from _pytest.mark.expression import Expression
 
     text = collection_path.read_text(encoding="utf-8")
+
     def missing(name: str) -> bool:
         try:
             return importlib.util.find_spec(name) is None
@@ -324,8 +345,11 @@ def pytest_ignore_collect(collection_path, config):
             return True
 
     for part, pattern in _MODULE_IMPORTS.items():
-        if pattern.search(text) and missing(_PART_MODULES[part]) \
-                and not Expression.compile(markexpr).evaluate(lambda name, **kw: name == part):
+        if (
+            pattern.search(text)
+            and missing(_PART_MODULES[part])
+            and not Expression.compile(markexpr).evaluate(lambda name, **kw: name == part)
+        ):
             return True
     return None
 
@@ -428,8 +452,11 @@ def pytest_runtest_makereport(item, call):
         with open(record, "a", encoding="utf-8") as out:
             out.write(f"{item.nodeid}\t{' '.join(parts)}\n")
         return
-    message = (f"{item.nodeid} uses {' and '.join(parts)} but is not marked so: add "
-               + ", ".join(f"@pytest.mark.{p}" for p in parts) + " (tests/conftest.py, docs/testing.md)")
+    message = (
+        f"{item.nodeid} uses {' and '.join(parts)} but is not marked so: add "
+        + ", ".join(f"@pytest.mark.{p}" for p in parts)
+        + " (tests/conftest.py, docs/testing.md)"
+    )
     if report.passed:
         report.outcome, report.longrepr = "failed", message
     else:

@@ -43,8 +43,10 @@ MODEL_SUFFIXES = (".bez", ".bpt", ".g2", ".igs", ".iges", ".nurbs", ".obj")
 SIZE = 64
 
 # Runs in the child: set the address-space limit, then become the bsrt command.
-_LAUNCH = "import os, resource, sys; n = int(sys.argv[1]); resource.setrlimit(resource.RLIMIT_AS, (n, n)); " \
-          "os.execv(sys.executable, [sys.executable] + sys.argv[2:])"
+_LAUNCH = (
+    "import os, resource, sys; n = int(sys.argv[1]); resource.setrlimit(resource.RLIMIT_AS, (n, n)); "
+    "os.execv(sys.executable, [sys.executable] + sys.argv[2:])"
+)
 
 
 def sources(root: Path = ROOT) -> list[Path]:
@@ -57,9 +59,33 @@ def sources(root: Path = ROOT) -> list[Path]:
 # ---------------------------------------------------------------------------
 # Mutations: each takes (rng, bytes) and returns (bytes, description)
 
-EXTREMES = ["1e308", "-1e308", "1e400", "-1e400", "5e-324", "1e-320", "0", "-0", "0.0", "-1",
-            "99999999999999999999999999999", "-99999999999999999999999999999", "9223372036854775808",
-            "nan", "inf", "-inf", "１", "٣", "1.7976931348623157e308", "1e15", "1e16", "2e-16", "true", "abc", ""]
+EXTREMES = [
+    "1e308",
+    "-1e308",
+    "1e400",
+    "-1e400",
+    "5e-324",
+    "1e-320",
+    "0",
+    "-0",
+    "0.0",
+    "-1",
+    "99999999999999999999999999999",
+    "-99999999999999999999999999999",
+    "9223372036854775808",
+    "nan",
+    "inf",
+    "-inf",
+    "１",
+    "٣",
+    "1.7976931348623157e308",
+    "1e15",
+    "1e16",
+    "2e-16",
+    "true",
+    "abc",
+    "",
+]
 _NUMBER = re.compile(rb"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?")
 
 
@@ -82,14 +108,14 @@ def line_deletion(rng, data):
     lines = data.split(b"\n")
     k = rng.randrange(len(lines))
     n = rng.randint(1, 5)
-    return b"\n".join(lines[:k] + lines[k + n:]), f"delete lines {k + 1}..{k + n}"
+    return b"\n".join(lines[:k] + lines[k + n :]), f"delete lines {k + 1}..{k + n}"
 
 
 def line_duplication(rng, data):
     lines = data.split(b"\n")
     k = rng.randrange(len(lines))
     n = rng.randint(1, 3)
-    return b"\n".join(lines[:k + 1] + [lines[k]] * n + lines[k + 1:]), f"repeat line {k + 1} {n} times"
+    return b"\n".join(lines[: k + 1] + [lines[k]] * n + lines[k + 1 :]), f"repeat line {k + 1} {n} times"
 
 
 def huge_numbers(rng, data):
@@ -121,11 +147,36 @@ def _nodes(value, path=()):
 
 
 def _swap_value(rng):
-    return rng.choice([
-        True, False, "x", "１", "", 0, -1, 1, 10**30, -(10**30), 2**63, 1e308, -1e308, 5e-324, float("nan"),
-        float("inf"), float("-inf"), 1.5, [], [1, 2], [[True, "a"]], {}, {"a": 1}, "1e3",
-        [0.0] * rng.choice([1, 3, 4, 1000]), _nested(rng.choice([5, 60, 900, 50_000])),
-    ])
+    return rng.choice(
+        [
+            True,
+            False,
+            "x",
+            "１",
+            "",
+            0,
+            -1,
+            1,
+            10**30,
+            -(10**30),
+            2**63,
+            1e308,
+            -1e308,
+            5e-324,
+            float("nan"),
+            float("inf"),
+            float("-inf"),
+            1.5,
+            [],
+            [1, 2],
+            [[True, "a"]],
+            {},
+            {"a": 1},
+            "1e3",
+            [0.0] * rng.choice([1, 3, 4, 1000]),
+            _nested(rng.choice([5, 60, 900, 50_000])),
+        ]
+    )
 
 
 def _nested(depth):
@@ -177,8 +228,9 @@ def _toml_text(doc: dict) -> bytes:
 
 
 def _is_table(value) -> bool:
-    return isinstance(value, dict) or (isinstance(value, list) and bool(value)
-                                       and all(isinstance(v, dict) for v in value))
+    return isinstance(value, dict) or (
+        isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+    )
 
 
 def mutate(rng: random.Random, source: Path) -> tuple[bytes, str]:
@@ -215,13 +267,29 @@ def run_case(number: int, seed: int, files: list[Path], work: Path, timeout: flo
     target.write_bytes(data)
     case = Case(number, str(source.relative_to(ROOT)), mutation)
     env = dict(os.environ, PYTHONPATH=str(ROOT), BSRT_DEBUG="")
-    command = [sys.executable, "-c", _LAUNCH, str(memory), "-m", "bsrt", "render", str(target),
-               "-o", str(out / "image.png"), "--width", str(SIZE), "--height", str(SIZE), "--no-progress"]
+    command = [
+        sys.executable,
+        "-c",
+        _LAUNCH,
+        str(memory),
+        "-m",
+        "bsrt",
+        "render",
+        str(target),
+        "-o",
+        str(out / "image.png"),
+        "--width",
+        str(SIZE),
+        "--height",
+        str(SIZE),
+        "--no-progress",
+    ]
     err_path = folder / "stderr.txt"
     clock = time.perf_counter()
     with open(err_path, "wb") as err:
-        child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=folder,
-                                 start_new_session=True)
+        child = subprocess.Popen(
+            command, stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=folder, start_new_session=True
+        )
         fired = threading.Event()
         timer = threading.Timer(timeout, _kill, (child.pid, fired))
         timer.start()
@@ -278,16 +346,27 @@ def promises_broken(case: Case, out: Path, timed_out: bool, name: str) -> list[s
 
 def _is_png(path: Path) -> bool:
     head = path.read_bytes()[:24]
-    return (head[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(head[16:20], "big") == SIZE
-            and int.from_bytes(head[20:24], "big") == SIZE)
+    return (
+        head[:8] == b"\x89PNG\r\n\x1a\n"
+        and int.from_bytes(head[16:20], "big") == SIZE
+        and int.from_bytes(head[20:24], "big") == SIZE
+    )
 
 
 # ---------------------------------------------------------------------------
 # The run and its summary
 
 
-def run(cases: int, seed: int, jobs: int = 1, timeout: float = 120.0, memory_gb: float = 8.0,
-        keep: Path | None = None, time_budget: float | None = None, log=print) -> dict:
+def run(
+    cases: int,
+    seed: int,
+    jobs: int = 1,
+    timeout: float = 120.0,
+    memory_gb: float = 8.0,
+    keep: Path | None = None,
+    time_budget: float | None = None,
+    log=print,
+) -> dict:
     """Run the cases; returns the summary (see ``summary``). Broken cases are copied to ``keep``."""
     files = sources()
     memory = int(memory_gb * 2**30)
@@ -305,8 +384,10 @@ def run(cases: int, seed: int, jobs: int = 1, timeout: float = 120.0, memory_gb:
                 shutil.copytree(work / f"case-{number}", keep / f"case-{number}", dirs_exist_ok=True)
             shutil.rmtree(work / f"case-{number}", ignore_errors=True)
             if case.problems:
-                log(f"case {number}: {case.source}: {case.mutation}: {', '.join(case.problems)}: "
-                    f"{case.stderr.strip()[-300:]!r}")
+                log(
+                    f"case {number}: {case.source}: {case.mutation}: {', '.join(case.problems)}: "
+                    f"{case.stderr.strip()[-300:]!r}"
+                )
             return case
 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
@@ -329,15 +410,23 @@ def summary(cases: list[Case], seed: int, seconds: float) -> dict:
     slowest = max(cases, key=lambda c: c.seconds, default=None)
     broken = [c for c in cases if c.problems]
     return {
-        "cases": len(cases), "seed": seed, "seconds": round(seconds, 1),
+        "cases": len(cases),
+        "seed": seed,
+        "seconds": round(seconds, 1),
         "exits": dict(sorted(codes.items())),
-        "tracebacks": count("traceback"), "internal_errors": count("internal error"), "hangs": count("hang"),
-        "files_left": count("files left"), "stderr_not_one_line": count("stderr lines") + count("exit 0 with"),
-        "python_warnings": count("Python warning"), "bad_exit_codes": count("exit code"),
-        "exit0_without_image": count("exit 0 without"), "unnamed_file": count("message does not"),
+        "tracebacks": count("traceback"),
+        "internal_errors": count("internal error"),
+        "hangs": count("hang"),
+        "files_left": count("files left"),
+        "stderr_not_one_line": count("stderr lines") + count("exit 0 with"),
+        "python_warnings": count("Python warning"),
+        "bad_exit_codes": count("exit code"),
+        "exit0_without_image": count("exit 0 without"),
+        "unnamed_file": count("message does not"),
         "max_peak_rss_mb": round(biggest.peak_mb, 1) if biggest else 0,
         "max_peak_rss_case": _label(biggest),
-        "slowest_seconds": round(slowest.seconds, 2) if slowest else 0, "slowest_case": _label(slowest),
+        "slowest_seconds": round(slowest.seconds, 2) if slowest else 0,
+        "slowest_case": _label(slowest),
         "broken": [asdict(c) for c in broken],
     }
 

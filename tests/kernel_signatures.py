@@ -51,10 +51,10 @@ def signatures() -> dict[str, list[str]]:
 
 def render_everything(size: int) -> None:
     """Every bundled scene and a trimmed model, with every method, at size x size."""
-    from bsrt.scene.loading import load_input
-    from bsrt.rendering.pipeline import render
-    from bsrt.settings import METHODS
     from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import render
+    from bsrt.scene.loading import load_input
+    from bsrt.settings import METHODS
 
     inputs = sorted((ROOT / "scenes").glob("*.toml")) + [TRIMMED_MODEL]
     for path in inputs:

@@ -28,8 +28,11 @@ def occt_hits(shape, eye, directions, size: float, faces=None):
             i = min(range(1, intersector.NbPnt() + 1), key=intersector.WParameter)
             hit[k], t[k] = True, intersector.WParameter(i)
             f = intersector.Face(i)
-            face[k] = (next(j for j, g in enumerate(faces) if g.IsSame(f)) if faces is not None
-                       else hash(f) & 0x3FFFFFFFFFFFFFFF)
+            face[k] = (
+                next(j for j, g in enumerate(faces) if g.IsSame(f))
+                if faces is not None
+                else hash(f) & 0x3FFFFFFFFFFFFFFF
+            )
     return hit, t, face
 
 
@@ -46,5 +49,5 @@ def interior(labels: np.ndarray) -> np.ndarray:
     same = np.ones((h, w), dtype=bool)
     for di in (-1, 0, 1):
         for dj in (-1, 0, 1):
-            same &= pad[1 + di: 1 + di + h, 1 + dj: 1 + dj + w] == labels
+            same &= pad[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] == labels
     return same

@@ -14,12 +14,12 @@ from distributed import LocalCluster
 from PIL import Image
 
 import bsrt
-from bsrt.rendering.warm_up import warm_up
-from bsrt.scene.camera import Camera
 from bsrt.batches.animation import frame_cameras, orbit_camera
-from bsrt.scene.keyframes import Keyframe, keyframe_camera
 from bsrt.errors import InputError
+from bsrt.rendering.warm_up import warm_up
 from bsrt.scene import load_scene
+from bsrt.scene.camera import Camera
+from bsrt.scene.keyframes import Keyframe, keyframe_camera
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -33,8 +33,7 @@ def cluster():
 
 
 def bsrt_cli(*args):
-    return subprocess.run([sys.executable, "-m", "bsrt", *map(str, args)], capture_output=True, text=True,
-                          timeout=600)
+    return subprocess.run([sys.executable, "-m", "bsrt", *map(str, args)], capture_output=True, text=True, timeout=600)
 
 
 def test_orbit_positions_on_closed_forms():
@@ -53,35 +52,53 @@ def test_orbit_positions_on_closed_forms():
 
 def test_keyframes_interpolate_linearly_and_hold_at_the_ends(tmp_path):
     scene = tmp_path / "kf.toml"
-    scene.write_text((SCENES / "quad.toml").read_text().replace(
-        "fov = 40.0\n", "fov = 40.0\n\n[[camera.keyframe]]\nframe = 2\neye = [0.0, -4.0, 0.0]\n\n"
-        "[[camera.keyframe]]\nframe = 6\neye = [0.0, -8.0, 2.0]\nlook_at = [1.0, 0.0, 0.0]\nfov = 20.0\n", 1))
+    scene.write_text(
+        (SCENES / "quad.toml")
+        .read_text()
+        .replace(
+            "fov = 40.0\n",
+            "fov = 40.0\n\n[[camera.keyframe]]\nframe = 2\neye = [0.0, -4.0, 0.0]\n\n"
+            "[[camera.keyframe]]\nframe = 6\neye = [0.0, -8.0, 2.0]\nlook_at = [1.0, 0.0, 0.0]\nfov = 20.0\n",
+            1,
+        )
+    )
     s = load_scene(scene)
     assert [k.frame for k in s.keyframes] == [2, 6]
     assert s.keyframes[0] == Keyframe(2, (0.0, -4.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 40.0)
     cams = frame_cameras(s, 7, None)
-    np.testing.assert_array_equal([c.eye for c in cams], [[0, -4, 0], [0, -4, 0], [0, -5, 0.5], [0, -6, 1],
-                                                         [0, -7, 1.5], [0, -8, 2], [0, -8, 2]])
+    np.testing.assert_array_equal(
+        [c.eye for c in cams], [[0, -4, 0], [0, -4, 0], [0, -5, 0.5], [0, -6, 1], [0, -7, 1.5], [0, -8, 2], [0, -8, 2]]
+    )
     np.testing.assert_array_equal([c.look_at[0] for c in cams], [0, 0, 0.25, 0.5, 0.75, 1, 1])
     assert [c.fov for c in cams] == [40, 40, 35, 30, 25, 20, 20]
     assert np.array_equal(keyframe_camera(s.camera, s.keyframes, 4).up, (0.0, 0.0, 1.0))
 
 
-@pytest.mark.parametrize("table, message", [
-    ("frame = 0", "camera.keyframe[0].frame: must be >= 1, got 0"),
-    ("frame = 3\n[[camera.keyframe]]\nframe = 3", "camera.keyframe[1].frame: must be greater than the previous "
-                                                  "keyframe's (3), got 3"),
-    ("frame = 1\neye = [1, 2]", "camera.keyframe[0].eye: expected 3 numbers, got [1, 2]"),
-    ("frame = 1\nzoom = 2", "camera.keyframe[0].zoom: unknown key"),
-    ("frame = 1\nfov = 180", "camera.keyframe[0].fov: must be < 180, got 180"),
-    ("frame = 1\neye = [0, 0, 0]", "camera.keyframe[0].look_at: must differ from eye"),
-    ("frame = 1\nup = [0, 1, 0]", "camera.keyframe[0].up: must not be zero or parallel to the view direction"),
-    ("eye = [0, -4, 0]", "camera.keyframe[0].frame: missing (required)"),
-])
+@pytest.mark.parametrize(
+    "table, message",
+    [
+        ("frame = 0", "camera.keyframe[0].frame: must be >= 1, got 0"),
+        (
+            "frame = 3\n[[camera.keyframe]]\nframe = 3",
+            "camera.keyframe[1].frame: must be greater than the previous keyframe's (3), got 3",
+        ),
+        ("frame = 1\neye = [1, 2]", "camera.keyframe[0].eye: expected 3 numbers, got [1, 2]"),
+        ("frame = 1\nzoom = 2", "camera.keyframe[0].zoom: unknown key"),
+        ("frame = 1\nfov = 180", "camera.keyframe[0].fov: must be < 180, got 180"),
+        ("frame = 1\neye = [0, 0, 0]", "camera.keyframe[0].look_at: must differ from eye"),
+        ("frame = 1\nup = [0, 1, 0]", "camera.keyframe[0].up: must not be zero or parallel to the view direction"),
+        ("eye = [0, -4, 0]", "camera.keyframe[0].frame: missing (required)"),
+    ],
+)
 def test_a_bad_keyframe_is_one_line_naming_file_and_key_exit_2(tmp_path, table, message):
     scene = tmp_path / "bad.toml"
-    scene.write_text((SCENES / "quad.toml").read_text().replace("fov = 40.0\n", f"fov = 40.0\n[[camera.keyframe]]\n{table}\n", 1))
-    for command in (["animate", scene, "--out", tmp_path / "out", "--frames", 2], ["render", scene, "-o", tmp_path / "x.png"]):
+    scene.write_text(
+        (SCENES / "quad.toml").read_text().replace("fov = 40.0\n", f"fov = 40.0\n[[camera.keyframe]]\n{table}\n", 1)
+    )
+    for command in (
+        ["animate", scene, "--out", tmp_path / "out", "--frames", 2],
+        ["render", scene, "-o", tmp_path / "x.png"],
+    ):
         run = bsrt_cli(*command)
         assert (run.returncode, run.stderr.startswith(f"bsrt: error: bad.toml: {message}")) == (2, True), run.stderr
         assert len(run.stderr.splitlines()) == 1
@@ -98,14 +115,46 @@ def test_animate_without_a_path_is_usage_error(tmp_path):
 @pytest.mark.gl
 def test_orbit_of_8_frames_with_animated_webp(tmp_path, cluster):
     out = tmp_path / "out"
-    run = bsrt_cli("animate", SCENES / "column.toml", "--out", out, "--frames", 8, "--orbit", 360, "--width", 64,
-                   "--height", 64, "--webp", "--fps", 10, "--scheduler", cluster.scheduler_address,
-                   "--summary", tmp_path / "s.json")
+    run = bsrt_cli(
+        "animate",
+        SCENES / "column.toml",
+        "--out",
+        out,
+        "--frames",
+        8,
+        "--orbit",
+        360,
+        "--width",
+        64,
+        "--height",
+        64,
+        "--webp",
+        "--fps",
+        10,
+        "--scheduler",
+        cluster.scheduler_address,
+        "--summary",
+        tmp_path / "s.json",
+    )
     assert run.returncode == 0, run.stderr
     assert sorted(p.name for p in out.iterdir()) == ["column.webp"] + [f"frame_{k:04d}.png" for k in range(1, 9)]
     # Frame 1 is the scene's own camera: the same bytes as `bsrt render`.
-    single = subprocess.run([sys.executable, "-m", "bsrt", "render", SCENES / "column.toml", "-o",
-                             tmp_path / "single.png", "--width", "64", "--height", "64"], capture_output=True)
+    single = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bsrt",
+            "render",
+            SCENES / "column.toml",
+            "-o",
+            tmp_path / "single.png",
+            "--width",
+            "64",
+            "--height",
+            "64",
+        ],
+        capture_output=True,
+    )
     assert single.returncode == 0 and (out / "frame_0001.png").read_bytes() == (tmp_path / "single.png").read_bytes()
     frames = [np.asarray(Image.open(out / f"frame_{k:04d}.png")) for k in range(1, 9)]
     assert not np.array_equal(frames[0], frames[1])  # the camera moved
@@ -122,11 +171,18 @@ def test_orbit_of_8_frames_with_animated_webp(tmp_path, cluster):
 @pytest.mark.gl
 def test_keyframes_as_animated_png(tmp_path, cluster):
     scene = tmp_path / "kf.toml"
-    scene.write_text((SCENES / "quad.toml").read_text().replace(
-        "fov = 40.0\n", "fov = 40.0\n[[camera.keyframe]]\nframe = 1\n[[camera.keyframe]]\nframe = 4\n"
-        "eye = [2.0, -4.0, 1.0]\n", 1))
-    summary = bsrt.animate(scene, tmp_path / "out", animation="apng", width=32, height=32,
-                           scheduler=cluster.scheduler_address)
+    scene.write_text(
+        (SCENES / "quad.toml")
+        .read_text()
+        .replace(
+            "fov = 40.0\n",
+            "fov = 40.0\n[[camera.keyframe]]\nframe = 1\n[[camera.keyframe]]\nframe = 4\neye = [2.0, -4.0, 1.0]\n",
+            1,
+        )
+    )
+    summary = bsrt.animate(
+        scene, tmp_path / "out", animation="apng", width=32, height=32, scheduler=cluster.scheduler_address
+    )
     assert summary.exit_code == 0 and len(summary.items) == 5
     with Image.open(tmp_path / "out" / "kf.png") as anim:
         assert (anim.format, anim.n_frames, getattr(anim, "is_animated", False)) == ("PNG", 4, True)

@@ -15,15 +15,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MODELS
 from PIL import Image
 
 import bsrt
-from bsrt.geometry.bspline import evaluate
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import evaluate
 from bsrt.io import load_model
 from bsrt.scene import scene_for_model
-
-from conftest import MODELS
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 W = math.sqrt(0.5)  # 0.7071067811865476: the weight of a 90-degree arc's middle point
@@ -77,8 +76,9 @@ def scene_text(surface: dict, header: str = "") -> str:
             lines.append(f"{key} = {toml_value(value)}")
     for loop in surface.get("trim") or ():
         lines += ["[[surface.trim]]", "curves = ["]
-        lines += ["  { " + ", ".join(f"{k} = {toml_value(v)}" for k, v in c.items() if v is not None) + " },"
-                  for c in loop]
+        lines += [
+            "  { " + ", ".join(f"{k} = {toml_value(v)}" for k, v in c.items() if v is not None) + " }," for c in loop
+        ]
         lines.append("]")
     return "\n".join(lines) + "\n"
 
@@ -95,21 +95,38 @@ def load_text(tmp_path, text: str, name: str = "scene.toml"):
 
 def test_import_bsrt_loads_nothing_heavy():
     """`import bsrt` imports no NumPy, OpenGL or numba (the API loads on first use)."""
-    code = ("import sys, time; t = time.perf_counter(); import bsrt; dt = time.perf_counter() - t; "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('bsrt', 'numpy', 'moderngl', 'numba')), dt)")
+    code = (
+        "import sys, time; t = time.perf_counter(); import bsrt; dt = time.perf_counter() - t; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('bsrt', 'numpy', 'moderngl', 'numba')), dt)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out[0] == "['bsrt']"
     assert float(out[1]) < 0.05  # about 2 ms; generous for a busy machine
 
 
 def test_the_api_names():
-    for name in ("load", "render", "Scene", "Surface", "Camera", "Light", "Material", "Film", "Import",
-                 "RenderSettings", "RenderResult", "from_splipy", "from_geomdl", "InputError", "RenderError"):
+    for name in (
+        "load",
+        "render",
+        "Scene",
+        "Surface",
+        "Camera",
+        "Light",
+        "Material",
+        "Film",
+        "Import",
+        "RenderSettings",
+        "RenderResult",
+        "from_splipy",
+        "from_geomdl",
+        "InputError",
+        "RenderError",
+    ):
         assert hasattr(bsrt, name), name
     assert set(bsrt.__all__) == set(bsrt._LAZY) | {"__version__", "render"}
     assert bsrt.InputError is InputError and bsrt.Material is bsrt.scene.Material
     with pytest.raises(AttributeError):
-        bsrt.no_such_name
+        bsrt.no_such_name  # noqa: B018 (the attribute lookup is the test)
 
 
 def test_bsrt_render_is_the_api_and_the_pipeline_is_its_own_module():
@@ -132,8 +149,11 @@ def quad_parts():
     return dict(
         surfaces=[surface],
         camera=bsrt.Camera(eye=(0.0, -4.0, 0.0), look_at=(0.0, 0.0, 0.0), up=(0.0, 0.0, 1.0), fov=40.0),
-        lights=[bsrt.Light.ambient(intensity=0.15), bsrt.Light.point((1.0, -4.0, 2.0), intensity=20.0),
-                bsrt.Light.directional((0.5, 1.0, -0.5), intensity=0.3)],
+        lights=[
+            bsrt.Light.ambient(intensity=0.15),
+            bsrt.Light.point((1.0, -4.0, 2.0), intensity=20.0),
+            bsrt.Light.directional((0.5, 1.0, -0.5), intensity=0.3),
+        ],
         materials=[bsrt.Material("white", color=(0.9, 0.9, 0.9), specular=0.1, shininess=10.0, reflectance=0.0)],
         film=bsrt.Film(64, 64, (0.05, 0.05, 0.08)),
         render={"method": "newton"},
@@ -206,33 +226,54 @@ def trimmed_rational_scene():
     """A rational quarter cylinder with a hole (a circle of two rational arcs), a coloured
     bicubic with a transform, a material given as an object, and an unusual name."""
     cyl = bsrt.Surface(
-        degree=(2, 1), knots_u=[0, 0, 0, 1, 1, 1], knots_v=[0, 0, 1, 1],
+        degree=(2, 1),
+        knots_u=[0, 0, 0, 1, 1, 1],
+        knots_v=[0, 0, 1, 1],
         points=np.array([[[1, 0, 0], [1, 0, 1]], [[1, 1, 0], [1, 1, 1]], [[0, 1, 0], [0, 1, 1]]], dtype=float),
         weights=np.array([[1.0, 1.0], [W, W], [1.0, 1.0]]),
         material=bsrt.Material("brass", color=(0.8, 0.6, 0.2), specular=0.5, shininess=64.0, reflectance=0.25),
         name='cyl "quoted" \\ é',
-        trims=[[
-            {"degree": 2, "knots": [0, 0, 0, 1, 1, 1], "points": [[0.75, 0.5], [0.75, 0.75], [0.5, 0.75]],
-             "weights": [1.0, W, 1.0]},
-            {"degree": 2, "knots": [0, 0, 0, 1, 1, 1], "points": [[0.5, 0.75], [0.25, 0.75], [0.25, 0.5]],
-             "weights": [1.0, W, 1.0]},
-            {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0.25, 0.5], [0.75, 0.5]]},
-        ], [
-            {"degree": 1, "knots": [0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 4.0],
-             "points": np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]])},
-        ]],
+        trims=[
+            [
+                {
+                    "degree": 2,
+                    "knots": [0, 0, 0, 1, 1, 1],
+                    "points": [[0.75, 0.5], [0.75, 0.75], [0.5, 0.75]],
+                    "weights": [1.0, W, 1.0],
+                },
+                {
+                    "degree": 2,
+                    "knots": [0, 0, 0, 1, 1, 1],
+                    "points": [[0.5, 0.75], [0.25, 0.75], [0.25, 0.5]],
+                    "weights": [1.0, W, 1.0],
+                },
+                {"degree": 1, "knots": [0, 0, 1, 1], "points": [[0.25, 0.5], [0.75, 0.5]]},
+            ],
+            [
+                {
+                    "degree": 1,
+                    "knots": [0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 4.0],
+                    "points": np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]]),
+                },
+            ],
+        ],
     )
     rng = np.random.default_rng(7)
     grid = np.stack(np.meshgrid(np.linspace(-1, 1, 5), np.linspace(-1, 1, 4), indexing="ij"), axis=-1)
     bumpy = bsrt.Surface(
-        degree=(3, 2), knots_u=[0, 0, 0, 0, 0.3, 1, 1, 1, 1], knots_v=[0, 0, 0, 0.6, 1, 1, 1],
+        degree=(3, 2),
+        knots_u=[0, 0, 0, 0, 0.3, 1, 1, 1, 1],
+        knots_v=[0, 0, 0, 0.6, 1, 1, 1],
         points=np.concatenate([grid, rng.normal(0, 0.3, (5, 4, 1))], axis=-1),
-        color=(0.2, 0.5, 0.3), transform={"scale": 0.5, "rotate": [0, 0, 1, 30], "translate": [0.1, 0.2, -0.4]},
+        color=(0.2, 0.5, 0.3),
+        transform={"scale": 0.5, "rotate": [0, 0, 1, 30], "translate": [0.1, 0.2, -0.4]},
     )
     return bsrt.Scene.build(
-        [cyl, bumpy], bsrt.Camera((3.0, 2.5, 1.5), (0.5, 0.5, 0.3), fov=35.0, fov_axis="x"),
+        [cyl, bumpy],
+        bsrt.Camera((3.0, 2.5, 1.5), (0.5, 0.5, 0.3), fov=35.0, fov_axis="x"),
         lights=[bsrt.Light.point((4.0, 3.0, 5.0), color=(1.0, 0.9, 0.8), intensity=40.0)],
-        film=bsrt.Film(40, 30, (0.1, 0.2, 0.3)), render={"max_depth": 2, "tolerance": 1e-10},
+        film=bsrt.Film(40, 30, (0.1, 0.2, 0.3)),
+        render={"max_depth": 2, "tolerance": 1e-10},
     )
 
 
@@ -249,8 +290,9 @@ def test_to_toml_reads_back_to_the_same_scene(tmp_path, source):
     text = scene.to_toml()
     again = load_text(tmp_path, text)
     same_scene(scene, again)
+
     def body(toml):  # the header comments name the source and its notes
-        return toml[toml.index("\n[film]"):]
+        return toml[toml.index("\n[film]") :]
 
     assert body(again.to_toml()) == body(text)
 
@@ -292,7 +334,9 @@ def test_imports_and_surfaces_from_other_scenes(tmp_path):
     quad = bsrt.load(SCENES / "quad.toml")
     scene = bsrt.Scene.build(
         [quad.surfaces[0], bsrt.Import(teapot, material="white", transform={"scale": 0.1}), quad.surfaces[0].geometry],
-        quad.camera, materials=quad.materials, lights=quad.lights,
+        quad.camera,
+        materials=quad.materials,
+        lights=quad.lights,
     )
     model = load_model(teapot)
     assert len(scene.surfaces) == 2 + len(model.surfaces)
@@ -311,8 +355,9 @@ def test_lights_and_cameras_equal_the_scene_formats_own():
     assert loaded.lights[1] == bsrt.Light.point((1.0, -4.0, 2.0), intensity=20.0)
     assert bsrt.Light.ambient(intensity=0.15) == loaded.lights[0]
     assert loaded.lights[0] == bsrt.Light.ambient(intensity=0.15)  # both ways round
-    assert bsrt.Light.directional((0.5, 1.0, -0.5), intensity=0.3) == bsrt.Light("directional", intensity=0.3,
-                                                                                 direction=(0.5, 1.0, -0.5))
+    assert bsrt.Light.directional((0.5, 1.0, -0.5), intensity=0.3) == bsrt.Light(
+        "directional", intensity=0.3, direction=(0.5, 1.0, -0.5)
+    )
     assert bsrt.Light.ambient() != bsrt.Light.ambient(intensity=0.5)
     camera = bsrt.Camera([0, -4, 0], np.zeros(3))
     assert camera.eye.dtype == np.float64 and camera.up.tolist() == [0.0, 0.0, 1.0] and camera.fov == 40.0
@@ -327,13 +372,21 @@ def test_lights_and_cameras_equal_the_scene_formats_own():
 def base_surface():
     """A valid bicubic: 8 x 4 points."""
     pts = np.stack(np.meshgrid(np.arange(8.0), np.arange(4.0), indexing="ij"), axis=-1)
-    return {"degree": [3, 3], "knots_u": [0.0, 0, 0, 0, 1, 2, 3, 4, 5, 5, 5, 5],
-            "knots_v": [0.0, 0, 0, 0, 1, 1, 1, 1],
-            "points": np.concatenate([pts, np.zeros((8, 4, 1))], axis=-1).tolist()}
+    return {
+        "degree": [3, 3],
+        "knots_u": [0.0, 0, 0, 0, 1, 2, 3, 4, 5, 5, 5, 5],
+        "knots_v": [0.0, 0, 0, 0, 1, 1, 1, 1],
+        "points": np.concatenate([pts, np.zeros((8, 4, 1))], axis=-1).tolist(),
+    }
 
 
-SQUARE_LOOP = [{"degree": 1, "knots": [0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 4.0],
-                "points": [[1.0, 0.2], [4.0, 0.2], [4.0, 0.8], [1.0, 0.8], [1.0, 0.2]]}]
+SQUARE_LOOP = [
+    {
+        "degree": 1,
+        "knots": [0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 4.0],
+        "points": [[1.0, 0.2], [4.0, 0.2], [4.0, 0.8], [1.0, 0.8], [1.0, 0.2]],
+    }
+]
 
 BAD_SURFACES = {
     "knot count": {"knots_u": [0.0, 0, 0, 0, 1, 2, 3, 4, 5, 5, 5]},
@@ -349,8 +402,9 @@ BAD_SURFACES = {
     "material and color": {"material": "gold", "color": [1.0, 0.0, 0.0]},
     "negative color": {"color": [1.0, -0.5, 0.0]},
     "open trim loop": {"trim": [[{**SQUARE_LOOP[0], "points": SQUARE_LOOP[0]["points"][:4] + [[1.0, 0.3]]}]]},
-    "trim outside domain": {"trim": [[{**SQUARE_LOOP[0], "points": [[1.0, 0.2], [6.0, 0.2], [6.0, 0.8], [1.0, 0.8],
-                                                                     [1.0, 0.2]]}]]},
+    "trim outside domain": {
+        "trim": [[{**SQUARE_LOOP[0], "points": [[1.0, 0.2], [6.0, 0.2], [6.0, 0.8], [1.0, 0.8], [1.0, 0.2]]}]]
+    },
     "trim knot count": {"trim": [[{**SQUARE_LOOP[0], "knots": [0.0, 1.0, 2.0]}]]},
 }
 
@@ -383,24 +437,38 @@ def test_the_knot_count_message(tmp_path):
     assert str(exc.value) == "<python>: surface[0].knots_u: expected 12 values (8 points + degree 3 + 1), got 11"
 
 
-@pytest.mark.parametrize("python, toml", [
-    (dict(camera=bsrt.Camera((1, 2, 3), (1, 2, 3))), '[camera]\neye = [1, 2, 3]\nlook_at = [1, 2, 3]\n'),
-    (dict(camera=bsrt.Camera((0, 0, 5), (0, 0, 0))), '[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\n'),
-    (dict(camera=bsrt.Camera((0, -4, 0), (0, 0, 0), fov_axis="z")),
-     '[camera]\neye = [0, -4, 0]\nlook_at = [0, 0, 0]\nfov_axis = "z"\n'),
-    (dict(lights=[bsrt.Light.point((1.0, 2.0))]), '[[light]]\nkind = "point"\nposition = [1.0, 2.0]\n'),
-    (dict(lights=[bsrt.Light("spot")]), '[[light]]\nkind = "spot"\n'),
-    (dict(lights=[bsrt.Light.directional((0, 0, 0))]),
-     '[[light]]\nkind = "directional"\ndirection = [0.0, 0.0, 0.0]\n'),
-    (dict(film=bsrt.Film(0, 10)), "[film]\nwidth = 0\nheight = 10\n"),
-    (dict(render={"method": "bisection"}), '[render]\nmethod = "bisection"\n'),
-    (dict(render={"spp": 2, "samples": 4}), "[render]\nspp = 2\nsamples = 4\n"),
-    (dict(materials=[bsrt.Material("a"), bsrt.Material("a")]), '[[material]]\nname = "a"\n[[material]]\nname = "a"\n'),
-    (dict(materials=[bsrt.Material("a", specular=2.0)]), '[[material]]\nname = "a"\nspecular = 2.0\n'),
-])
+@pytest.mark.parametrize(
+    "python, toml",
+    [
+        (dict(camera=bsrt.Camera((1, 2, 3), (1, 2, 3))), "[camera]\neye = [1, 2, 3]\nlook_at = [1, 2, 3]\n"),
+        (dict(camera=bsrt.Camera((0, 0, 5), (0, 0, 0))), "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\n"),
+        (
+            dict(camera=bsrt.Camera((0, -4, 0), (0, 0, 0), fov_axis="z")),
+            '[camera]\neye = [0, -4, 0]\nlook_at = [0, 0, 0]\nfov_axis = "z"\n',
+        ),
+        (dict(lights=[bsrt.Light.point((1.0, 2.0))]), '[[light]]\nkind = "point"\nposition = [1.0, 2.0]\n'),
+        (dict(lights=[bsrt.Light("spot")]), '[[light]]\nkind = "spot"\n'),
+        (
+            dict(lights=[bsrt.Light.directional((0, 0, 0))]),
+            '[[light]]\nkind = "directional"\ndirection = [0.0, 0.0, 0.0]\n',
+        ),
+        (dict(film=bsrt.Film(0, 10)), "[film]\nwidth = 0\nheight = 10\n"),
+        (dict(render={"method": "bisection"}), '[render]\nmethod = "bisection"\n'),
+        (dict(render={"spp": 2, "samples": 4}), "[render]\nspp = 2\nsamples = 4\n"),
+        (
+            dict(materials=[bsrt.Material("a"), bsrt.Material("a")]),
+            '[[material]]\nname = "a"\n[[material]]\nname = "a"\n',
+        ),
+        (dict(materials=[bsrt.Material("a", specular=2.0)]), '[[material]]\nname = "a"\nspecular = 2.0\n'),
+    ],
+)
 def test_bad_parts_give_the_messages_of_the_same_scene_file(tmp_path, python, toml):
-    surface = {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-               "points": [[[0, 0, 0], [0, 0, 1]], [[1, 0, 0], [1, 0, 1]]]}
+    surface = {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[0, 0, 0], [0, 0, 1]], [[1, 0, 0], [1, 0, 1]]],
+    }
     camera = "" if "camera" in python else "[camera]\neye = [0, -4, 0]\nlook_at = [0, 0, 0]\n"
     text = toml + "\n" + camera + "\n" + scene_text(surface).split("[[surface]]", 1)[1].join(["[[surface]]", ""])
     with pytest.raises(InputError) as from_file:
@@ -417,8 +485,20 @@ def test_bad_parts_give_the_messages_of_the_same_scene_file(tmp_path, python, to
 
 
 def test_load_overrides_become_part_of_the_scene():
-    scene = bsrt.load(SCENES / "quad.toml", width=32, height=24, method="martin", spp=2, map="rgba8", tolerance=1e-8,
-                      max_iterations=10, max_depth=0, camera_eye=(0, -5, 1), camera_up=np.array([0, 0, 2]), fov=30)
+    scene = bsrt.load(
+        SCENES / "quad.toml",
+        width=32,
+        height=24,
+        method="martin",
+        spp=2,
+        map="rgba8",
+        tolerance=1e-8,
+        max_iterations=10,
+        max_depth=0,
+        camera_eye=(0, -5, 1),
+        camera_up=np.array([0, 0, 2]),
+        fov=30,
+    )
     assert (scene.film.width, scene.film.height) == (32, 24)
     assert scene.render == bsrt.RenderSettings("martin", "rgba8", 1e-8, 10, 2, 0)
     assert scene.camera.eye.tolist() == [0, -5, 1] and scene.camera.up.tolist() == [0, 0, 2] and scene.camera.fov == 30
@@ -437,21 +517,26 @@ def test_a_model_file_gets_the_automatic_camera():
     assert explicit.camera.eye.tolist() == [10, 0, 0] and (explicit.film.width, explicit.film.height) == (512, 512)
 
 
-@pytest.mark.parametrize("overrides, message", [
-    (dict(width=0), "width: expected a whole number >= 1, got 0"),
-    (dict(height=2.5), "height: expected a whole number >= 1, got 2.5"),
-    (dict(spp=True), "spp: expected a whole number >= 1, got True"),
-    (dict(max_depth=-1), "max_depth: expected a whole number >= 0, got -1"),
-    (dict(method="bisection"), "method: expected one of gradient, fast, newton, martin, got 'bisection'"),
-    (dict(map="rgb"), "map: expected one of float, rgba8, got 'rgb'"),
-    (dict(tolerance=2.0), "tolerance: expected a number in (0, 1], got 2.0"),
-    (dict(fov=180), "fov: must be between 0 and 180 degrees, got 180"),
-    (dict(camera_eye=(1, 2)), "camera_eye: expected three finite numbers like (1, 2, 3), got (1, 2)"),
-    (dict(camera_look_at="0,0,0"), "camera_look_at: expected three finite numbers like (1, 2, 3), got '0,0,0'"),
-    (dict(camera_up=(0, -1, 0)), "camera_eye / camera_look_at / camera_up: the view direction must not be zero or "
-                                 "parallel to up"),
-    (dict(format="bez"), "format: only for model files; quad.toml is a scene file (.toml)"),
-])
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (dict(width=0), "width: expected a whole number >= 1, got 0"),
+        (dict(height=2.5), "height: expected a whole number >= 1, got 2.5"),
+        (dict(spp=True), "spp: expected a whole number >= 1, got True"),
+        (dict(max_depth=-1), "max_depth: expected a whole number >= 0, got -1"),
+        (dict(method="bisection"), "method: expected one of gradient, fast, newton, martin, got 'bisection'"),
+        (dict(map="rgb"), "map: expected one of float, rgba8, got 'rgb'"),
+        (dict(tolerance=2.0), "tolerance: expected a number in (0, 1], got 2.0"),
+        (dict(fov=180), "fov: must be between 0 and 180 degrees, got 180"),
+        (dict(camera_eye=(1, 2)), "camera_eye: expected three finite numbers like (1, 2, 3), got (1, 2)"),
+        (dict(camera_look_at="0,0,0"), "camera_look_at: expected three finite numbers like (1, 2, 3), got '0,0,0'"),
+        (
+            dict(camera_up=(0, -1, 0)),
+            "camera_eye / camera_look_at / camera_up: the view direction must not be zero or parallel to up",
+        ),
+        (dict(format="bez"), "format: only for model files; quad.toml is a scene file (.toml)"),
+    ],
+)
 def test_bad_overrides_name_the_keyword(overrides, message):
     with pytest.raises(InputError) as exc:
         bsrt.load(SCENES / "quad.toml", **overrides)
@@ -478,7 +563,9 @@ def test_load_of_a_missing_or_unknown_file(tmp_path):
 
 def quarter_cylinder_toml(tmp_path, name):
     """A rational quarter cylinder (radius 1, height 1, axis z), written by hand."""
-    return load_text(tmp_path, """
+    return load_text(
+        tmp_path,
+        """
 [film]
 width = 48
 height = 40
@@ -501,7 +588,9 @@ points = [
   [[0.0, 1.0, 0.0], [0.0, 1.0, 1.0]],
 ]
 weights = [[1.0, 1.0], [0.7071067811865476, 0.7071067811865476], [1.0, 1.0]]
-""", name)
+""",
+        name,
+    )
 
 
 def cylinder_points_homogeneous():
@@ -543,9 +632,12 @@ def bicubic_points():
 
 def bicubic_toml(tmp_path, name):
     pts = bicubic_points()
-    rows = ",\n".join("  [" + ", ".join("[" + ", ".join(repr(float(c)) for c in p) + "]" for p in row) + "]"
-                      for row in pts)
-    return load_text(tmp_path, f"""
+    rows = ",\n".join(
+        "  [" + ", ".join("[" + ", ".join(repr(float(c)) for c in p) + "]" for p in row) + "]" for row in pts
+    )
+    return load_text(
+        tmp_path,
+        f"""
 [film]
 width = 48
 height = 40
@@ -564,7 +656,9 @@ knots_v = {BICUBIC_V}
 points = [
 {rows},
 ]
-""", name)
+""",
+        name,
+    )
 
 
 def geomdl_bicubic(normalize=False):
@@ -589,12 +683,15 @@ def splipy_bicubic():
     return Surface(BSplineBasis(4, BICUBIC_U), BSplineBasis(4, BICUBIC_V), flat)
 
 
-@pytest.mark.parametrize("make, reference", [
-    (splipy_quarter_cylinder, quarter_cylinder_toml),
-    (geomdl_quarter_cylinder, quarter_cylinder_toml),
-    (geomdl_bicubic, bicubic_toml),
-    (splipy_bicubic, bicubic_toml),
-])
+@pytest.mark.parametrize(
+    "make, reference",
+    [
+        (splipy_quarter_cylinder, quarter_cylinder_toml),
+        (geomdl_quarter_cylinder, quarter_cylinder_toml),
+        (geomdl_bicubic, bicubic_toml),
+        (splipy_bicubic, bicubic_toml),
+    ],
+)
 def test_adapted_surfaces_render_the_hits_of_the_hand_written_scene(ctx, tmp_path, make, reference):
     hand = reference(tmp_path, "hand.toml")
     obj = make()
@@ -652,9 +749,20 @@ def geomdl_nurbs_random():
     return s
 
 
-@pytest.mark.parametrize("make", [splipy_quarter_cylinder, splipy_bicubic, splipy_sphere, splipy_torus, splipy_planar,
-                                  geomdl_quarter_cylinder, geomdl_bicubic, geomdl_bicubic_normalised,
-                                  geomdl_nurbs_random])
+@pytest.mark.parametrize(
+    "make",
+    [
+        splipy_quarter_cylinder,
+        splipy_bicubic,
+        splipy_sphere,
+        splipy_torus,
+        splipy_planar,
+        geomdl_quarter_cylinder,
+        geomdl_bicubic,
+        geomdl_bicubic_normalised,
+        geomdl_nurbs_random,
+    ],
+)
 def test_adapted_surfaces_evaluate_as_the_library_does(make):
     obj = make()
     surface = bsrt.Surface.from_object(obj).geometry()
@@ -692,12 +800,22 @@ def test_adapter_conventions():
 def test_splipy_trimmed_surface_brings_its_loops():
     from splipy import BSplineBasis, Curve, TrimmedSurface
 
-    hole = [Curve(BSplineBasis(2, [0, 0, 1, 1]), [a, b]) for a, b in
-            [((0.2, 0.2), (0.2, 0.8)), ((0.2, 0.8), (0.8, 0.8)), ((0.8, 0.8), (0.8, 0.2)), ((0.8, 0.2), (0.2, 0.2))]]
-    outer = [Curve(BSplineBasis(2, [0, 0, 1, 1]), [a, b]) for a, b in
-             [((0, 0), (1, 0)), ((1, 0), (1, 1)), ((1, 1), (0, 1)), ((0, 1), (0, 0))]]
-    trimmed = TrimmedSurface(BSplineBasis(2), BSplineBasis(2), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]],
-                             loops=[outer, hole])
+    hole = [
+        Curve(BSplineBasis(2, [0, 0, 1, 1]), [a, b])
+        for a, b in [
+            ((0.2, 0.2), (0.2, 0.8)),
+            ((0.2, 0.8), (0.8, 0.8)),
+            ((0.8, 0.8), (0.8, 0.2)),
+            ((0.8, 0.2), (0.2, 0.2)),
+        ]
+    ]
+    outer = [
+        Curve(BSplineBasis(2, [0, 0, 1, 1]), [a, b])
+        for a, b in [((0, 0), (1, 0)), ((1, 0), (1, 1)), ((1, 1), (0, 1)), ((0, 1), (0, 0))]
+    ]
+    trimmed = TrimmedSurface(
+        BSplineBasis(2), BSplineBasis(2), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], loops=[outer, hole]
+    )
     surface = bsrt.from_splipy(trimmed).geometry()
     assert len(surface.trims) == 2 and [len(loop.curves) for loop in surface.trims] == [4, 4]
     from bsrt.geometry.trim import kept
@@ -746,7 +864,7 @@ def python_blocks(text: str) -> list[str]:
 def test_the_readme_and_docs_examples_run(tmp_path, ctx, monkeypatch):
     root = Path(__file__).resolve().parents[1]
     readme = (root / "README.md").read_text(encoding="utf-8")
-    section = readme[readme.index("\n## Python\n"):readme.index("\n## Documentation\n")]
+    section = readme[readme.index("\n## Python\n") : readme.index("\n## Documentation\n")]
     docs = python_blocks((root / "docs" / "python-api.md").read_text(encoding="utf-8"))
     (tmp_path / "scenes").symlink_to(root / "scenes")
     monkeypatch.chdir(tmp_path)

@@ -15,14 +15,13 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import MODELS
 from distributed import Client, LocalCluster
 
 import bsrt
-from bsrt.rendering.warm_up import warm_up
 from bsrt.batches import engine as batching
 from bsrt.errors import InputError
-
-from conftest import MODELS
+from bsrt.rendering.warm_up import warm_up
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 TEACUP = MODELS / "bezier-teaset" / "qt3d" / "teacup.bez"
@@ -44,8 +43,9 @@ def client(cluster):
 
 
 def bsrt_cli(*args, timeout=600):
-    return subprocess.run([sys.executable, "-m", "bsrt", *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "bsrt", *map(str, args)], capture_output=True, text=True, timeout=timeout
+    )
 
 
 def single_render(source: Path, out: Path, *options) -> bytes:
@@ -60,18 +60,22 @@ def test_six_items_match_single_renders_and_one_failure_is_reported(tmp_path, cl
     bad.write_text("v 1 2\nthis is not a model\n")
     inputs = [SCENES / "quad.toml", SCENES / "column.toml", SCENES / "bench-64.toml", SPHERE, TEACUP, bad]
     out, summary = tmp_path / "out", tmp_path / "summary.json"
-    run = bsrt_cli("batch", *inputs, "--out", out, "--width", 32, "--height", 32, "--workers", 2,
-                   "--summary", summary)
+    run = bsrt_cli("batch", *inputs, "--out", out, "--width", 32, "--height", 32, "--workers", 2, "--summary", summary)
     assert run.returncode == 1, run.stderr
     assert run.stdout == ""
     lines = run.stderr.strip().splitlines()  # not a terminal: the failure and the summary line only
-    assert len(lines) == 2 and lines[0].startswith(f"bsrt: failed: {bad}") and lines[1].startswith(
-        "bsrt: batch: 6 items: 5 rendered, 0 skipped, 1 failed"), lines
+    assert (
+        len(lines) == 2
+        and lines[0].startswith(f"bsrt: failed: {bad}")
+        and lines[1].startswith("bsrt: batch: 6 items: 5 rendered, 0 skipped, 1 failed")
+    ), lines
     report = json.loads(summary.read_text())
     assert [i["status"] for i in report["items"]] == ["ok"] * 5 + ["failed"]
     assert (report["ok"], report["failed"], report["skipped"]) == (5, 1, 0)
     failed = report["items"][5]
-    assert failed["input"] == str(bad) and failed["message"].startswith(str(bad)) and failed["worker"].startswith("tcp://")
+    assert (
+        failed["input"] == str(bad) and failed["message"].startswith(str(bad)) and failed["worker"].startswith("tcp://")
+    )
     assert not (out / "broken.png").exists()
     for source, item in zip(inputs[:5], report["items"]):
         assert item["output"] == str(out / f"{source.stem}.png") and item["worker"].startswith("tcp://")
@@ -91,8 +95,9 @@ def test_resume_skips_complete_outputs_and_redoes_a_truncated_one(tmp_path, clie
     stamps = {p.name: p.stat().st_mtime_ns for p in files}
     contents = {p.name: p.read_bytes() for p in files}
 
-    again = bsrt.batch(inputs, out, width=24, height=24, aov=True, client=client, resume=True,
-                       summary=tmp_path / "s.json")
+    again = bsrt.batch(
+        inputs, out, width=24, height=24, aov=True, client=client, resume=True, summary=tmp_path / "s.json"
+    )
     assert [i.status for i in again.items] == ["skipped"] * 3 and again.exit_code == 0
     assert all(i.worker is None for i in again.items)
     assert json.loads((tmp_path / "s.json").read_text())["skipped"] == 3
@@ -107,9 +112,8 @@ def test_resume_skips_complete_outputs_and_redoes_a_truncated_one(tmp_path, clie
 
 
 def test_complete_png_checks_the_whole_file(tmp_path):
-    from PIL import Image
-
     import numpy as np
+    from PIL import Image
 
     path = tmp_path / "a.png"
     Image.fromarray(np.arange(48 * 48 * 3, dtype=np.uint8).reshape(48, 48, 3)).save(path)
@@ -131,8 +135,11 @@ def test_a_killed_worker_does_not_lose_the_batch(tmp_path, client):
         shutil.copy(SCENES / "column.toml", copy)
         inputs.append(copy)
     outcome = {}
-    thread = threading.Thread(target=lambda: outcome.update(summary=bsrt.batch(
-        inputs, tmp_path / "out", width=96, height=96, spp=2, client=client)))
+    thread = threading.Thread(
+        target=lambda: outcome.update(
+            summary=bsrt.batch(inputs, tmp_path / "out", width=96, height=96, spp=2, client=client)
+        )
+    )
     thread.start()
     deadline = time.monotonic() + 300
     victim = None
@@ -163,7 +170,8 @@ def test_files_travel_with_the_task_to_a_scheduler(tmp_path, cluster):
     (project / "scenes" / "cup.toml").write_text(
         (SCENES / "quad.toml").read_text().split("[[surface]]")[0]
         + '[[import]]\nfile = "../models/cup.bez"\nmaterial = "white"\n'
-        + "transform = { scale = 0.4, rotate = [1, 0, 0, 90] }\n")
+        + "transform = { scale = 0.4, rotate = [1, 0, 0, 90] }\n"
+    )
     root, files = batching.pack(project / "scenes" / "cup.toml")
     assert (root, [f for f, _ in files]) == (str(project), ["scenes/cup.toml", "models/cup.bez"])
 
@@ -176,27 +184,44 @@ def test_files_travel_with_the_task_to_a_scheduler(tmp_path, cluster):
     moved.rename(project)
 
     out = tmp_path / "out"
-    run = bsrt_cli("batch", project / "scenes" / "cup.toml", SPHERE, "--out", out, "--width", 32, "--height", 32,
-                   "--scheduler", cluster.scheduler_address)
+    run = bsrt_cli(
+        "batch",
+        project / "scenes" / "cup.toml",
+        SPHERE,
+        "--out",
+        out,
+        "--width",
+        32,
+        "--height",
+        32,
+        "--scheduler",
+        cluster.scheduler_address,
+    )
     assert run.returncode == 0, run.stderr
-    assert (out / "cup.png").read_bytes() == result["png"] == single_render(
-        project / "scenes" / "cup.toml", tmp_path / "single.png", "--width", 32, "--height", 32)
+    assert (
+        (out / "cup.png").read_bytes()
+        == result["png"]
+        == single_render(project / "scenes" / "cup.toml", tmp_path / "single.png", "--width", 32, "--height", 32)
+    )
 
     # A missing import is reported with the client's path, not the worker's temporary folder.
     (project / "models" / "cup.bez").unlink()
-    summary = bsrt.batch([project / "scenes" / "cup.toml"], out, width=32, height=32,
-                         scheduler=cluster.scheduler_address)
+    summary = bsrt.batch(
+        [project / "scenes" / "cup.toml"], out, width=32, height=32, scheduler=cluster.scheduler_address
+    )
     assert summary.exit_code == 1
-    assert summary.items[0].message == (f"cup.toml: import[0].file: no such file: "
-                                        f"{project / 'scenes' / '..' / 'models' / 'cup.bez'}")
+    assert summary.items[0].message == (
+        f"cup.toml: import[0].file: no such file: {project / 'scenes' / '..' / 'models' / 'cup.bez'}"
+    )
 
 
 def test_discovery_folders_globs_and_name_clashes(tmp_path):
     for rel in ("a/part.bez", "a/deep/x.g2", "b/part.bez", "b/part.g2", "b/notes.txt", "c/solo.toml"):
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text("")
-    found = batching.discover([tmp_path / "a", str(tmp_path / "b" / "*"), tmp_path / "c" / "solo.toml",
-                               tmp_path / "a" / "part.bez"])
+    found = batching.discover(
+        [tmp_path / "a", str(tmp_path / "b" / "*"), tmp_path / "c" / "solo.toml", tmp_path / "a" / "part.bez"]
+    )
     rel = [p.relative_to(tmp_path).as_posix() for p in found]
     assert rel == ["a/deep/x.g2", "a/part.bez", "b/part.bez", "b/part.g2", "c/solo.toml"]  # no .txt, no repeat
     names, notes = batching.output_names(found)
@@ -218,8 +243,10 @@ def test_bad_usage_exits_2(tmp_path):
 
 
 def test_without_dask_one_line_and_exit_2(tmp_path):
-    code = ("import sys; sys.modules['distributed'] = None; from bsrt.__main__ import main; "
-            f"sys.exit(main(['batch', {str(SCENES / 'quad.toml')!r}, '--out', {str(tmp_path)!r}]))")
+    code = (
+        "import sys; sys.modules['distributed'] = None; from bsrt.__main__ import main; "
+        f"sys.exit(main(['batch', {str(SCENES / 'quad.toml')!r}, '--out', {str(tmp_path)!r}]))"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert (run.returncode, run.stderr) == (2, "bsrt: error: bsrt batch needs Dask: pip install 'bsrt[dask]'\n")
     assert list(tmp_path.iterdir()) == []

@@ -5,9 +5,7 @@ of a render in a child process."""
 
 from __future__ import annotations
 
-import json
 import os
-import resource
 import subprocess
 import sys
 from pathlib import Path
@@ -16,15 +14,15 @@ import numpy as np
 import pytest
 
 import bsrt
-from bsrt.rendering import prelim
 from bsrt import validate
 from bsrt.geometry.bspline import evaluate, make_surface
-from bsrt.rendering.bvh import padded_nets
-from bsrt.scene.camera import pixel_rays
 from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.pipeline import render, sample_grid
+from bsrt.rendering import prelim
+from bsrt.rendering.bvh import padded_nets
 from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import render, sample_grid
 from bsrt.rendering.solve import Rays, find_roots
+from bsrt.scene.camera import pixel_rays
 
 ROOT = Path(__file__).resolve().parent.parent
 EYE = (0.5, 0.5, 2.0)  # above the plane z = 0, looking straight down
@@ -59,13 +57,16 @@ def run_cli(*args, cwd):
     """bsrt render in a child process: (completed process, its peak RSS in MB).
     A fresh wrapper process runs the render as its only child and reports
     resource.getrusage(RUSAGE_CHILDREN).ru_maxrss: exactly the render's peak."""
-    script = ("import resource, subprocess, sys\n"
-              "p = subprocess.run([sys.executable, '-m', 'bsrt', 'render', *sys.argv[1:]])\n"
-              "print('PEAK', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr)\n"
-              "sys.exit(p.returncode)\n")
+    script = (
+        "import resource, subprocess, sys\n"
+        "p = subprocess.run([sys.executable, '-m', 'bsrt', 'render', *sys.argv[1:]])\n"
+        "print('PEAK', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr)\n"
+        "sys.exit(p.returncode)\n"
+    )
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.run([sys.executable, "-c", script, *map(str, args)], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=900)
+    proc = subprocess.run(
+        [sys.executable, "-c", script, *map(str, args)], cwd=cwd, env=env, capture_output=True, text=True, timeout=900
+    )
     peak = [line for line in proc.stderr.splitlines() if line.startswith("PEAK ")]
     assert proc.returncode == 0 and peak, proc.stderr
     return proc, int(peak[-1].split()[1]) / 1024.0
@@ -79,8 +80,23 @@ def run_cli(*args, cwd):
 def test_plane_of_degree_10_hits_every_pixel_at_the_closed_form_depth_in_bounded_memory(tmp_path):
     path = write_plane(tmp_path / "plane.bpt", 10)
     for method in ("newton", "martin"):
-        proc, peak = run_cli(path, "-o", tmp_path / "p.png", "--width", 64, "--height", 64, *CLI_VIEW, "--fov", 20,
-                             "--method", method, "--aov", tmp_path / "a.npz", cwd=tmp_path)
+        proc, peak = run_cli(
+            path,
+            "-o",
+            tmp_path / "p.png",
+            "--width",
+            64,
+            "--height",
+            64,
+            *CLI_VIEW,
+            "--fov",
+            20,
+            "--method",
+            method,
+            "--aov",
+            tmp_path / "a.npz",
+            cwd=tmp_path,
+        )
         aov = np.load(tmp_path / "a.npz")
         scene = bsrt.load(path, width=64, height=64, fov=20, **VIEW)
         hit, t = plane_t(scene, 64, 64)
@@ -97,18 +113,34 @@ def test_highest_degree_surface_renders_in_bounded_memory(tmp_path):
     the surface and the smallest usable value; with that tolerance it renders,
     the hierarchy's leaves keeping (26 x 26) nets, never (rays x net) at once."""
     wavy = write_plane(tmp_path / "wavy.bpt", validate.MAX_DEGREE, wavy=0.3)
-    refused = subprocess.run([sys.executable, "-m", "bsrt", "render", str(wavy), "-o", str(tmp_path / "w.png")],
-                             capture_output=True, text=True, timeout=600)
+    refused = subprocess.run(
+        [sys.executable, "-m", "bsrt", "render", str(wavy), "-o", str(tmp_path / "w.png")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     # the default tolerance (1e-9) is below what this degree's power basis resolves: refused, naming the surface
     message = refused.stderr.strip()
     assert refused.returncode == 2 and "wavy.bpt" in message and "of degree [25, 25]" in message, message
     assert len(message.splitlines()) == 1
     usable = float(message.rsplit("the smallest usable value is ", 1)[1])
-    (tmp_path / "s.toml").write_text(f'[camera]\neye = [3, -4, 3]\nlook_at = [0.5, 0.5, 0]\nup = [0, 0, 1]\n'
-                                     f'fov = 40\n[render]\ntolerance = {usable * 1.01!r}\n[[import]]\nfile = "wavy.bpt"\n')
+    (tmp_path / "s.toml").write_text(
+        f"[camera]\neye = [3, -4, 3]\nlook_at = [0.5, 0.5, 0]\nup = [0, 0, 1]\n"
+        f'fov = 40\n[render]\ntolerance = {usable * 1.01!r}\n[[import]]\nfile = "wavy.bpt"\n'
+    )
     for method in ("newton", "martin"):
-        _, peak = run_cli(tmp_path / "s.toml", "-o", tmp_path / "w.png", "--width", 64, "--height", 64, "--method",
-                          method, cwd=tmp_path)
+        _, peak = run_cli(
+            tmp_path / "s.toml",
+            "-o",
+            tmp_path / "w.png",
+            "--width",
+            64,
+            "--height",
+            64,
+            "--method",
+            method,
+            cwd=tmp_path,
+        )
         assert peak < 1000, (method, peak)
 
 
@@ -131,8 +163,21 @@ def test_spp_251_peaks_as_low_as_spp_64_and_averages_to_the_plane(tmp_path):
     plane = write_plane(tmp_path / "plane1.bpt", 1)
     peaks = {}
     for spp in (64, 251):
-        _, peaks[spp] = run_cli(plane, "-o", tmp_path / f"s{spp}.png", "--width", 96, "--height", 96, *CLI_VIEW,
-                                "--fov", 20, "--spp", spp, cwd=tmp_path)
+        _, peaks[spp] = run_cli(
+            plane,
+            "-o",
+            tmp_path / f"s{spp}.png",
+            "--width",
+            96,
+            "--height",
+            96,
+            *CLI_VIEW,
+            "--fov",
+            20,
+            "--spp",
+            spp,
+            cwd=tmp_path,
+        )
     assert peaks[251] < peaks[64] + 60, peaks  # bands of samples: memory does not grow with spp
     assert peaks[251] < 1000, peaks
     # spp samples are the pixel centres of a film spp times taller (1 x 251 grid):
@@ -151,6 +196,7 @@ def test_a_band_ending_inside_a_pixel_row_gives_the_same_image(monkeypatch):
     scene = bsrt.load(plane, width=20, height=10)
     whole = render(scene, RenderOptions.resolve(scene, spp=7)).linear
     from bsrt.rendering import pipeline
+
     monkeypatch.setattr(pipeline, "MAX_BAND_SAMPLES", 20 * 3)  # 3 of each pixel row's 7 sample rows per band
     banded = render(scene, RenderOptions.resolve(scene, spp=7)).linear
     np.testing.assert_allclose(banded, whole, rtol=0, atol=1e-8)  # roots agree to the tolerance
@@ -208,8 +254,21 @@ def test_a_film_wider_than_the_gl_limit_renders_through_tiles(tmp_path):
     limit = gl.max_framebuffer_side(gl.headless_context())
     width = limit + 1
     plane = write_plane(tmp_path / "plane1.bpt", 1)
-    run_cli(plane, "-o", tmp_path / "wide.png", "--width", width, "--height", 1, *CLI_VIEW, "--fov", 0.004,
-            "--aov", tmp_path / "a.npz", cwd=tmp_path)
+    run_cli(
+        plane,
+        "-o",
+        tmp_path / "wide.png",
+        "--width",
+        width,
+        "--height",
+        1,
+        *CLI_VIEW,
+        "--fov",
+        0.004,
+        "--aov",
+        tmp_path / "a.npz",
+        cwd=tmp_path,
+    )
     aov = np.load(tmp_path / "a.npz")
     hit, t = plane_t(bsrt.load(plane, width=width, height=1, fov=0.004, **VIEW), width, 1)
     assert hit.all()  # the film lies on the plane, across the tile seam
@@ -236,8 +295,17 @@ def test_newton_stops_at_float64_resolution_whatever_max_iterations(tmp_path):
     item = np.arange(len(rays))
     tolerance = 2.3e-16 * patches.scene_diagonal()
     for method in ("newton", "gradient", "fast"):
-        res = find_roots(patches, rays, item, np.zeros(item.size, dtype=np.int64), np.full(item.size, 0.5),
-                         np.full(item.size, 0.5), method=method, tolerance=tolerance, max_iterations=10_000)
+        res = find_roots(
+            patches,
+            rays,
+            item,
+            np.zeros(item.size, dtype=np.int64),
+            np.full(item.size, 0.5),
+            np.full(item.size, 0.5),
+            method=method,
+            tolerance=tolerance,
+            max_iterations=10_000,
+        )
         assert res.iterations.max() < 10_000, method
         if method == "newton":  # quadratic: a few steps of progress, then at most STALL_STEPS more
             assert res.iterations.max() <= STALL_STEPS + 40
@@ -265,8 +333,11 @@ def _surface(rng, degree, nu, nv, rational):
 
 def test_ten_thousand_patches_set_up_vectorised_match_the_reference_evaluator():
     rng = np.random.default_rng(16)
-    surfaces = [_surface(rng, (3, 3), 103, 103, False), _surface(rng, (2, 3), 20, 12, True),
-                _surface(rng, (3, 3), 8, 9, True)]
+    surfaces = [
+        _surface(rng, (3, 3), 103, 103, False),
+        _surface(rng, (2, 3), 20, 12, True),
+        _surface(rng, (3, 3), 8, 9, True),
+    ]
     patches = PatchSet(surfaces)
     assert (patches.surface == 0).sum() == 100 * 99  # 100 u spans, 99 v spans (one double knot)
     for m, surf in enumerate(surfaces):
@@ -300,6 +371,7 @@ def test_leaf_budget_lowers_the_depth_and_the_retries_keep_the_hits(tmp_path, mo
     lowers max_depth until the leaves fit, and the per-ray retries (quarters
     of a curved leaf) still find the same nearest roots as the full cut."""
     from bsrt.rendering import bvh as bvh_module
+
     path = write_plane(tmp_path / "bumpy10.bpt", 10, wavy=0.3)
     scene = bsrt.load(path, width=24, height=24, fov=40, **VIEW)
     patches = PatchSet([s.geometry for s in scene.surfaces])

@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bsrt.errors import InputError
 from bsrt.geometry.bspline import (
     basis_functions,
     bezier_patches,
@@ -15,7 +16,6 @@ from bsrt.geometry.bspline import (
     insert_knot,
     make_surface,
 )
-from bsrt.errors import InputError
 from bsrt.geometry.patches import PatchSet
 
 
@@ -159,8 +159,13 @@ BAD = [
 
 @pytest.mark.parametrize("change,message", BAD)
 def test_invalid_surfaces_name_the_key(change, message):
-    args = dict(degree=[1, 1], knots_u=[0, 0, 1, 1], knots_v=[0, 0, 1, 1],
-                points=[[[0, 0, 0], [0, 0, 1]], [[1, 0, 0], [1, 0, 1]]], weights=None)
+    args = dict(
+        degree=[1, 1],
+        knots_u=[0, 0, 1, 1],
+        knots_v=[0, 0, 1, 1],
+        points=[[[0, 0, 0], [0, 0, 1]], [[1, 0, 0], [1, 0, 1]]],
+        weights=None,
+    )
     args.update(change)
     with pytest.raises(InputError) as err:
         make_surface(args["degree"], args["knots_u"], args["knots_v"], args["points"], args["weights"])

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 from bsrt.geometry.bspline import evaluate, make_surface
-from bsrt.rendering.bvh import build_bvh, intersect
 from bsrt.geometry.patches import PatchSet
-
+from bsrt.rendering.bvh import build_bvh, intersect
 
 # ---------------------------------------------------------------------------
 # Scenes
@@ -302,7 +301,12 @@ def test_leaves_tile_and_cover_every_patch(mixed_scene):
         s = np.linspace(0.0, 1.0, 23)
         U, V = [x.ravel() for x in np.meshgrid(u0 + s * (u1 - u0), v0 + s * (v1 - v0), indexing="ij")]
         P = patches.evaluate(np.full(U.size, k), U, V, derivatives=False).T
-        inside = (U[:, None] >= r[None, :, 0]) & (U[:, None] <= r[None, :, 1]) & (V[:, None] >= r[None, :, 2]) & (V[:, None] <= r[None, :, 3])
+        inside = (
+            (U[:, None] >= r[None, :, 0])
+            & (U[:, None] <= r[None, :, 1])
+            & (V[:, None] >= r[None, :, 2])
+            & (V[:, None] <= r[None, :, 3])
+        )
         assert inside.any(axis=1).all()
         for i, j in zip(*np.nonzero(inside)):
             leaf = mine[j]

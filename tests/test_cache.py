@@ -108,8 +108,13 @@ def assert_same(a, b, where="model"):
 
 def run_python(code: str, env_cache: Path, *args) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(ROOT), BSRT_CACHE_DIR=str(env_cache))
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code), *map(str, args)], capture_output=True,
-                          text=True, env=env, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code), *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -234,8 +239,16 @@ def test_two_processes_loading_one_file_at_once_both_succeed(folder, tmp_path):
         print(len(m.surfaces), m.load.cached)
     """
     env = dict(os.environ, PYTHONPATH=str(ROOT), BSRT_CACHE_DIR=str(folder))
-    procs = [subprocess.Popen([sys.executable, "-c", textwrap.dedent(code), str(AS1)], stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True, env=env) for _ in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", textwrap.dedent(code), str(AS1)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        for _ in range(2)
+    ]
     results = [p.communicate(timeout=600) for p in procs]
     for p, (out, err) in zip(procs, results):
         assert p.returncode == 0, err
@@ -255,8 +268,16 @@ def test_two_processes_loading_one_file_at_once_both_succeed(folder, tmp_path):
         for _ in range(40):
             cache._store(entry, key, model)
     """
-    procs = [subprocess.Popen([sys.executable, "-c", textwrap.dedent(stress), str(AS1), str(entry)], env=env,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(8)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", textwrap.dedent(stress), str(AS1), str(entry)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(8)
+    ]
     for p in procs:
         out, err = p.communicate(timeout=600)
         assert p.returncode == 0 and err == "", err
@@ -306,8 +327,7 @@ def test_the_folder_is_kept_under_its_size_limit_least_recently_used_first(folde
 
 def test_scene_imports_and_the_api_use_the_cache(folder, tmp_path, step):
     scene_file = tmp_path / "scene.toml"
-    scene_file.write_text('[camera]\neye = [100, -80, 60]\nlook_at = [20, 15, 10]\n\n'
-                          '[[import]]\nfile = "part.step"\n')
+    scene_file.write_text('[camera]\neye = [100, -80, 60]\nlook_at = [20, 15, 10]\n\n[[import]]\nfile = "part.step"\n')
     first = bsrt.load(scene_file)
     second = bsrt.load(scene_file)
     assert [r.cached for r in first.loads + second.loads] == [False, True]
@@ -355,8 +375,10 @@ def test_the_bar_starts_again_after_the_load(folder):
 def test_stats_show_the_load_stage(folder, tmp_path, step, capsys):
     for cached in (False, True):
         out = tmp_path / f"out-{cached}.png"
-        assert main(["render", str(step), "-o", str(out), "--width", "32", "--height", "24", "--stats",
-                     "--no-progress"]) == 0
+        assert (
+            main(["render", str(step), "-o", str(out), "--width", "32", "--height", "24", "--stats", "--no-progress"])
+            == 0
+        )
         stats = json.loads(capsys.readouterr().out)
         load = stats["load"]
         assert load["cached"] is cached and load["files"] == 1 and 0 < load["seconds"] < 60
@@ -364,8 +386,24 @@ def test_stats_show_the_load_stage(folder, tmp_path, step, capsys):
             assert "faces_converted" not in load
         else:
             assert load["faces_converted"] == load["faces_total"] > 0
-    assert main(["render", str(step), "-o", str(tmp_path / "none.png"), "--width", "32", "--height", "24",
-                 "--stats", "--no-cache", "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(step),
+                "-o",
+                str(tmp_path / "none.png"),
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "--stats",
+                "--no-cache",
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert json.loads(capsys.readouterr().out)["load"]["cached"] is False
 
 

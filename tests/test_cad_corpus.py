@@ -49,10 +49,10 @@ from OCP.BRepBndLib import BRepBndLib
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.STEPControl import STEPControl_Reader
 
-from bsrt.scene.camera import pixel_rays
 from bsrt.io import load_model
 from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
+from bsrt.scene.camera import pixel_rays
 
 TOL = 1e-6  # of the model's diagonal: |dt|, and a hit's distance to the shape
 SIZE = 48
@@ -60,15 +60,15 @@ WIREFRAME = "edges not on any face (wireframe)"
 
 #: the corpus parts run here (paths under MODELS); every one is listed in SOURCES.md
 CORPUS = (
-    "step/occt/screw.step",                                # EUCLID: tori, cones, a cylinder
-    "step/pythonocc-core/io1-ug-214.stp",                  # Unigraphics 16: cylinders, a cone
-    "step/pythonocc-core/stp_multiple_shp_at_root.stp",    # a translation service (Onshape?): cylinders
-    "step/trimesh/base_interface_AP214.STEP",              # SolidWorks 2018: cylinders
-    "step/trimesh/featuretype.STEP",                       # SolidWorks 2013: cylinders, a B-spline
-    "step/pythonocc-core/as1_pe_203.stp",                  # Pro/ENGINEER 2008: an assembly, 160 faces
-    "step/build123d/M6-1x12-countersunk-screw.step",       # build123d / OpenCASCADE 7.5: a thread
-    "step/occt/linkrods.step",                             # EUCLID: tori, cylinders, B-splines
-    "step/trimesh/box_sides.STEP",                         # SolidWorks 2015: 417 faces
+    "step/occt/screw.step",  # EUCLID: tori, cones, a cylinder
+    "step/pythonocc-core/io1-ug-214.stp",  # Unigraphics 16: cylinders, a cone
+    "step/pythonocc-core/stp_multiple_shp_at_root.stp",  # a translation service (Onshape?): cylinders
+    "step/trimesh/base_interface_AP214.STEP",  # SolidWorks 2018: cylinders
+    "step/trimesh/featuretype.STEP",  # SolidWorks 2013: cylinders, a B-spline
+    "step/pythonocc-core/as1_pe_203.stp",  # Pro/ENGINEER 2008: an assembly, 160 faces
+    "step/build123d/M6-1x12-countersunk-screw.step",  # build123d / OpenCASCADE 7.5: a thread
+    "step/occt/linkrods.step",  # EUCLID: tori, cylinders, B-splines
+    "step/trimesh/box_sides.STEP",  # SolidWorks 2015: 417 faces
 )
 # Not here: eight_cyl.stp (eight thin cylinders 500 units apart: at 48 x 48 pixels too few see one
 # face in a 3 x 3 neighbourhood for the comparison to mean anything; the script judges it at 128).
@@ -138,12 +138,15 @@ def test_corpus_part_hits_agree_with_occt_away_from_edges(name):
         dirs = directions.reshape(SIZE, SIZE, 3)
         lines = []
         for i, j in bad[:6]:
-            lines.append(f"pixel {(int(i), int(j))}: bsrt {_side(aovs['hit'][i, j], aovs['t'][i, j], shape, eye, dirs[i, j], size)}"
-                         f" on {model.names[aovs['surface'][i, j]] if aovs['hit'][i, j] else '-'}, "
-                         f"OpenCASCADE {_side(hit[i, j], t[i, j], shape, eye, dirs[i, j], size)}")
+            lines.append(
+                f"pixel {(int(i), int(j))}: bsrt {_side(aovs['hit'][i, j], aovs['t'][i, j], shape, eye, dirs[i, j], size)}"
+                f" on {model.names[aovs['surface'][i, j]] if aovs['hit'][i, j] else '-'}, "
+                f"OpenCASCADE {_side(hit[i, j], t[i, j], shape, eye, dirs[i, j], size)}"
+            )
         extra = int((inside & aovs["hit"] & ~hit).sum())
         missed = int((inside & ~aovs["hit"] & hit).sum())
         raise AssertionError(
             f"{name}: {len(bad)} of {int(inside.sum())} pixels away from edges disagree ({extra} bsrt-only hits, "
             f"{missed} OpenCASCADE-only hits, {int(depth.sum())} at another depth; distances as fractions of "
-            f"the diagonal; untrimmed faces: {model.untrimmed})\n" + "\n".join(lines))
+            f"the diagonal; untrimmed faces: {model.untrimmed})\n" + "\n".join(lines)
+        )

@@ -29,8 +29,9 @@ def test_orbit_pitch_raises_the_eye_and_stops_short_of_up():
     assert np.allclose(moved.eye, [h, 0.0, h], rtol=0, atol=1e-12)
     # 90 degrees would put the eye on the up axis: not applied
     assert np.array_equal(orbit(_camera(), 0.0, 90.0).eye, _camera().eye)
-    assert np.allclose(orbit(_camera(), 0.0, 88.0).eye, [np.cos(np.radians(88.0)), 0.0, np.sin(np.radians(88.0))],
-                       rtol=0, atol=1e-12)
+    assert np.allclose(
+        orbit(_camera(), 0.0, 88.0).eye, [np.cos(np.radians(88.0)), 0.0, np.sin(np.radians(88.0))], rtol=0, atol=1e-12
+    )
 
 
 def test_zoom_keeps_look_at_and_scales_the_distance():

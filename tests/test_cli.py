@@ -44,8 +44,25 @@ def test_render_writes_png_stats_and_aov(tmp_path, capsys):
 @pytest.mark.gl
 def test_overrides_and_map_command(tmp_path):
     out = tmp_path / "small.png"
-    assert main(["render", str(SCENES / "quad.toml"), "-o", str(out), "--width", "40", "--height", "30",
-                 "--method", "gradient", "--map", "rgba8"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(SCENES / "quad.toml"),
+                "-o",
+                str(out),
+                "--width",
+                "40",
+                "--height",
+                "30",
+                "--method",
+                "gradient",
+                "--map",
+                "rgba8",
+            ]
+        )
+        == 0
+    )
     assert Image.open(out).size == (40, 30)
     fig = tmp_path / "map.png"
     assert main(["map", str(SCENES / "quad.toml"), "-o", str(fig)]) == 0
@@ -66,27 +83,59 @@ def _replace(old, new):
 
 BAD_SCENES = [
     ("malformed TOML", "[film\nwidth = 3", "bad.toml: invalid TOML"),
-    ("wrong knot count", _replace("knots_u = [0.0, 0.0, 1.0, 1.0]", "knots_u = [0.0, 0.0, 1.0]"),
-     "bad.toml: surface[0].knots_u: expected 4 values (2 points + degree 1 + 1), got 3"),
-    ("decreasing knots", _replace("knots_v = [0.0, 0.0, 1.0, 1.0]", "knots_v = [0.0, 1.0, 0.5, 1.0]"),
-     "bad.toml: surface[0].knots_v: knots must not decrease"),
-    ("degree 0", _replace("degree = [1, 1]", "degree = [0, 1]"), "bad.toml: surface[0].degree: each degree must be >= 1"),
-    ("NaN coordinate", _replace("[-1.0, 0.0, -1.0]", "[nan, 0.0, -1.0]"),
-     "bad.toml: surface[0].points: point [0][0] has a non-finite coordinate"),
-    ("0x0 film", _replace("width = 64\nheight = 64", "width = 0\nheight = 0"), "bad.toml: film.width: expected a whole number >= 1, got 0"),
-    ("up parallel to view", _replace("up = [0.0, 0.0, 1.0]", "up = [0.0, 2.0, 0.0]"),
-     "bad.toml: camera.up: must not be parallel to the view direction"),
+    (
+        "wrong knot count",
+        _replace("knots_u = [0.0, 0.0, 1.0, 1.0]", "knots_u = [0.0, 0.0, 1.0]"),
+        "bad.toml: surface[0].knots_u: expected 4 values (2 points + degree 1 + 1), got 3",
+    ),
+    (
+        "decreasing knots",
+        _replace("knots_v = [0.0, 0.0, 1.0, 1.0]", "knots_v = [0.0, 1.0, 0.5, 1.0]"),
+        "bad.toml: surface[0].knots_v: knots must not decrease",
+    ),
+    (
+        "degree 0",
+        _replace("degree = [1, 1]", "degree = [0, 1]"),
+        "bad.toml: surface[0].degree: each degree must be >= 1",
+    ),
+    (
+        "NaN coordinate",
+        _replace("[-1.0, 0.0, -1.0]", "[nan, 0.0, -1.0]"),
+        "bad.toml: surface[0].points: point [0][0] has a non-finite coordinate",
+    ),
+    (
+        "0x0 film",
+        _replace("width = 64\nheight = 64", "width = 0\nheight = 0"),
+        "bad.toml: film.width: expected a whole number >= 1, got 0",
+    ),
+    (
+        "up parallel to view",
+        _replace("up = [0.0, 0.0, 1.0]", "up = [0.0, 2.0, 0.0]"),
+        "bad.toml: camera.up: must not be parallel to the view direction",
+    ),
     ("unknown key", _replace("fov = 40.0", "fov = 40.0\nzoom = 2"), "bad.toml: camera.zoom: unknown key"),
     ("unknown table", QUAD + "\n[lens]\nf = 1\n", "bad.toml: lens: unknown table"),
-    ("unknown method", _replace('method = "newton"', 'method = "bisection"'),
-     "bad.toml: render.method: expected one of gradient, fast, newton, martin, got 'bisection'"),
-    ("unknown material", _replace('material = "white"', 'material = "gold"'),
-     "bad.toml: surface[0].material: no [[material]] named 'gold'"),
+    (
+        "unknown method",
+        _replace('method = "newton"', 'method = "bisection"'),
+        "bad.toml: render.method: expected one of gradient, fast, newton, martin, got 'bisection'",
+    ),
+    (
+        "unknown material",
+        _replace('material = "white"', 'material = "gold"'),
+        "bad.toml: surface[0].material: no [[material]] named 'gold'",
+    ),
     ("string for a number", _replace("fov = 40.0", 'fov = "wide"'), "bad.toml: camera.fov: expected a number"),
-    ("weights of the wrong shape", _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 1.0, 1.0], [1.0, 2.0, 1.0]]"),
-     "bad.toml: surface[0].weights: expected 2 x 2 values (one per point), got shape (2, 3)"),
-    ("zero weight", _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 0.0], [1.0, 2.0]]"),
-     "bad.toml: surface[0].weights: every weight must be a finite number > 0"),
+    (
+        "weights of the wrong shape",
+        _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 1.0, 1.0], [1.0, 2.0, 1.0]]"),
+        "bad.toml: surface[0].weights: expected 2 x 2 values (one per point), got shape (2, 3)",
+    ),
+    (
+        "zero weight",
+        _replace("degree = [1, 1]", "degree = [1, 1]\nweights = [[1.0, 0.0], [1.0, 2.0]]"),
+        "bad.toml: surface[0].weights: every weight must be a finite number > 0",
+    ),
     ("fov out of range", _replace("fov = 40.0", "fov = 180.0"), "bad.toml: camera.fov: must be < 180"),
 ]
 
@@ -118,13 +167,21 @@ def test_usage_errors_exit_2(tmp_path, capsys):
 def test_console_script_runs_in_a_fresh_process(tmp_path):
     """The installed entry point, stderr quiet when not a terminal, no traceback on errors."""
     out = tmp_path / "q.png"
-    ok = subprocess.run([sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out)],
-                        capture_output=True, text=True, timeout=120)
+    ok = subprocess.run(
+        [sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert ok.returncode == 0, ok.stderr
     assert ok.stderr == "" and out.exists()
     bad = _write(tmp_path, "[camera]\neye = [0, 0, 0]\n")
-    fail = subprocess.run([sys.executable, "-m", "bsrt", "render", str(bad), "-o", str(tmp_path / "b.png")],
-                          capture_output=True, text=True, timeout=120)
+    fail = subprocess.run(
+        [sys.executable, "-m", "bsrt", "render", str(bad), "-o", str(tmp_path / "b.png")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert fail.returncode == 2
     assert fail.stderr.startswith("bsrt: error: bad.toml: camera.look_at: missing")
     assert "Traceback" not in fail.stderr
@@ -166,6 +223,7 @@ NEGATIVE_CAMERA = [("--camera-eye", "-1.5,-4,0.5"), ("--camera-look-at", "-0.25,
 def test_vector_options_take_negative_first_components(tmp_path, command):
     """`--camera-eye -1.5,-4,0.5` (argparse alone takes '-1.5,...' for an option) gives
     the same picture as `--camera-eye=-1.5,-4,0.5`, and not the scene's own camera."""
+
     def run(name, camera):
         out = tmp_path / name
         assert main([command, str(SCENES / "quad.toml"), "-o", str(out), *camera]) == 0
@@ -181,12 +239,15 @@ def test_vector_options_take_negative_first_components(tmp_path, command):
     assert np.array_equal(short, joined)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--camera-eye", "-1,a,3"], "argument --camera-eye: expected three numbers like 1,2,3, got '-1,a,3'"),
-    (["--camera-look-at", "-1,2"], "argument --camera-look-at: expected three numbers like 1,2,3, got '-1,2'"),
-    (["--camera-up", "-inf,0,1"], "argument --camera-up: expected three numbers like 1,2,3, got '-inf,0,1'"),
-    (["--camera-eye"], "argument --camera-eye: expected one argument"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--camera-eye", "-1,a,3"], "argument --camera-eye: expected three numbers like 1,2,3, got '-1,a,3'"),
+        (["--camera-look-at", "-1,2"], "argument --camera-look-at: expected three numbers like 1,2,3, got '-1,2'"),
+        (["--camera-up", "-inf,0,1"], "argument --camera-up: expected three numbers like 1,2,3, got '-inf,0,1'"),
+        (["--camera-eye"], "argument --camera-eye: expected one argument"),
+    ],
+)
 def test_malformed_vectors_exit_2_with_one_message(tmp_path, capsys, args, message):
     out = tmp_path / "x.png"
     with pytest.raises(SystemExit) as exc:
@@ -210,8 +271,12 @@ def test_negative_fov_is_refused_with_one_message(tmp_path, capsys, fov):
 def test_negative_values_are_joined_only_to_a_preceding_long_option():
     from bsrt.cli import _join_negative_values as join
 
-    assert join(["render", "s.toml", "--camera-eye", "-1,-2,3", "--fov", "-5"]) == \
-        ["render", "s.toml", "--camera-eye=-1,-2,3", "--fov=-5"]
+    assert join(["render", "s.toml", "--camera-eye", "-1,-2,3", "--fov", "-5"]) == [
+        "render",
+        "s.toml",
+        "--camera-eye=-1,-2,3",
+        "--fov=-5",
+    ]
     assert join(["--camera-eye=-1,2,3", "-4"]) == ["--camera-eye=-1,2,3", "-4"]  # already has its value
     assert join(["-o", "-1.png"]) == ["-o", "-1.png"]  # short options are left to argparse
     assert join(["--width", "-x"]) == ["--width", "-x"]  # not a number: argparse's own error
@@ -222,9 +287,24 @@ def test_negative_values_are_joined_only_to_a_preceding_long_option():
 def test_negative_vectors_in_a_fresh_process(tmp_path):
     """The console entry point (sys.argv, not an argument list) joins them too."""
     out = tmp_path / "q.png"
-    run = subprocess.run([sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out),
-                          "--camera-look-at", "-4281,19153,5738", "--camera-eye", "-4281,19149,5738"],
-                         capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bsrt",
+            "render",
+            str(SCENES / "quad.toml"),
+            "-o",
+            str(out),
+            "--camera-look-at",
+            "-4281,19153,5738",
+            "--camera-eye",
+            "-4281,19149,5738",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
     assert out.exists()
     version = subprocess.run([sys.executable, "-m", "bsrt", "--version"], capture_output=True, text=True, timeout=60)

@@ -26,15 +26,25 @@ from bsrt.methods import METHODS
 pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
 ROOT = Path(__file__).resolve().parent.parent
-INLINED = {"patches._horner", "roots.solve_one", "prelim._decode", "flatten.leaf_net"}  # inline="always": copied into their callers, never compiled alone
+INLINED = {
+    "patches._horner",
+    "roots.solve_one",
+    "prelim._decode",
+    "flatten.leaf_net",
+}  # inline="always": copied into their callers, never compiled alone
 
 
 def test_every_kernel_compiles_exactly_one_signature_and_the_warm_up_all_of_them(tmp_path):
     assert tuple(METHODS) == ("gradient", "fast", "newton", "martin")  # the script renders with each of these
     out = tmp_path / "signatures.json"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
-    subprocess.run([sys.executable, str(ROOT / "tests" / "kernel_signatures.py"), "--size", "32", "--json", str(out)],
-                   env=env, check=True, capture_output=True, timeout=1800)
+    subprocess.run(
+        [sys.executable, str(ROOT / "tests" / "kernel_signatures.py"), "--size", "32", "--json", str(out)],
+        env=env,
+        check=True,
+        capture_output=True,
+        timeout=1800,
+    )
     found = json.loads(out.read_text())
     renders, warm_up = found["renders"], found["warm_up"]
     entry = {f"{k.py_func.__module__.rsplit('.', 1)[1]}.{k.py_func.__name__}" for k in kernels.ENTRY_KERNELS}
@@ -42,7 +52,8 @@ def test_every_kernel_compiles_exactly_one_signature_and_the_warm_up_all_of_them
     assert {name for name, d in _dispatchers().items() if d.targetoptions.get("inline") == "always"} == INLINED
     counts = {name: len(sigs) for name, sigs in renders.items()}
     assert counts == {name: 0 if name in INLINED else 1 for name in renders}, {
-        name: renders[name] for name, n in counts.items() if n != (0 if name in INLINED else 1)}
+        name: renders[name] for name, n in counts.items() if n != (0 if name in INLINED else 1)
+    }
     assert warm_up == renders  # the warm-up compiled everything: a first render compiles nothing more
 
 

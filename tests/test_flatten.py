@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from numba import njit
 
-from bsrt.rendering import bvh as B
 from bsrt.geometry.bspline import make_surface
-from bsrt.rendering.bvh import build_bvh, intersect
+from bsrt.geometry.patches import PatchSet
 from bsrt.kernels import cones
 from bsrt.kernels.flatten import CONE_DEGREES, count_leaves
-from bsrt.geometry.patches import PatchSet
+from bsrt.rendering import bvh as B
+from bsrt.rendering.bvh import build_bvh, intersect
 
 
 @njit(cache=False)
@@ -69,8 +69,10 @@ def test_cone_holds_sampled_normals_of_random_rational_patches():
         s = np.linspace(0.02, 0.98, 20)
         U, V = [x.ravel() for x in np.meshgrid(s, s, indexing="ij")]
         e = 1e-6
-        n = np.cross(_point(net, p, q, U + e, V) - _point(net, p, q, U - e, V),
-                     _point(net, p, q, U, V + e) - _point(net, p, q, U, V - e))
+        n = np.cross(
+            _point(net, p, q, U + e, V) - _point(net, p, q, U - e, V),
+            _point(net, p, q, U, V + e) - _point(net, p, q, U, V - e),
+        )
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         assert (n @ n.T).min() >= math.cos(2 * gamma) - 1e-6
     assert 50 < accepted < 200  # both answers occur
@@ -81,9 +83,12 @@ def test_counts_at_every_depth_match_separate_counts():
     times counts (here: the leaves the flattening makes with max_depth = d)."""
     s = math.sqrt(0.5)
     sphere_octant = make_surface(
-        (2, 2), [0, 0, 0, 1, 1, 1], [0, 0, 0, 1, 1, 1],
+        (2, 2),
+        [0, 0, 0, 1, 1, 1],
+        [0, 0, 0, 1, 1, 1],
         np.array([[[1, 0, 0], [1, 1, 0], [0, 1, 0]], [[1, 0, 1], [1, 1, 1], [0, 1, 1]], [[0, 0, 1]] * 3], float),
-        np.outer([1, s, 1], [1, s, 1]))
+        np.outer([1, s, 1], [1, s, 1]),
+    )
     patches = PatchSet([sphere_octant])
     nets, degree = B.padded_nets(patches)
     eps = B.DEFAULT_FLATNESS * patches.scene_diagonal()
@@ -105,8 +110,9 @@ def _exact_sphere(radius):
         for j in range(5):
             pts[i, j] = radius * np.array([ring[i, 0] * mer[j, 0], ring[i, 1] * mer[j, 0], mer[j, 1]])
     knots_u = [0, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 4]
-    return make_surface((2, 2), knots_u, [0, 0, 0, 1, 1, 2, 2, 2], pts,
-                        np.outer([1, s, 1, s, 1, s, 1, s, 1], [1, s, 1, s, 1]))
+    return make_surface(
+        (2, 2), knots_u, [0, 0, 0, 1, 1, 2, 2, 2], pts, np.outer([1, s, 1, s, 1, s, 1, s, 1], [1, s, 1, s, 1])
+    )
 
 
 def test_rational_sphere_hits_through_the_hierarchy_match_the_closed_form():
@@ -131,7 +137,7 @@ def test_rational_sphere_hits_through_the_hierarchy_match_the_closed_form():
     disc = b * b - (np.einsum("ij,ij->i", origins, origins) - radius**2)
     inside = disc > (1e-6 * radius) ** 2
     assert hits.hit[inside].all()
-    assert not hits.hit[disc < -(1e-6 * radius) ** 2].any()
+    assert not hits.hit[disc < -((1e-6 * radius) ** 2)].any()
     h = hits.hit
     size = 2.0 * radius * math.sqrt(3.0)
     on_surface = patches.evaluate(hits.patch[h], hits.u[h], hits.v[h], derivatives=False).T

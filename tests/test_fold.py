@@ -28,10 +28,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import render
 from bsrt.scene import parse_scene
-from bsrt.rendering.options import RenderOptions
+from bsrt.scene.camera import pixel_rays
 
 SIZE = 48
 DELTA = 1e-3
@@ -39,13 +39,15 @@ DELTA = 1e-3
 
 def fold_scene(method: str):
     points = [[[x, 0.0, z], [x, 1.0, z]] for x, z in ((0.0, 0.0), (2.0, DELTA / 2), (0.0, DELTA))]
-    return parse_scene({
-        "film": {"width": SIZE, "height": SIZE},
-        "render": {"method": method},
-        "camera": {"eye": [0.5, 0.5, 3.0], "look_at": [0.5, 0.5, 0.0], "up": [0, 1, 0], "fov": 16.0},
-        "surface": [{"degree": [2, 1], "knots_u": [0, 0, 0, 1, 1, 1], "knots_v": [0, 0, 1, 1],
-                     "points": points}],
-    }, "<fold>")
+    return parse_scene(
+        {
+            "film": {"width": SIZE, "height": SIZE},
+            "render": {"method": method},
+            "camera": {"eye": [0.5, 0.5, 3.0], "look_at": [0.5, 0.5, 0.0], "up": [0, 1, 0], "fov": 16.0},
+            "surface": [{"degree": [2, 1], "knots_u": [0, 0, 0, 1, 1, 1], "knots_v": [0, 0, 1, 1], "points": points}],
+        },
+        "<fold>",
+    )
 
 
 def layers(eye, d):
@@ -122,8 +124,10 @@ def test_128_004_agrees_with_opencascade_away_from_edges():
     hit, t, face = occt_hits(shape, scene.camera.eye, directions, diagonal)
     ours = result.hits
     assert hit.sum() > 250 and (ours.hit == hit).all()
-    away = (interior(np.where(hit, face, -1).reshape(size, size))
-            & interior(np.where(ours.hit, ours.surface, -1).reshape(size, size))).ravel() & hit
+    away = (
+        interior(np.where(hit, face, -1).reshape(size, size))
+        & interior(np.where(ours.hit, ours.surface, -1).reshape(size, size))
+    ).ravel() & hit
     assert away.sum() > 150
     worst = np.abs(ours.t - t)[away].max()
     assert worst <= 1e-7 * diagonal, worst  # was 1.3e-3 (the far layer)

@@ -22,24 +22,52 @@ from hypothesis import strategies as st
 from bsrt import validate
 from bsrt.errors import InputError
 from bsrt.io import load_model
-from bsrt.scene import parse_scene
 from bsrt.rendering.options import RenderOptions
+from bsrt.scene import parse_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data"
 QUAD = tomllib.loads((ROOT / "scenes" / "quad.toml").read_text())
 
-EXTREME_TOKENS = ["1e308", "-1e308", "1e400", "5e-324", "0", "-0", "-1", "nan", "inf", "１", "٣", "true", "x", "",
-                  "99999999999999999999999999999", "1e15", "1e16", "1.7976931348623157e308", "2e-16", "0.5"]
+EXTREME_TOKENS = [
+    "1e308",
+    "-1e308",
+    "1e400",
+    "5e-324",
+    "0",
+    "-0",
+    "-1",
+    "nan",
+    "inf",
+    "１",
+    "٣",
+    "true",
+    "x",
+    "",
+    "99999999999999999999999999999",
+    "1e15",
+    "1e16",
+    "1.7976931348623157e308",
+    "2e-16",
+    "0.5",
+]
 
 toml_scalars = st.one_of(
-    st.booleans(), st.integers(min_value=-(2**70), max_value=2**70), st.floats(allow_nan=True, allow_infinity=True),
-    st.sampled_from([10**30, -(10**30), 1e308, 5e-324, 1e15, 1e16, 0, 1, 2, 3]), st.text(max_size=5),
+    st.booleans(),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([10**30, -(10**30), 1e308, 5e-324, 1e15, 1e16, 0, 1, 2, 3]),
+    st.text(max_size=5),
     st.sampled_from(["１", "1", "newton", "martin", "float", "point", "ambient"]),
 )
-toml_values = st.recursive(toml_scalars, lambda inner: st.one_of(
-    st.lists(inner, max_size=5), st.dictionaries(st.sampled_from(["a", "eye", "scale", "kind", "x"]), inner,
-                                                  max_size=3)), max_leaves=20)
+toml_values = st.recursive(
+    toml_scalars,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=5),
+        st.dictionaries(st.sampled_from(["a", "eye", "scale", "kind", "x"]), inner, max_size=3),
+    ),
+    max_leaves=20,
+)
 
 
 def _nodes(value, path=()):
@@ -115,7 +143,7 @@ def model_texts(draw, raw: str) -> str:
     lines = raw.split("\n")
     if draw(st.booleans()):
         i = draw(st.integers(0, len(lines) - 1))
-        lines = lines[:i] + lines[i + draw(st.integers(1, 3)):] if draw(st.booleans()) else lines[:i + 1] + lines[i:]
+        lines = lines[:i] + lines[i + draw(st.integers(1, 3)) :] if draw(st.booleans()) else lines[: i + 1] + lines[i:]
     return "\n".join(lines)
 
 
@@ -167,15 +195,26 @@ def test_the_fuzz_checks_catch_broken_promises(tmp_path):
     fuzz = _fuzz_cli()
     out = tmp_path / "out"
     out.mkdir()
-    case = fuzz.Case(0, "scenes/quad.toml", "test", code=1,
-                     stderr="Traceback (most recent call last):\nbsrt: internal error: KeyError\n")
+    case = fuzz.Case(
+        0,
+        "scenes/quad.toml",
+        "test",
+        code=1,
+        stderr="Traceback (most recent call last):\nbsrt: internal error: KeyError\n",
+    )
     (out / "image.png").write_bytes(b"not a png")
     assert fuzz.promises_broken(case, out, False, "quad.toml") == [
-        "traceback", "internal error", "2 stderr lines", "files left: ['image.png']"]
+        "traceback",
+        "internal error",
+        "2 stderr lines",
+        "files left: ['image.png']",
+    ]
     case = fuzz.Case(0, "scenes/quad.toml", "test", code=0, stderr="x.py:1: RuntimeWarning: overflow\n")
     assert fuzz.promises_broken(case, out, False, "quad.toml") == [
-        "Python warning on stderr", "exit 0 without a 64x64 PNG (found ['image.png'])",
-        "exit 0 with a non-warning stderr line"]
+        "Python warning on stderr",
+        "exit 0 without a 64x64 PNG (found ['image.png'])",
+        "exit 0 with a non-warning stderr line",
+    ]
     case = fuzz.Case(0, "scenes/quad.toml", "test", code=2, stderr="bsrt: error: render.spp: too big\n")
     (out / "image.png").unlink()
     assert fuzz.promises_broken(case, out, False, "quad.toml") == ["message does not name the file"]

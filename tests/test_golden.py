@@ -43,5 +43,7 @@ def test_golden_image(tmp_path, name, size, spp):
     if off.mean() > 0.002 or (diff.max() > 64 and off.sum() > 4):
         write_png(tmp_path / "got.png", got)
         write_png(tmp_path / "diff.png", np.repeat(np.clip(diff * 8, 0, 255).astype(np.uint8)[..., None], 3, axis=-1))
-        pytest.fail(f"{path.name}: {off.sum()} pixels differ by more than 2/255 (max {diff.max()}); "
-                    f"see {tmp_path / 'got.png'} and {tmp_path / 'diff.png'}")
+        pytest.fail(
+            f"{path.name}: {off.sum()} pixels differ by more than 2/255 (max {diff.max()}); "
+            f"see {tmp_path / 'got.png'} and {tmp_path / 'diff.png'}"
+        )

@@ -30,18 +30,18 @@ from pathlib import Path
 import numpy as np
 import OCP  # noqa: F401  -- the extra must be installed: fail, never skip
 import pytest
-from OCP.BRepBndLib import BRepBndLib
+from occ_reference import distance, interior, occt_hits
 from OCP.Bnd import Bnd_Box
+from OCP.BRepBndLib import BRepBndLib
 from OCP.IFSelect import IFSelect_RetDone
 from OCP.IGESControl import IGESControl_Reader
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
-from occ_reference import distance, interior, occt_hits
 
-from bsrt.scene.camera import pixel_rays
 from bsrt.io import load_model
 from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
+from bsrt.scene.camera import pixel_rays
 
 pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
@@ -101,8 +101,7 @@ def test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape(name
         mine = distance(shape, eye + ours_t[k] * directions[k]) / size if ours[k] else None
         theirs = distance(shape, eye + t[k] * directions[k]) / size if hit[k] else None
         bsrt_right = (
-            (mine is not None and mine <= ON_SHAPE)
-            and (theirs is None or theirs > ON_SHAPE or ours_t[k] < t[k])
+            (mine is not None and mine <= ON_SHAPE) and (theirs is None or theirs > ON_SHAPE or ours_t[k] < t[k])
         ) or (mine is None and (theirs is None or theirs > ON_SHAPE))
         if not bsrt_right:
             wrong.append((divmod(int(k), SIZE), mine, theirs, bool(away[k])))

@@ -16,14 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsrt.geometry.bspline import evaluate
 from bsrt.cli import main
 from bsrt.errors import InputError
-from bsrt.io import load_model
-from bsrt.io.iges.records import IgesFile
-from bsrt.io.iges.bspline import ParamMap, arc_curve, evaluate as curve_eval, reverse
-from bsrt.io.iges.curves import curve
+from bsrt.geometry.bspline import evaluate
 from bsrt.geometry.trim import check_loops
+from bsrt.io import load_model
+from bsrt.io.iges.bspline import ParamMap, arc_curve, reverse
+from bsrt.io.iges.bspline import evaluate as curve_eval
+from bsrt.io.iges.curves import curve
+from bsrt.io.iges.records import IgesFile
 
 HERE = Path(__file__).parent / "data" / "iges"
 MODELS = Path(__file__).parent / "data" / "models" / "iges"
@@ -105,8 +106,9 @@ def test_144_plane_trimmed_by_a_126_circle_with_a_100_hole_moved_by_a_124():
         assert_closed(loop, 1.0)
     # the loop's points are where the plane's points are: x = -1 + 4u, y = -2 + 4v, z = 0
     uv = loop_points(outer)
-    assert np.allclose(on_surface(s, uv), np.stack([-1 + 4 * uv[:, 0], -2 + 4 * uv[:, 1], 0 * uv[:, 0]], 1),
-                       rtol=0, atol=1e-14)
+    assert np.allclose(
+        on_surface(s, uv), np.stack([-1 + 4 * uv[:, 0], -2 + 4 * uv[:, 1], 0 * uv[:, 0]], 1), rtol=0, atol=1e-14
+    )
     # N1 = 0: the domain's boundary is the outer loop, then the hole
     rect, hole2 = s2.trims
     corners = np.array([c.ends()[0] for c in rect.curves])
@@ -183,7 +185,7 @@ def test_144_with_only_a_model_space_loop_on_a_128_is_inverted():
     on = np.minimum.reduce([abs(ang - 0.2), abs(ang - 1.2), abs(xyz[:, 2] - 0.5), abs(xyz[:, 2] - 1.5)])
     assert on.max() < 1e-6 * domain_size(s)
     # the surface's v is z / 2: the arcs became the iso-lines v = 0.25 and 0.75
-    assert sorted({round(v, 12) for c in loop.curves for v in c.points[:, 1]}) [:1] == [0.25]
+    assert sorted({round(v, 12) for c in loop.curves for v in c.points[:, 1]})[:1] == [0.25]
 
 
 def test_inverted_loop_through_a_collapsed_edge(tmp_path):
@@ -192,7 +194,9 @@ def test_inverted_loop_through_a_collapsed_edge(tmp_path):
     apex, a, b = (0.0, 0.0, 1.0), (2.0, 0.0, 0.0), (0.0, 3.0, 0.0)
     entities = [
         gen.bspline_surface("S", (1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[apex, a], [apex, b]]),
-        gen.line("e1", apex, a), gen.line("e2", a, b), gen.line("e3", b, apex),
+        gen.line("e1", apex, a),
+        gen.line("e2", a, b),
+        gen.line("e3", b, apex),
         gen.E(102, [3, gen.R("e1"), gen.R("e2"), gen.R("e3")], name="B"),
         gen.E(142, [0, gen.R("S"), 0, gen.R("B"), 2], name="C"),
         gen.E(144, [gen.R("S"), 1, 0, gen.R("C")], name="T"),
@@ -240,7 +244,8 @@ def test_brep_face_with_a_pole_vertex_edge_and_no_outer_loop_flag(tmp_path):
     rect, cap = s.trims
     assert s.domain_u == (0.0, 2 * math.pi) and s.domain_v == (-math.pi / 2, math.pi / 2)
     assert sorted(map(tuple, (c.ends()[0] for c in rect.curves))) == sorted(
-        (u, v) for u in (0.0, 2 * math.pi) for v in (-math.pi / 2, math.pi / 2))
+        (u, v) for u in (0.0, 2 * math.pi) for v in (-math.pi / 2, math.pi / 2)
+    )
 
 
 def test_unsupported_boundary_curve_draws_the_surface_untrimmed_with_a_warning(tmp_path):
@@ -248,8 +253,10 @@ def test_unsupported_boundary_curve_draws_the_surface_untrimmed_with_a_warning(t
     model = load_model(write(tmp_path, entities))
     s = model.surfaces[0]
     assert not s.is_trimmed and model.untrimmed == 1 and s.domain_u == (0.0, 1.0)
-    assert model.warnings == ["1 surface is drawn untrimmed: its boundaries use entities bsrt does not convert "
-                              "(1 x IGES entity 130 (offset curve))"]
+    assert model.warnings == [
+        "1 surface is drawn untrimmed: its boundaries use entities bsrt does not convert "
+        "(1 x IGES entity 130 (offset curve))"
+    ]
 
 
 def test_cylinder_192_trimmed_in_angle_and_height():
@@ -441,8 +448,11 @@ def test_shared_file_trims_load_closed_and_in_their_domains(name):
             assert f"entity {etype} " not in text
     if name == "marsCapsule":
         # six arcs and six lines are the model's independent profile curves (in 402 groups)
-        assert model.skipped == {"IGES entity 100 (circular arc)": 6, "IGES entity 110 (line)": 6,
-                                 "IGES entity 402 (associativity instance)": 2}
+        assert model.skipped == {
+            "IGES entity 100 (circular arc)": 6,
+            "IGES entity 110 (line)": 6,
+            "IGES entity 402 (associativity instance)": 2,
+        }
     else:
         assert not any(key.startswith(("IGES entity 126", "IGES entity 110")) for key in model.skipped)
 
@@ -468,8 +478,9 @@ def test_hammer_loops_lie_on_their_model_space_curves():
         q.int("CRTN")
         q.pointer("SPTR")
         q.pointer("BPTR")
-        model_pts = np.concatenate([curve_eval(c, np.linspace(*c.domain, 3000))
-                                    for c in pieces(f, f.entities[q.pointer("CPTR")])])
+        model_pts = np.concatenate(
+            [curve_eval(c, np.linspace(*c.domain, 3000)) for c in pieces(f, f.entities[q.pointer("CPTR")])]
+        )
         size = np.ptp(model_pts, axis=0).max()
         xyz = on_surface(s, np.concatenate([c.ends() for c in s.trims[0].curves]))
         d = np.sqrt(((xyz[:, None] - model_pts[None]) ** 2).sum(-1)).min(axis=1).max()
@@ -571,8 +582,9 @@ def test_120_loop_across_the_seam_is_closed_and_trims_the_right_region():
 
     def boundary(xyz):
         a = _angle(xyz, 5.5)
-        return np.minimum.reduce([np.minimum(a, 2 * math.pi - a) * 2, abs(a - span) * 2, abs(xyz[:, 2] - 0.6),
-                                  abs(xyz[:, 2] - 2.4)])
+        return np.minimum.reduce(
+            [np.minimum(a, 2 * math.pi - a) * 2, abs(a - span) * 2, abs(xyz[:, 2] - 0.6), abs(xyz[:, 2] - 2.4)]
+        )
 
     assert np.allclose(np.hypot(*surface_grid(s)[:, :2].T), 2.0, atol=1e-12)
     _kept_against(s, inside, boundary)
@@ -597,8 +609,9 @@ def test_closed_128_loop_across_the_seam_splits_the_surface_there():
 
     def boundary(xyz):
         a = _angle(xyz, -q)
-        return np.minimum.reduce([np.minimum(a, 2 * math.pi - a), abs(a - 2 * q), abs(xyz[:, 2] - 0.5),
-                                  abs(xyz[:, 2] - 1.5)])
+        return np.minimum.reduce(
+            [np.minimum(a, 2 * math.pi - a), abs(a - 2 * q), abs(xyz[:, 2] - 0.5), abs(xyz[:, 2] - 1.5)]
+        )
 
     _kept_against(s, inside, boundary)
 
@@ -612,8 +625,9 @@ def test_two_loops_once_round_a_cylinder_become_one_band():
     assert s.domain_u == pytest.approx((1.0, 1.0 + 2 * math.pi)) and s.domain_v == (0.0, 2.0)
     (loop,) = s.trims
     assert_closed(loop, domain_size(s))
-    _kept_against(s, lambda xyz: (xyz[:, 2] > 0) & (xyz[:, 2] < 2),
-                  lambda xyz: np.minimum(abs(xyz[:, 2]), abs(xyz[:, 2] - 2)))
+    _kept_against(
+        s, lambda xyz: (xyz[:, 2] > 0) & (xyz[:, 2] < 2), lambda xyz: np.minimum(abs(xyz[:, 2]), abs(xyz[:, 2] - 2))
+    )
 
 
 def test_one_loop_once_round_closes_at_a_pole_or_an_apex():
@@ -664,8 +678,10 @@ def test_subfigure_instances_place_their_definitions_nested_scaled_moved_and_tur
     model = load_model(HERE / "subfigures.igs")
     assert len(model.surfaces) == 2 and model.warnings == []
     assert model.skipped == {"IGES entity 308 (subfigure definition)": 1}  # the definition nobody places
-    corners = {name.split(" in ")[1]: on_surface(s, np.array([[0.2, 0.2], [0.8, 0.8]]))
-               for s, name in zip(model.surfaces, model.names)}
+    corners = {
+        name.split(" in ")[1]: on_surface(s, np.array([[0.2, 0.2], [0.8, 0.8]]))
+        for s, name in zip(model.surfaces, model.names)
+    }
     des = sorted(corners)
     assert np.allclose(corners[des[0]], [[-0.4, 10.4, 1.0], [-1.6, 11.6, 1.0]], rtol=0, atol=1e-14)
     assert np.allclose(corners[des[1]], [[0.6, 5.6, 0.0], [2.4, 7.4, 0.0]], rtol=0, atol=1e-14)
@@ -733,7 +749,11 @@ def test_invert_beyond_the_domain_edge_and_far_from_the_surface():
     # nearest (0, 1.5) unconstrained, v beyond the edge; with v held at 1, u + 1 = 1.5
     from bsrt.geometry.bspline import BSplineSurface
 
-    plane = BSplineSurface((1, 1), np.array([0.0, 0, 1, 1]), np.array([0.0, 0, 1, 1]),
-                           np.array([[[0.0, 0, 0], [1, 1, 0]], [[1, 0, 0], [2, 1, 0]]]))
+    plane = BSplineSurface(
+        (1, 1),
+        np.array([0.0, 0, 1, 1]),
+        np.array([0.0, 0, 1, 1]),
+        np.array([[[0.0, 0, 0], [1, 1, 0]], [[1, 0, 0], [2, 1, 0]]]),
+    )
     x, y = invert(plane, np.array([[1.5, 1.5, 0.0]]), [0.9], [0.1], 3.0)
     assert (x[0], y[0]) == pytest.approx((0.5, 1.0), abs=1e-14)

@@ -11,17 +11,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MODELS as DATA
+from conftest import model_files
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bsrt.geometry.bspline import evaluate, make_surface
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import evaluate, make_surface
 from bsrt.io import FORMATS, Model, load_model, restrict
 from bsrt.io.bez import newell_from_qt3d
 from bsrt.io.info import describe
-
-from conftest import MODELS as DATA
-from conftest import model_files
 
 HERE = Path(__file__).resolve().parent / "data"
 
@@ -89,9 +88,11 @@ EXPECTED = [
     ("iges/pyIGES-benchmarks/surf128.igs", 4, {(3, 3): 4}, 0, 0),
     ("iges/pythonocc-core/sunglasses_lens.igs", 9, {(3, 3): 9}, 0, 0),
     (
-        "iges/occt/bearing.iges", 213,
+        "iges/occt/bearing.iges",
+        213,
         {(3, 3): 87, (3, 1): 69, (5, 3): 18, (4, 3): 18, (1, 3): 11, (6, 3): 4, (1, 1): 4, (2, 3): 1, (8, 3): 1},
-        0, 213,
+        0,
+        213,
     ),
     ("iges/occt/hammer.iges", 45, {(1, 2): 15, (1, 1): 14, (2, 2): 12, (3, 1): 4}, 27, 45),
     ("iges/overtureframework/asmo.igs", 255, {(7, 7): 241, (3, 3): 8, (1, 1): 6}, 0, 8),
@@ -132,7 +133,11 @@ def test_control_net_shapes_and_skipped_entities():
     assert hammer.skipped == {"IGES entity 402 (associativity instance)": 1}
     surf = load_model(DATA / "iges/pyIGES-benchmarks/surf128.igs")
     # the four 124s are applied, so only the drawing/view/property entities are skipped
-    assert surf.skipped == {"IGES entity 404 (drawing)": 1, "IGES entity 406 (property)": 3, "IGES entity 410 (view)": 1}
+    assert surf.skipped == {
+        "IGES entity 404 (drawing)": 1,
+        "IGES entity 406 (property)": 3,
+        "IGES entity 410 (view)": 1,
+    }
     # asmo.igs has 11 124s but no entity points to them
     assert load_model(DATA / "iges/overtureframework/asmo.igs").skipped["IGES entity 124 (transformation matrix)"] == 11
 
@@ -196,8 +201,40 @@ def test_torus_g2_has_major_radius_4_and_tube_radius_1_about_z():
 
 # g2 patch k (1-based) -> the qt3d .bez patch it reproduces, None for the four
 # extra g2 patches; found by matching, then written down.
-G2_TO_BEZ = [10, 9, 6, 5, 2, 1, 12, 11, 8, 7, 4, 3, 14, 13, 16, 15, 18, 17, 20, 19,
-             None, None, None, None, 28, 27, 26, 25, 24, 23, 22, 21]
+G2_TO_BEZ = [
+    10,
+    9,
+    6,
+    5,
+    2,
+    1,
+    12,
+    11,
+    8,
+    7,
+    4,
+    3,
+    14,
+    13,
+    16,
+    15,
+    18,
+    17,
+    20,
+    19,
+    None,
+    None,
+    None,
+    None,
+    28,
+    27,
+    26,
+    25,
+    24,
+    23,
+    22,
+    21,
+]
 
 
 def test_teapot_bez_and_g2_describe_the_same_patches():
@@ -247,7 +284,11 @@ def test_iges_124_matrix_moves_surf128_by_hand_computed_amounts():
     # by hand: x' = x + T
     p00 = [0 - 1.516, 0 + 1.791, 0 + 2.455]
     p20 = [-3.333333e-7 - 1.516, 0 + 1.791, 0 + 2.455]  # (-1.5160003333333, 1.791, 2.455)
-    p30 = [0.0072193333333 - 1.516, 0.1227113333333 + 1.791, 0.58341 + 2.455]  # (-1.5087806666667, 1.9137113333333, 3.03841)
+    p30 = [
+        0.0072193333333 - 1.516,
+        0.1227113333333 + 1.791,
+        0.58341 + 2.455,
+    ]  # (-1.5087806666667, 1.9137113333333, 3.03841)
     assert np.allclose(s.points[[0, 1, 2, 3], 0], [p00, p00, p20, p30], rtol=0, atol=1e-15)
     assert np.allclose(p30, [-1.5087806666667, 1.9137113333333, 3.03841], rtol=0, atol=1e-15)
     # the knots are clamped, so the surface's corner is the first point
@@ -285,8 +326,45 @@ def iges_text(entities) -> str:
     return "\n".join(s + g + d + p + t) + "\n"
 
 
-BILINEAR_128 = [1, 1, 1, 1, 0, 0, 1, 0, 0, 0, 0, 1, 1, 0, 0, 1, 1, 1, 1, 1, 1,
-                0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 1, 0, 1]  # the unit square z = 0
+BILINEAR_128 = [
+    1,
+    1,
+    1,
+    1,
+    0,
+    0,
+    1,
+    0,
+    0,
+    0,
+    0,
+    1,
+    1,
+    0,
+    0,
+    1,
+    1,
+    1,
+    1,
+    1,
+    1,
+    0,
+    0,
+    0,
+    1,
+    0,
+    0,
+    0,
+    1,
+    0,
+    1,
+    1,
+    0,
+    0,
+    1,
+    0,
+    1,
+]  # the unit square z = 0
 
 
 def test_iges_chained_124_matrices_apply_inner_first(tmp_path):
@@ -356,9 +434,20 @@ def test_bpt_fixture():
 
 
 def test_formats_table_and_selection(tmp_path):
-    assert FORMATS == {".bez": "bez", ".bpt": "bpt", ".g2": "g2", ".igs": "iges", ".iges": "iges",
-                       ".obj": "obj", ".nurbs": "nurbs", ".step": "step", ".stp": "step", ".p21": "step",
-                       ".brep": "brep", ".brp": "brep"}
+    assert FORMATS == {
+        ".bez": "bez",
+        ".bpt": "bpt",
+        ".g2": "g2",
+        ".igs": "iges",
+        ".iges": "iges",
+        ".obj": "obj",
+        ".nurbs": "nurbs",
+        ".step": "step",
+        ".stp": "step",
+        ".p21": "step",
+        ".brep": "brep",
+        ".brp": "brep",
+    }
     upper = tmp_path / "PATCHES.BPT"
     upper.write_bytes((HERE / "patches.bpt").read_bytes())
     assert len(load_model(upper).surfaces) == 2
@@ -367,8 +456,10 @@ def test_formats_table_and_selection(tmp_path):
     with pytest.raises(InputError, match=r"unknown model file extension '\.txt'; supported extensions are \.bez"):
         load_model(other)
     assert len(load_model(other, format="bpt").surfaces) == 2
-    with pytest.raises(InputError, match="unknown model format 'stl'; supported formats are bez, bpt, brep, g2, iges, "
-                                         "nurbs, obj, occt, step"):
+    with pytest.raises(
+        InputError,
+        match="unknown model format 'stl'; supported formats are bez, bpt, brep, g2, iges, nurbs, obj, occt, step",
+    ):
         load_model(other, format="stl")
     with pytest.raises(InputError, match=r"missing.bez: no such file$"):
         load_model(tmp_path / "missing.bez")
@@ -402,8 +493,11 @@ def write(tmp_path: Path, name: str, text: str | bytes) -> Path:
     return path
 
 
-BEZ = "2\n1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16\n" + "16,15,14,13,12,11,10,9,8,7,6,5,4,3,2,1,4\n" + "16\n" + "".join(
-    f"{i % 4},{i // 4},{(i * 7) % 5}\n" for i in range(16)
+BEZ = (
+    "2\n1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16\n"
+    + "16,15,14,13,12,11,10,9,8,7,6,5,4,3,2,1,4\n"
+    + "16\n"
+    + "".join(f"{i % 4},{i // 4},{(i * 7) % 5}\n" for i in range(16))
 )
 
 
@@ -412,7 +506,11 @@ BEZ = "2\n1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16\n" + "16,15,14,13,12,11,10,9,8,
     [
         (BEZ, None, None),
         (BEZ.replace("\n16\n", "\n17\n"), 20, "the file ends early, expected vertex 17 of 17"),
-        (BEZ.replace("13,14,15,16\n", "13,14,15\n", 1), 2, "expected 16 vertex indices (and an optional subdivision depth), got 15"),
+        (
+            BEZ.replace("13,14,15,16\n", "13,14,15\n", 1),
+            2,
+            "expected 16 vertex indices (and an optional subdivision depth), got 15",
+        ),
         (BEZ.replace("1,0,2\n", "1,zero,2\n"), 6, "expected a coordinate (a number), got 'zero'"),
         (BEZ.replace("\n16\n", "\n15\n"), 20, "unexpected text after the 15 vertices"),
         (BEZ.replace("16,15,14", "17,15,14"), 3, "patch 2: vertex index 17 is out of range 1..16"),
@@ -466,16 +564,29 @@ def test_bpt_errors(tmp_path, text, line, words):
     "edit, line, words",
     [
         (lambda t: t[: t.index("0.500000 0.500000 0.500000")], 14, "the file ends early, expected control point"),
-        (lambda t: t.replace("5 3\n", "5 3 \n", 1).replace("3.141593 3.141593 3.141593\n", "3.141593 3.141593\n", 1),
-         None, None),  # just a different line break: still reads... until the count is off
-        (lambda t: t.replace("0.707107 0.707107 0.000000 0.707107", "0.707107 0.707107 0.000000 -0.707107"), 14,
-         "control point 8 has weight -0.707107; weights must be > 0"),
+        (
+            lambda t: t.replace("5 3\n", "5 3 \n", 1).replace("3.141593 3.141593 3.141593\n", "3.141593 3.141593\n", 1),
+            None,
+            None,
+        ),  # just a different line break: still reads... until the count is off
+        (
+            lambda t: t.replace("0.707107 0.707107 0.000000 0.707107", "0.707107 0.707107 0.000000 -0.707107"),
+            14,
+            "control point 8 has weight -0.707107; weights must be > 0",
+        ),
         (lambda t: t.replace("3 1\n", "3 one\n"), 2, "expected the rational flag (0 or 1) (a whole number), got 'one'"),
-        (lambda t: t.replace("3 1\n", "2 1\n"), 1, "surface 1: only 3-D surfaces are supported, this one has dimension 2"),
+        (
+            lambda t: t.replace("3 1\n", "2 1\n"),
+            1,
+            "surface 1: only 3-D surfaces are supported, this one has dimension 2",
+        ),
         # a wrong order shifts every later number: here a homogeneous 0 lands in a weight
         (lambda t: t.replace("9 3\n", "9 4\n"), 10, "control point 4 has weight 0; weights must be > 0"),
-        (lambda t: t.replace("1.570796 1.570796 3.141593", "1.570796 1.070796 3.141593", 1), 1,
-         "surface 1: knots_u: knots must not decrease"),
+        (
+            lambda t: t.replace("1.570796 1.570796 3.141593", "1.570796 1.070796 3.141593", 1),
+            1,
+            "surface 1: knots_u: knots must not decrease",
+        ),
         (lambda t: "200 1 0\n", 1, "the file ends early, expected the number of auxiliary header values"),
     ],
 )
@@ -516,15 +627,27 @@ NURBS = (
     "text, line, words",
     [
         (NURBS, None, None),
-        (NURBS[: NURBS.index(" 1 1 1")], 10, "the file ends early, expected a number or ']' in controlPoint (opened on line 7)"),
+        (
+            NURBS[: NURBS.index(" 1 1 1")],
+            10,
+            "the file ends early, expected a number or ']' in controlPoint (opened on line 7)",
+        ),
         (NURBS.replace("uDimension 2", "uDimension 3"), 5, "uKnot has 4 values, expected 5 (uDimension + uOrder)"),
         (NURBS.replace(" 1 1 1,", " 1 1 1, 2 2 2,"), 7, "controlPoint has 21 numbers, expected 18"),
         (NURBS.replace("0.5", "half"), 6, "expected a number or ']' in vKnot (a number), got 'half'"),
         (NURBS.replace("ccw FALSE", "colour red"), 16, "unknown field 'colour'"),
-        (NURBS.replace("weight [ 1, 1, 1, 2,", "weight [ 1, 1, 1, 0,"), 1, "surface: weights: every weight must be a finite number > 0"),
+        (
+            NURBS.replace("weight [ 1, 1, 1, 2,", "weight [ 1, 1, 1, 0,"),
+            1,
+            "surface: weights: every weight must be a finite number > 0",
+        ),
         (NURBS.replace("vOrder 2\n", ""), 15, "the file ends without vOrder"),
         (NURBS.replace("uOrder 2", "uOrder 2\nuOrder 3"), 2, "uOrder is given twice (first on line 1)"),
-        (NURBS.replace("weight [ 1, 1, 1, 2, 1, 1 ]", "weight [ 1, 1, 2, 1, 1 ]"), 15, "weight has 5 values, expected 6"),
+        (
+            NURBS.replace("weight [ 1, 1, 1, 2, 1, 1 ]", "weight [ 1, 1, 2, 1, 1 ]"),
+            15,
+            "weight has 5 values, expected 6",
+        ),
     ],
 )
 def test_nurbs_errors(tmp_path, text, line, words):
@@ -544,19 +667,38 @@ OBJ = (HERE / "freeform.obj").read_text()
 @pytest.mark.parametrize(
     "text, line, words",
     [
-        (OBJ.replace("parm u 0 1 3\n", "parm u 0 1 2 3\n"), 20,
-         "surface 1: the surf lists 10 control vertices, but its parm and deg values call for 7 x 2"),
+        (
+            OBJ.replace("parm u 0 1 3\n", "parm u 0 1 2 3\n"),
+            20,
+            "surface 1: the surf lists 10 control vertices, but its parm and deg values call for 7 x 2",
+        ),
         (OBJ.replace("v 0.5 0 1\n", "v 0.5 0 one\n"), 9, "expected a vertex coordinate (a number), got 'one'"),
-        (OBJ.replace("     6 7 8 9 10", "     6 7 8 9 99"), 20, "surface 1: control vertex 99 does not exist (10 vertices)"),
+        (
+            OBJ.replace("     6 7 8 9 10", "     6 7 8 9 99"),
+            20,
+            "surface 1: control vertex 99 does not exist (10 vertices)",
+        ),
         (OBJ.replace("-15 -14", "-99 -14"), 45, "control vertex -99 does not exist (25 vertices so far)"),
         (OBJ[: OBJ.index("trim")], 47, "the file ends inside the element that starts on line 45 (missing 'end')"),
         (OBJ.replace("parm v 0 0 0 1 1 1\n", ""), 45, "surface 2: the bspline surf has no 'parm v' knot vector"),
-        (OBJ.replace("surf 0 2 0 0.5", "surf 0 2 0 1.5"), 45, "surface 2: the range t0 t1 = [0, 1.5] is not inside the knot domain [0, 1]"),
-        (OBJ.replace("v 1 1 2 0.7071067811865476", "v 1 1 2 0"), 45, "surface 2: weights: every weight must be a finite number > 0"),
+        (
+            OBJ.replace("surf 0 2 0 0.5", "surf 0 2 0 1.5"),
+            45,
+            "surface 2: the range t0 t1 = [0, 1.5] is not inside the knot domain [0, 1]",
+        ),
+        (
+            OBJ.replace("v 1 1 2 0.7071067811865476", "v 1 1 2 0"),
+            45,
+            "surface 2: weights: every weight must be a finite number > 0",
+        ),
         (OBJ.replace("parm v 0 0 0 1 1 1", "parm v 0 0 0 1 0.5 1"), 45, "surface 2: knots_v: knots must not decrease"),
         (OBJ.replace("deg 2 1\n", ""), 19, "surf needs a preceding 'deg du dv' with two degrees"),
         (OBJ.replace("cstype bezier", "cstype nurbs"), 18, "expected 'cstype [rat] TYPE'"),
-        (OBJ.replace("end\nv 1 0 0 1", "v 1 0 0 1"), 44, "a new surf starts before the 'end' of the element on line 20"),
+        (
+            OBJ.replace("end\nv 1 0 0 1", "v 1 0 0 1"),
+            44,
+            "a new surf starts before the 'end' of the element on line 20",
+        ),
     ],
 )
 def test_obj_errors(tmp_path, text, line, words):
@@ -574,17 +716,41 @@ def test_obj_errors(tmp_path, text, line, words):
         # a deleted P line breaks the sequence numbers
         (lambda ls: ls[:40] + ls[41:], 41, "expected sequence number P10 in columns 74-80, got '11'"),
         # header (T record) disagreeing with the body
-        (lambda ls: ls[:-1] + [ls[-1].replace("P    274", "P    275")], 306, "the Terminate record says 275 P lines but the file has 274"),
+        (
+            lambda ls: ls[:-1] + [ls[-1].replace("P    274", "P    275")],
+            306,
+            "the Terminate record says 275 P lines but the file has 274",
+        ),
         # a non-number in the 128's knots
-        (lambda ls: ls[:32] + [ls[32].replace("128,10,8,3,3,0,0,1,0,0,0.,", "128,10,8,3,3,0,0,1,0,0,O.,")] + ls[33:], 33,
-         "entity 128 (DE 3): expected a u knot (a number), got 'O.'"),
+        (
+            lambda ls: ls[:32] + [ls[32].replace("128,10,8,3,3,0,0,1,0,0,0.,", "128,10,8,3,3,0,0,1,0,0,O.,")] + ls[33:],
+            33,
+            "entity 128 (DE 3): expected a u knot (a number), got 'O.'",
+        ),
         # K1 larger than the data: the parameters run out before U0
-        (lambda ls: ls[:32] + [ls[32].replace("128,10,8,", "128,90,8,")] + ls[33:], 121, "entity 128 (DE 3): its 437 parameters end before a weight"),
+        (
+            lambda ls: ls[:32] + [ls[32].replace("128,10,8,", "128,90,8,")] + ls[33:],
+            121,
+            "entity 128 (DE 3): its 437 parameters end before a weight",
+        ),
         # the 128 points to a matrix that is not a 124
-        (lambda ls: [l.replace("128       2       0       1       1       0       1", "128       2       0       1       1       0      17") for l in ls],
-         8, "transformation matrix pointer 17 points to entity 406, not to an entity 124"),
+        (
+            lambda ls: [
+                line.replace(
+                    "128       2       0       1       1       0       1",
+                    "128       2       0       1       1       0      17",
+                )
+                for line in ls
+            ],
+            8,
+            "transformation matrix pointer 17 points to entity 406, not to an entity 124",
+        ),
         (lambda ls: ls[:5] + [ls[5][:72] + "X" + ls[5][73:]] + ls[6:], 6, "column 73 holds 'X', not a section letter"),
-        (lambda ls: ls[:5] + [ls[5][:6] + "x" + ls[5][7:]] + ls[6:], 6, "directory entry 1: the entity type (columns 1-8) is '1x4', not a whole number"),
+        (
+            lambda ls: ls[:5] + [ls[5][:6] + "x" + ls[5][7:]] + ls[6:],
+            6,
+            "directory entry 1: the entity type (columns 1-8) is '1x4', not a whole number",
+        ),
     ],
 )
 def test_iges_errors(tmp_path, edit, line, words):
@@ -619,8 +785,35 @@ MUTATION_SOURCES = [
     HERE / "freeform.obj",
     DATA / "nurbs/glscene/duck1.nurbs",
 ]
-GARBAGE = [b"", b"x", b"-1", b"0", b"-0", b"1e999", b"nan", b"inf", b"1.5", b"99999999", b"1_0", b"\x00", b"\xff",
-           b",", b";", b"[", b"]", b"#", b"1H", b"3H,;", b"end", b"surf", b"200 1 0 0", b"124", b"/", b"\\", b"0.0D0"]
+GARBAGE = [
+    b"",
+    b"x",
+    b"-1",
+    b"0",
+    b"-0",
+    b"1e999",
+    b"nan",
+    b"inf",
+    b"1.5",
+    b"99999999",
+    b"1_0",
+    b"\x00",
+    b"\xff",
+    b",",
+    b";",
+    b"[",
+    b"]",
+    b"#",
+    b"1H",
+    b"3H,;",
+    b"end",
+    b"surf",
+    b"200 1 0 0",
+    b"124",
+    b"/",
+    b"\\",
+    b"0.0D0",
+]
 
 
 def mutate(data: st.DataObject, raw: bytes) -> bytes:

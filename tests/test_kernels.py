@@ -7,8 +7,8 @@ import os
 import numpy as np
 
 from bsrt.kernels import compile as kernels
-from bsrt.rendering.warm_up import warm_up
 from bsrt.kernels.threads import run_chunks
+from bsrt.rendering.warm_up import warm_up
 
 
 def test_warm_up_leaves_every_entry_kernel_cached(ctx):

@@ -4,34 +4,40 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from bsrt.scene.camera import pixel_rays
-from bsrt.rendering.options import RenderOptions
-from bsrt.rendering.pipeline import render
-from bsrt.scene import parse_scene
-from bsrt.rendering.shade import shade
-
 from conftest import flat_patch
 from test_models import exact_sphere
+
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import render
+from bsrt.rendering.shade import shade
+from bsrt.scene import parse_scene
+from bsrt.scene.camera import pixel_rays
 
 pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
 
 def _horizontal(x0, x1, y0, y1, z, **extra):
     """A bilinear square in the plane z = const, u along x, v along y."""
-    return {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-            "points": [[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]], **extra}
+    return {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]],
+        **extra,
+    }
 
 
 def _scene(surfaces, lights, materials, size=96, eye=(0.0, -3.0, 6.0), look_at=(0.0, 0.0, 0.0), **render_keys):
-    return parse_scene({
-        "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},  # the sky the mirrors show
-        "camera": {"eye": list(eye), "look_at": list(look_at), "fov": 50.0},
-        "render": render_keys,
-        "material": materials,
-        "light": lights,
-        "surface": surfaces,
-    })
+    return parse_scene(
+        {
+            "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},  # the sky the mirrors show
+            "camera": {"eye": list(eye), "look_at": list(look_at), "fov": 50.0},
+            "render": render_keys,
+            "material": materials,
+            "light": lights,
+            "surface": surfaces,
+        }
+    )
 
 
 def test_shadow_of_a_flat_patch_on_a_parallel_plane_has_its_exact_shape():
@@ -59,9 +65,12 @@ def test_mirror_shows_the_surface_geometry_says_it_must():
     scene = _scene(
         [_horizontal(-3, 3, -3, 3, 0.0, material="mirror"), _horizontal(-0.6, 0.4, 0.2, 1.1, 1.5, material="red")],
         [{"kind": "ambient", "intensity": 1.0}],
-        [{"name": "mirror", "color": [0.0, 0.0, 0.0], "specular": 0.0, "reflectance": 1.0},
-         {"name": "red", "color": [1.0, 0.0, 0.0], "specular": 0.0}],
-        eye=(0.0, -4.0, 3.0), look_at=(0.0, 0.5, 0.0),
+        [
+            {"name": "mirror", "color": [0.0, 0.0, 0.0], "specular": 0.0, "reflectance": 1.0},
+            {"name": "red", "color": [1.0, 0.0, 0.0], "specular": 0.0},
+        ],
+        eye=(0.0, -4.0, 3.0),
+        look_at=(0.0, 0.5, 0.0),
     )
     res = render(scene)
     film = scene.film
@@ -81,26 +90,49 @@ def test_mirror_shows_the_surface_geometry_says_it_must():
 def test_max_depth_bounds_the_bounces_between_two_mirrors():
     """Facing half-mirrors, white (A, in front) and black (B, behind the eye): the centre ray
     sees c_k = 0.5 L_k + 0.5 c_(k+1) for bounces k < max_depth and c = L at the last one."""
-    materials = [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0, "reflectance": 0.5},
-                 {"name": "black", "color": [0.0, 0.0, 0.0], "specular": 0.0, "reflectance": 0.5}]
-    surfaces = [flat_patch(x0=-5, x1=5, z0=-5, z1=5, y=0.0, material="white"),
-                flat_patch(x0=-5, x1=5, z0=-5, z1=5, y=-2.0, material="black")]
+    materials = [
+        {"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0, "reflectance": 0.5},
+        {"name": "black", "color": [0.0, 0.0, 0.0], "specular": 0.0, "reflectance": 0.5},
+    ]
+    surfaces = [
+        flat_patch(x0=-5, x1=5, z0=-5, z1=5, y=0.0, material="white"),
+        flat_patch(x0=-5, x1=5, z0=-5, z1=5, y=-2.0, material="black"),
+    ]
     for depth, expect in ((0, 1.0), (1, 0.5), (2, 0.75), (3, 0.625)):
-        scene = parse_scene({"film": {"width": 8, "height": 8, "background": [0.0, 0.0, 1.0]},
-                             "camera": {"eye": [0.0, -1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 10.0},
-                             "render": {"max_depth": depth}, "material": materials,
-                             "light": [{"kind": "ambient", "intensity": 1.0}], "surface": surfaces})
+        scene = parse_scene(
+            {
+                "film": {"width": 8, "height": 8, "background": [0.0, 0.0, 1.0]},
+                "camera": {"eye": [0.0, -1.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 10.0},
+                "render": {"max_depth": depth},
+                "material": materials,
+                "light": [{"kind": "ambient", "intensity": 1.0}],
+                "surface": surfaces,
+            }
+        )
         np.testing.assert_allclose(render(scene).linear[4, 4], [expect] * 3, atol=1e-12)
 
 
 def test_no_acne_on_a_lit_convex_surface():
     """A sphere under a point light: every point facing the light is lit (no self-shadowing)."""
     s = exact_sphere()
-    table = {"degree": list(s.degree), "knots_u": s.knots_u.tolist(), "knots_v": s.knots_v.tolist(),
-             "points": s.points.tolist(), "weights": s.weights.tolist(), "material": "m"}
-    scene = _scene([table], [{"kind": "point", "position": [2.0, -3.0, 4.0], "intensity": 29.0},
-                             {"kind": "directional", "direction": [1.0, 0.2, -0.3], "intensity": 0.5}],
-                   [{"name": "m", "color": [0.8, 0.8, 0.8], "specular": 0.0}], size=128, eye=(0.5, -4.0, 2.5))
+    table = {
+        "degree": list(s.degree),
+        "knots_u": s.knots_u.tolist(),
+        "knots_v": s.knots_v.tolist(),
+        "points": s.points.tolist(),
+        "weights": s.weights.tolist(),
+        "material": "m",
+    }
+    scene = _scene(
+        [table],
+        [
+            {"kind": "point", "position": [2.0, -3.0, 4.0], "intensity": 29.0},
+            {"kind": "directional", "direction": [1.0, 0.2, -0.3], "intensity": 0.5},
+        ],
+        [{"name": "m", "color": [0.8, 0.8, 0.8], "specular": 0.0}],
+        size=128,
+        eye=(0.5, -4.0, 2.5),
+    )
     res = render(scene)
     hit = res.hits.hit
     d = pixel_rays(scene.camera, 128, 128)[hit]
@@ -113,10 +145,13 @@ def test_no_acne_on_a_lit_convex_surface():
 
 def test_spp4_blends_a_high_contrast_edge_only():
     white = flat_patch(x0=-1.0, x1=0.03, material="white")
-    base = {"film": {"width": 48, "height": 48, "background": [0.0, 0.0, 0.0]},
-            "camera": {"eye": [0.0, -4.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 30.0},
-            "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
-            "light": [{"kind": "ambient", "intensity": 1.0}], "surface": [white]}
+    base = {
+        "film": {"width": 48, "height": 48, "background": [0.0, 0.0, 0.0]},
+        "camera": {"eye": [0.0, -4.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 30.0},
+        "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
+        "light": [{"kind": "ambient", "intensity": 1.0}],
+        "surface": [white],
+    }
     one = render(parse_scene(base)).linear[..., 0]
     scene = parse_scene(base)
     four = render(scene, RenderOptions.resolve(scene, spp=4)).linear[..., 0]

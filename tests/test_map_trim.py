@@ -13,11 +13,10 @@ import numpy as np
 import pytest
 
 from bsrt import api
-
 from bsrt.rendering import map_mesh, prelim
-from bsrt.scene.camera import pixel_rays
-from bsrt.rendering.pipeline import Geometry, render
 from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.pipeline import Geometry, render
+from bsrt.scene.camera import pixel_rays
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).resolve().parent / "data"
@@ -53,8 +52,9 @@ def assert_same_hits(a, b, diagonal, name):
         cos = np.abs((a.normal[far] * rays).sum(axis=1))
         bound = 2.0 * opts.tolerance * diagonal / np.maximum(cos, 1e-300)
         worst = np.argmax(dt[far] / bound)
-        assert (dt[far] <= bound).all(), (f"{name}: t differs by {dt[far][worst]:.3g} at |cos| {cos[worst]:.3g} "
-                                          f"(diagonal {diagonal:.3g})")
+        assert (dt[far] <= bound).all(), (
+            f"{name}: t differs by {dt[far][worst]:.3g} at |cos| {cos[worst]:.3g} (diagonal {diagonal:.3g})"
+        )
 
 
 @pytest.mark.parametrize("name", ["column", "quad", "water-lily", "bench-64"])
@@ -102,7 +102,7 @@ def test_a_step_part_renders_the_same(ctx, monkeypatch, tmp_path):
     fillet = BRepFilletAPI_MakeFillet(cut)
     explorer = TopExp_Explorer(cut, TopAbs_EDGE)
     while explorer.More():
-        edge = (getattr(TopoDS, "Edge", None) or getattr(TopoDS, "Edge_s"))(explorer.Current())
+        edge = (getattr(TopoDS, "Edge", None) or TopoDS.Edge_s)(explorer.Current())
         if BRepAdaptor_Curve(edge).GetType() == GeomAbs_Circle:  # the hole's two rims
             fillet.Add(2.0, edge)
         explorer.Next()
@@ -112,7 +112,9 @@ def test_a_step_part_renders_the_same(ctx, monkeypatch, tmp_path):
     assert writer.Write(str(path)) == IFSelect_RetDone
     scene = api.load(path, width=160, height=160)
     a, b, diagonal = both(scene, monkeypatch)
-    assert_same_hits(a, b, diagonal, path.name)  # (little is in front of a trimmed-away part here: the counts barely move)
+    assert_same_hits(
+        a, b, diagonal, path.name
+    )  # (little is in front of a trimmed-away part here: the counts barely move)
 
 
 def test_the_map_leaves_out_what_the_trims_remove(ctx, monkeypatch):

@@ -4,18 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MODELS as DATA
+from conftest import model_files
 from PIL import Image
 
-from bsrt.geometry.bspline import make_surface
 from bsrt.cli import main
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import make_surface
 from bsrt.io import Model, load_model
 from bsrt.io.bez import newell_from_qt3d
 from bsrt.rendering.pipeline import render
 from bsrt.scene import load_scene, scene_for_model
-
-from conftest import MODELS as DATA
-from conftest import model_files
 
 # Every file listed in tests/data/models/SOURCES.md; a missing or changed one fails the run.
 FILES = list(model_files())
@@ -145,8 +144,10 @@ def test_teapot_bez_and_g2_give_the_same_picture():
 @pytest.mark.gl
 def test_poles_and_collapsed_edges_give_no_nan_and_no_holes():
     """The teapot's lid knob and bottom are poles; the duck's body has a pole row."""
-    for path, eye in ((DATA / "bezier-teaset/qt3d/teapot.bez", (0.9, 2.4, 1.9)),
-                      (DATA / "nurbs/glscene/duck1.nurbs", None)):
+    for path, eye in (
+        (DATA / "bezier-teaset/qt3d/teapot.bez", (0.9, 2.4, 1.9)),
+        (DATA / "nurbs/glscene/duck1.nurbs", None),
+    ):
         model = load_model(path)
         scene = scene_for_model(model, 128, 128, eye=eye, look_at=None)
         res = render(scene)

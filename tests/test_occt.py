@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 import OCP  # noqa: F401  -- the extra must be installed: fail, never skip
 import pytest
+from occ_reference import interior, occt_hits
+from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
@@ -31,10 +33,8 @@ from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVerte
 from OCP.BRepExtrema import BRepExtrema_DistShapeShape
 from OCP.BRepFilletAPI import BRepFilletAPI_MakeFillet
 from OCP.BRepOffsetAPI import BRepOffsetAPI_ThruSections
-from OCP.BRepPrimAPI import (BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder, BRepPrimAPI_MakeSphere,
-                             BRepPrimAPI_MakeTorus)
+from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder, BRepPrimAPI_MakeSphere, BRepPrimAPI_MakeTorus
 from OCP.BRepTools import BRepTools
-from OCP.Bnd import Bnd_Box
 from OCP.GCPnts import GCPnts_AbscissaPoint
 from OCP.GeomAbs import GeomAbs_Circle
 from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
@@ -55,16 +55,14 @@ from OCP.XCAFApp import XCAFApp_Application
 from OCP.XCAFDoc import XCAFDoc_ColorGen, XCAFDoc_ColorSurf, XCAFDoc_DocumentTool
 from PIL import Image
 
-from occ_reference import interior, occt_hits
-
-from bsrt.geometry.bspline import basis_functions, evaluate, find_span
-from bsrt.scene.camera import pixel_rays
 from bsrt.cli import main
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import basis_functions, evaluate, find_span
 from bsrt.io import Model, load_model, occt
 from bsrt.io.occt import reading as _occt_reading  # noqa: F401  (occt.reading below)
 from bsrt.rendering.pipeline import render
 from bsrt.scene import scene_for_model
+from bsrt.scene.camera import pixel_rays
 
 MODELS = Path(__file__).resolve().parent / "data" / "models"
 AS1 = MODELS / "step" / "pythonocc-core" / "as1-oc-214.stp"
@@ -246,8 +244,7 @@ def distance_to_shape(shape, points: np.ndarray) -> np.ndarray:
 def edge_length(face) -> float:
     """Total length of the face's boundary as its pcurves define it (seams
     counted twice, once per side, as the loops run)."""
-    return sum(GCPnts_AbscissaPoint.Length_s(BRepAdaptor_Curve(e), 1e-12)
-               for e in _edges(boundary_in_parameters(face)))
+    return sum(GCPnts_AbscissaPoint.Length_s(BRepAdaptor_Curve(e), 1e-12) for e in _edges(boundary_in_parameters(face)))
 
 
 def loop_length(surface, tol: float = 1e-12) -> float:
@@ -277,7 +274,7 @@ def loop_length(surface, tol: float = 1e-12) -> float:
     total = 0.0
     for loop in surface.trims:
         for curve in loop.curves:
-            knots = np.unique(curve.knots[curve.degree: curve.points.shape[0] + 1])
+            knots = np.unique(curve.knots[curve.degree : curve.points.shape[0] + 1])
             total += sum(piece(curve, a, b, 0) for a, b in zip(knots[:-1], knots[1:]))
     return total
 
@@ -301,9 +298,11 @@ def boundary_extent(surfaces) -> np.ndarray:
             scored = sorted(candidates, key=lambda c: -(sign * c[3][:, axis]).max())
             best = -np.inf
             for curve, surface, t, pts in scored[:8]:
+
                 def f(x, curve=curve, surface=surface):
                     uv = curve.evaluate([x])
                     return sign * evaluate(surface, uv[:, 0], uv[:, 1])[0][0, axis]
+
                 k = int(np.argmax(sign * pts[:, axis]))
                 a, b = t[max(k - 1, 0)], t[min(k + 1, t.size - 1)]
                 for _ in range(60):
@@ -340,8 +339,12 @@ def check_faces(model: Model, faces, size: float, seed: int = 0, third_party: bo
             uv = np.concatenate([c.evaluate(np.linspace(*c.domain, 17)) for c in loop.curves])
             if third_party:
                 eps = 1e-12 * max(u1 - u0, v1 - v0)
-                uv = uv[(np.abs(uv[:, 0] - u0) > eps) & (np.abs(uv[:, 0] - u1) > eps)
-                        & (np.abs(uv[:, 1] - v0) > eps) & (np.abs(uv[:, 1] - v1) > eps)]
+                uv = uv[
+                    (np.abs(uv[:, 0] - u0) > eps)
+                    & (np.abs(uv[:, 0] - u1) > eps)
+                    & (np.abs(uv[:, 1] - v0) > eps)
+                    & (np.abs(uv[:, 1] - v1) > eps)
+                ]
             pts = evaluate(surface, uv[:, 0], uv[:, 1])[0]
             off = distance_to_shape(in_parameters, pts)
             assert off.max(initial=0.0) < TOL * size, (k, i, off.max() / size)
@@ -532,8 +535,12 @@ def test_without_opencascade_one_message_names_the_extra(tmp_path, monkeypatch):
     """Without OCP (simulated: bsrt.io.occt.available says so) STEP, BREP and
     IGES-through-occt are one InputError naming the extra (the CLI exits 2)."""
     monkeypatch.setattr(occt, "available", lambda: False)
-    for name, fmt, what in (("a.step", "auto", "STEP"), ("b.STP", "auto", "STEP"), ("c.brep", "auto", "BREP"),
-                            ("d.igs", "occt", "IGES with format 'occt'")):
+    for name, fmt, what in (
+        ("a.step", "auto", "STEP"),
+        ("b.STP", "auto", "STEP"),
+        ("c.brep", "auto", "BREP"),
+        ("d.igs", "occt", "IGES with format 'occt'"),
+    ):
         with pytest.raises(InputError) as err:
             load_model(tmp_path / name, format=fmt)
         assert str(err.value) == f"{tmp_path / name}: reading {what} needs OpenCASCADE: pip install 'bsrt[cad]'"
@@ -605,8 +612,8 @@ def test_hits_agree_against_occt_intersector(tmp_path, name):
 def test_step_and_iges_through_bsrts_own_reader_render_the_same_hits(tmp_path, brep_mode):
     """The box with a filleted hole written as STEP (read through OpenCASCADE) and as IGES
     (faces, or B-rep mode 186/514/510, read by bsrt's own IGES reader): the same hits."""
-    from bsrt.scene import scene_for_model
     from bsrt.rendering.options import RenderOptions
+    from bsrt.scene import scene_for_model
 
     shape = box_with_filleted_hole()
     step = load_model(write_step(shape, tmp_path / "part.step"))
@@ -617,8 +624,16 @@ def test_step_and_iges_through_bsrts_own_reader_render_the_same_hits(tmp_path, b
     results = []
     for model in (step, iges):
         other = scene_for_model(model, 96, 96)
-        other = type(other)(scene.film, scene.camera, other.render, other.materials, other.lights,
-                            other.surfaces, other.path, other.notes)
+        other = type(other)(
+            scene.film,
+            scene.camera,
+            other.render,
+            other.materials,
+            other.lights,
+            other.surfaces,
+            other.path,
+            other.notes,
+        )
         results.append(render(other, RenderOptions.resolve(other)).hits)
     a, b = results
     size = diagonal(read_back(tmp_path / "part.step"))

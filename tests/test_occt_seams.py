@@ -90,10 +90,10 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Compound, TopoDS_Face, TopoDS_Wire
 
 from bsrt.geometry.bspline import evaluate
+from bsrt.geometry.trim import kept
 from bsrt.io import load_model
 from bsrt.rendering.pipeline import Geometry
 from bsrt.scene import scene_for_model
-from bsrt.geometry.trim import kept
 
 TOL = 1e-7  # of the model's size: how close hits and surfaces must be
 MARGIN = 1e-6  # of the model's size: rays and points this close to a face's boundary are left out
@@ -218,8 +218,9 @@ def sphere(R, centre, size, keep=None, name="sphere"):
         o = o - c
         return _quadratic(1.0, 2 * o @ d, o @ o - R * R, size)
 
-    return Exact(name, roots, lambda P: np.abs(np.linalg.norm(P - c, axis=1) - R),
-                 keep or (lambda P: np.full(len(P), np.inf)))
+    return Exact(
+        name, roots, lambda P: np.abs(np.linalg.norm(P - c, axis=1) - R), keep or (lambda P: np.full(len(P), np.inf))
+    )
 
 
 def plane(normal, h, keep, name="plane"):
@@ -324,11 +325,14 @@ def check_rays(model, faces, origins, directions, size, min_hits=50, min_misses=
         f"{wrong.size} of {sure.sum()} rays hit where they should miss or miss where they should hit; "
         f"first: origin {origins[wrong[0]]}, direction {directions[wrong[0]]}, expected "
         f"{f't = {t[wrong[0]]:.9g}' if hit[wrong[0]] else 'a miss'}, bsrt "
-        f"{f't = {hits.t[wrong[0]]:.9g}' if hits.hit[wrong[0]] else 'a miss'}")
+        f"{f't = {hits.t[wrong[0]]:.9g}' if hits.hit[wrong[0]] else 'a miss'}"
+    )
     both = sure & hit
     assert both.sum() >= min_hits and (sure & ~hit).sum() >= min_misses, (both.sum(), (sure & ~hit).sum())
     err = np.abs(hits.t[both] - t[both])
-    assert err.max() < TOL * size, f"t off by {err.max() / size:.3g} of the size (ray {np.flatnonzero(both)[err.argmax()]})"
+    assert err.max() < TOL * size, (
+        f"t off by {err.max() / size:.3g} of the size (ray {np.flatnonzero(both)[err.argmax()]})"
+    )
 
 
 def check_surfaces(model, faces, size, n=24, seed=0):
@@ -349,7 +353,9 @@ def check_surfaces(model, faces, size, n=24, seed=0):
         P = evaluate(surface, u, v)[0]
         offs = [float(f.off(P).max()) for f in faces]
         j = int(np.argmin(offs))
-        assert offs[j] < TOL * size, f"surface {k} ({model.names[k]}) is {offs[j] / size:.3g} of the size off every face"
+        assert offs[j] < TOL * size, (
+            f"surface {k} ({model.names[k]}) is {offs[j] / size:.3g} of the size off every face"
+        )
         face = faces[j]
         matched.append(face.name)
         m = face.margin(P)
@@ -359,7 +365,8 @@ def check_surfaces(model, faces, size, n=24, seed=0):
         assert bad.size == 0, (
             f"surface {k} ({model.names[k]}, {face.name}): kept() wrong at {bad.size} of {sure.sum()} points; "
             f"first (u, v) = ({u[bad[0]]:.9g}, {v[bad[0]]:.9g}), point {P[bad[0]]}, "
-            f"expected {'kept' if m[bad[0]] > 0 else 'cut away'}")
+            f"expected {'kept' if m[bad[0]] > 0 else 'cut away'}"
+        )
     return matched
 
 
@@ -384,8 +391,12 @@ def cylinder_wedge_face(a0=-60 * DEG, a1=60 * DEG):
 
 
 def wedge_exact(a0=-60 * DEG, a1=60 * DEG, R=R_CYL):
-    return cylinder(R, size=CYL_SIZE, name="wedge",
-                    keep=lambda P: np.minimum(angle_margin(P[:, 0], P[:, 1], a0, a1, R), z_margin(P, 0, H_CYL)))
+    return cylinder(
+        R,
+        size=CYL_SIZE,
+        name="wedge",
+        keep=lambda P: np.minimum(angle_margin(P[:, 0], P[:, 1], a0, a1, R), z_margin(P, 0, H_CYL)),
+    )
 
 
 def horizontal_rays(n, radius, z0, z1, seed, distance=3.0):
@@ -433,14 +444,13 @@ def cylinder_cut_by_box():
 
 def cut_cylinder_exact():
     c = 0.5 * R_CYL
-    half_chord = math.sqrt(R_CYL ** 2 - c * c)
+    half_chord = math.sqrt(R_CYL**2 - c * c)
 
     def cap(P):
         return np.minimum(R_CYL - np.hypot(P[:, 0], P[:, 1]), P[:, 0] - c)
 
     return [
-        cylinder(R_CYL, size=CYL_SIZE, name="side",
-                 keep=lambda P: np.minimum(P[:, 0] - c, z_margin(P, 0, H_CYL))),
+        cylinder(R_CYL, size=CYL_SIZE, name="side", keep=lambda P: np.minimum(P[:, 0] - c, z_margin(P, 0, H_CYL))),
         plane([1, 0, 0], c, lambda P: np.minimum(half_chord - np.abs(P[:, 1]), z_margin(P, 0, H_CYL)), "x = R/2"),
         plane([0, 0, 1], 0.0, cap, "bottom"),
         plane([0, 0, 1], H_CYL, cap, "top"),
@@ -484,8 +494,14 @@ def blind_hole_exact():
         cylinder(R_CYL, size=CYL_SIZE, name="side", keep=lambda P: np.minimum(outside_hole(P), z_margin(P, 0, H_CYL))),
         plane([0, 0, 1], 0.0, disc, "bottom"),
         plane([0, 0, 1], H_CYL, disc, "top"),
-        cylinder(R_HOLE, axis="x", centre=(0, 0, Z_HOLE), size=CYL_SIZE, name="hole wall",
-                 keep=lambda P: np.minimum(P[:, 0], np.sqrt(np.maximum(R_CYL ** 2 - P[:, 1] ** 2, 0)) - P[:, 0])),
+        cylinder(
+            R_HOLE,
+            axis="x",
+            centre=(0, 0, Z_HOLE),
+            size=CYL_SIZE,
+            name="hole wall",
+            keep=lambda P: np.minimum(P[:, 0], np.sqrt(np.maximum(R_CYL**2 - P[:, 1] ** 2, 0)) - P[:, 0]),
+        ),
         plane([1, 0, 0], 0.0, lambda P: R_HOLE - np.hypot(P[:, 1], P[:, 2] - Z_HOLE), "hole bottom"),
     ]
 
@@ -510,7 +526,7 @@ def test_cylinder_with_a_hole_straddling_the_seam(tmp_path, fmt):
     rim = np.hypot(origins[:, 1], origins[:, 2] - Z_HOLE) < R_HOLE
     assert hit[sure].all() and rim[sure].sum() > 30
     assert np.allclose(t[sure & rim], 3 * R_CYL)
-    assert np.allclose(t[sure & ~rim], 3 * R_CYL - np.sqrt(R_CYL ** 2 - origins[sure & ~rim, 1] ** 2))
+    assert np.allclose(t[sure & ~rim], 3 * R_CYL - np.sqrt(R_CYL**2 - origins[sure & ~rim, 1] ** 2))
     check_rays(model, faces, origins, directions, CYL_SIZE, min_hits=300)
     origins, directions = random_rays(*CYL_BOX, 800, seed=5)
     check_rays(model, faces, origins, directions, CYL_SIZE, min_misses=50)
@@ -535,8 +551,9 @@ def test_the_seam_face_reads_the_same_from_step_brep_and_iges(tmp_path):
 
 def _cylinder_guises():
     axis = gp_Ax3(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1), gp_Dir(1, 0, 0))
-    revolved = Geom_SurfaceOfRevolution(Geom_Line(gp_Pnt(R_CYL, 0, 0), gp_Dir(0, 0, 1)),
-                                        gp_Ax1(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)))
+    revolved = Geom_SurfaceOfRevolution(
+        Geom_Line(gp_Pnt(R_CYL, 0, 0), gp_Dir(0, 0, 1)), gp_Ax1(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1))
+    )
     trimmed = Geom_RectangularTrimmedSurface(Geom_CylindricalSurface(axis, R_CYL), -math.pi, math.pi, 0.0, H_CYL)
     return {  # name: (surface, u0, u1): angles [u0, u1], z in [0, H]
         "revolution-wedge": (revolved, -1.0, 1.0),
@@ -547,8 +564,15 @@ def _cylinder_guises():
 
 
 @pytest.mark.parametrize("fmt", ["step", "brep"])
-@pytest.mark.parametrize("name", ["revolution-wedge", "revolution-full-turn-from-minus-1", "trimmed-cylinder-wedge",
-                                  "cylinder-full-turn-from-minus-1"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "revolution-wedge",
+        "revolution-full-turn-from-minus-1",
+        "trimmed-cylinder-wedge",
+        "cylinder-full-turn-from-minus-1",
+    ],
+)
 def test_cylinders_in_other_guises(tmp_path, name, fmt):
     """The same cylinder as a surface of revolution of a line and as a
     Geom_RectangularTrimmedSurface of a cylinder: faces for angles [-1, 1] rad
@@ -648,8 +672,12 @@ def test_torus_cut_through_its_axis_crosses_both_seams(tmp_path, fmt):
     faces = half_torus_exact()
     assert set(check_surfaces(model, faces, TOR_SIZE)) == {"discs", "half torus"}
     # along x through the centre, from -x: nothing until the kept half: x = R - r, then R + r
-    h = trace(model, np.array([[-20.0, 0, 0], [-20.0, 0, 0]]), np.array([[1.0, 0, 0], [1.0, 0, 0]]),
-              t_min=np.array([0.0, 20 + R_TOR]))
+    h = trace(
+        model,
+        np.array([[-20.0, 0, 0], [-20.0, 0, 0]]),
+        np.array([[1.0, 0, 0], [1.0, 0, 0]]),
+        t_min=np.array([0.0, 20 + R_TOR]),
+    )
     assert h.hit.all() and np.abs(h.t - [20 + R_TOR - r_TOR, 20 + R_TOR + r_TOR]).max() < TOL * TOR_SIZE, h.t
     # along y at x = -1 (the cut-away half): a miss; at x = 1: the tube at |p| = R + r
     h = trace(model, np.array([[-1.0, -20, 0], [1.0, -20, 0]]), np.array([[0, 1.0, 0], [0, 1.0, 0]]))
@@ -701,11 +729,19 @@ def test_full_sphere_with_poles(tmp_path):
     assert_clean(model, 1)
     faces = [sphere(R_SPH, C_SPH, SPH_SIZE)]
     check_surfaces(model, faces, SPH_SIZE)
-    o = C_SPH + np.array([[0, 0, 3 * R_SPH], [0, 0, -3 * R_SPH], [3 * R_SPH, 0, 0], [3 * R_SPH, 0, 2.0],
-                          [0, 0, 3 * R_SPH], [1e-4, 0, 3 * R_SPH]])
+    o = C_SPH + np.array(
+        [
+            [0, 0, 3 * R_SPH],
+            [0, 0, -3 * R_SPH],
+            [3 * R_SPH, 0, 0],
+            [3 * R_SPH, 0, 2.0],
+            [0, 0, 3 * R_SPH],
+            [1e-4, 0, 3 * R_SPH],
+        ]
+    )
     d = np.array([[0, 0, -1.0], [0, 0, 1.0], [-1.0, 0, 0], [-1.0, 0, 0], [1e-3, 0, -1.0], [0, 0, -1.0]])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    expected = [2 * R_SPH, 2 * R_SPH, 2 * R_SPH, 3 * R_SPH - math.sqrt(R_SPH ** 2 - 4)]
+    expected = [2 * R_SPH, 2 * R_SPH, 2 * R_SPH, 3 * R_SPH - math.sqrt(R_SPH**2 - 4)]
     _, t, sure = first_hits(faces, o, d, SPH_SIZE)
     assert sure.all() and np.allclose(t[:4], expected)
     h = trace(model, o, d)
@@ -738,7 +774,9 @@ def test_sphere_patches_across_the_seam_and_poles(tmp_path, name):
     check_rays(model, faces, origins, directions, SPH_SIZE, min_misses=100)
     # rays toward the centre from every longitude at latitude 10 deg and from over the poles
     a = np.arange(-180, 180, 5) * DEG
-    dirs = np.stack([np.cos(a) * math.cos(10 * DEG), np.sin(a) * math.cos(10 * DEG), np.full_like(a, math.sin(10 * DEG))], 1)
+    dirs = np.stack(
+        [np.cos(a) * math.cos(10 * DEG), np.sin(a) * math.cos(10 * DEG), np.full_like(a, math.sin(10 * DEG))], 1
+    )
     dirs = np.concatenate([dirs, [[0, 0, 1.0], [0, 0, -1.0], [0.01, 0, 1.0], [0.01, 0, -1.0]]])
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     check_rays(model, faces, C_SPH + 3 * R_SPH * dirs, -dirs, SPH_SIZE, min_hits=10)
@@ -775,8 +813,9 @@ def periodic_bspline_cylinder(R=R_CYL, H=H_CYL):
     assert surface.IsUPeriodic() and not surface.IsVPeriodic()
     for u, angle in ((0.0, 0.0), (-1.0, -90.0), (0.5, 45.0), (2.0, 180.0), (-0.5, -45.0)):  # the set-up, checked
         p = surface.Value(u, 0.25)
-        assert np.allclose([p.X(), p.Y(), p.Z()], [R * math.cos(angle * DEG), R * math.sin(angle * DEG), 0.25 * H],
-                           atol=1e-12)
+        assert np.allclose(
+            [p.X(), p.Y(), p.Z()], [R * math.cos(angle * DEG), R * math.sin(angle * DEG), 0.25 * H], atol=1e-12
+        )
     return surface
 
 
@@ -965,10 +1004,10 @@ def test_chains_once_round_are_closed_into_the_band_between_them(flip):
     along the domain's edge they keep exactly 0 < v < 1, for every u of the period, whichever way the
     chains start; reversed (flip: the face outside the band) they keep the rest."""
     from bsrt.geometry.bspline import make_surface
+    from bsrt.geometry.trim import TrimLoop, kept
     from bsrt.io.occt.curves import segment
     from bsrt.io.occt.param_map import AxisMap, ParamMap
     from bsrt.io.occt.topology import _close, _closed_around
-    from bsrt.geometry.trim import TrimLoop, kept
 
     period = 2 * math.pi
     identity = AxisMap("identity", np.array([0.0, period]))
@@ -977,11 +1016,17 @@ def test_chains_once_round_are_closed_into_the_band_between_them(flip):
     high = [segment((period - 0.7, 1.0), (-0.7, 1.0))]  # runs -u
     if flip:
         low, high = [segment((period + 0.3, 0.0), (0.3, 0.0))], [segment((-0.7, 1.0), (period - 0.7, 1.0))]
-    around = [(low, np.array([-period if not flip else period, 0.0])),
-              (high, np.array([period if not flip else -period, 0.0]))]
+    around = [
+        (low, np.array([-period if not flip else period, 0.0])),
+        (high, np.array([period if not flip else -period, 0.0])),
+    ]
     loops = _closed_around(around, pmap)
-    plane = make_surface((1, 1), [0, 0, period, period], [-1, -1, 2, 2],
-                         np.array([[[0, -1, 0], [0, 2, 0]], [[period, -1, 0], [period, 2, 0]]], dtype=float))
+    plane = make_surface(
+        (1, 1),
+        [0, 0, period, period],
+        [-1, -1, 2, 2],
+        np.array([[[0, -1, 0], [0, 2, 0]], [[period, -1, 0], [period, 2, 0]]], dtype=float),
+    )
     # as the import does: each loop cut at the domain's edge
     surface = plane.with_trims([TrimLoop(tuple(_close(loop, plane, 10.0))) for loop in loops])
     rng = np.random.default_rng(3)

@@ -25,8 +25,14 @@ TEACUP = ROOT / "tests" / "data" / "models" / "bezier-teaset" / "qt3d" / "teacup
 
 
 def bsrt(*args, cwd, preexec_fn=None, timeout=300):
-    return subprocess.run([sys.executable, "-m", "bsrt", *map(str, args)], cwd=cwd, capture_output=True, text=True,
-                          preexec_fn=preexec_fn, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "bsrt", *map(str, args)],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        preexec_fn=preexec_fn,
+        timeout=timeout,
+    )
 
 
 def test_nothing_exists_before_commit_and_everything_after(tmp_path):
@@ -46,7 +52,7 @@ def test_a_failure_before_commit_leaves_nothing_and_keeps_the_old_file(tmp_path)
         with Outputs() as outputs:
             outputs.write(tmp_path / "a.bin", lambda f: f.write(b"new"))
             outputs.write(tmp_path / "b.bin", lambda f: f.write(b"new"))
-            1 / 0
+            1 / 0  # noqa: B018 (a failure inside the block)
     assert sorted(os.listdir(tmp_path)) == ["a.bin"]
     assert (tmp_path / "a.bin").read_bytes() == b"old"
 
@@ -70,13 +76,26 @@ def _file_size_limit(limit):
     def apply():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit then fails with EFBIG
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
     return apply
 
 
 @pytest.mark.gl
 def test_a_full_disk_is_one_message_naming_the_output_and_leaves_nothing(tmp_path):
-    run = bsrt("render", QUAD, "-o", "out.png", "--width", 64, "--height", 64, "--aov", "out.npz",
-               cwd=tmp_path, preexec_fn=_file_size_limit(300))
+    run = bsrt(
+        "render",
+        QUAD,
+        "-o",
+        "out.png",
+        "--width",
+        64,
+        "--height",
+        64,
+        "--aov",
+        "out.npz",
+        cwd=tmp_path,
+        preexec_fn=_file_size_limit(300),
+    )
     assert run.returncode == 1
     assert run.stderr.splitlines() == ["bsrt: error: out.png: File too large"]
     assert os.listdir(tmp_path) == []
@@ -85,9 +104,27 @@ def test_a_full_disk_is_one_message_naming_the_output_and_leaves_nothing(tmp_pat
 @pytest.mark.gl
 def test_stats_on_a_failing_stdout_leaves_no_image(tmp_path):
     with open("/dev/full", "w") as full:
-        run = subprocess.run([sys.executable, "-m", "bsrt", "render", str(QUAD), "-o", "out.png", "--width", "16",
-                              "--height", "16", "--stats"], cwd=tmp_path, stdout=full, stderr=subprocess.PIPE,
-                             text=True, timeout=300)
+        run = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "bsrt",
+                "render",
+                str(QUAD),
+                "-o",
+                "out.png",
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "--stats",
+            ],
+            cwd=tmp_path,
+            stdout=full,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=300,
+        )
     assert run.returncode == 1
     assert run.stderr.splitlines() == ["bsrt: error: <stdout>: No space left on device"]
     assert os.listdir(tmp_path) == []
@@ -95,8 +132,9 @@ def test_stats_on_a_failing_stdout_leaves_no_image(tmp_path):
 
 @pytest.mark.gl
 def test_render_png_aov_and_stats_together(tmp_path):
-    run = bsrt("render", QUAD, "-o", "out.png", "--width", 24, "--height", 16, "--aov", "out.npz", "--stats",
-               cwd=tmp_path)
+    run = bsrt(
+        "render", QUAD, "-o", "out.png", "--width", 24, "--height", 16, "--aov", "out.npz", "--stats", cwd=tmp_path
+    )
     assert run.returncode == 0, run.stderr
     assert sorted(os.listdir(tmp_path)) == ["out.npz", "out.png"]
     assert Image.open(tmp_path / "out.png").size == (24, 16)
@@ -117,8 +155,9 @@ def test_the_output_may_not_be_the_model_it_renders(tmp_path):
     model.write_bytes(TEACUP.read_bytes())
     run = bsrt("render", "m.png", "--format", "bez", "-o", "m.png", "--width", 8, "--height", 8, cwd=tmp_path)
     assert run.returncode == 2
-    assert run.stderr.splitlines() == ["bsrt: error: m.png: is an input of this render (m.png); choose another "
-                                       "output name"]
+    assert run.stderr.splitlines() == [
+        "bsrt: error: m.png: is an input of this render (m.png); choose another output name"
+    ]
     assert model.read_bytes() == TEACUP.read_bytes()
 
 
@@ -140,11 +179,14 @@ def test_the_image_and_the_aovs_may_not_be_one_file(tmp_path):
     assert run.stderr.splitlines() == ["bsrt: error: a.npz: given as two outputs (b.png)"]
 
 
-@pytest.mark.parametrize("make, kind", [
-    (lambda p: os.mkfifo(p), "a named pipe (FIFO)"),
-    (lambda p: os.symlink("/dev/zero", p), "a character device"),
-    (lambda p: os.mkdir(p), "a folder"),
-])
+@pytest.mark.parametrize(
+    "make, kind",
+    [
+        (lambda p: os.mkfifo(p), "a named pipe (FIFO)"),
+        (lambda p: os.symlink("/dev/zero", p), "a character device"),
+        (lambda p: os.mkdir(p), "a folder"),
+    ],
+)
 @pytest.mark.parametrize("name", ["in.toml", "in.bez"])
 def test_non_regular_inputs_are_refused_at_once(tmp_path, make, kind, name):
     make(tmp_path / name)
@@ -170,18 +212,26 @@ def test_an_import_that_is_a_fifo_is_refused(tmp_path):
     (tmp_path / "s.toml").write_text(CAMERA + '[[import]]\nfile = "cup.bez"\n')
     run = bsrt("render", "s.toml", "-o", "out.png", cwd=tmp_path, timeout=60)
     assert run.returncode == 2
-    assert run.stderr.splitlines() == ["bsrt: error: s.toml: import[0].file: cup.bez: is a named pipe (FIFO), "
-                                       "not a model file"]
+    assert run.stderr.splitlines() == [
+        "bsrt: error: s.toml: import[0].file: cup.bez: is a named pipe (FIFO), not a model file"
+    ]
 
 
-@pytest.mark.parametrize("args, message", [
-    (["render", "q.toml", "-o", "q.png", "--width", "0"],
-     "bsrt render: error: argument --width: expected a whole number >= 1, got 0"),
-    (["render"], "bsrt render: error: the following arguments are required: scene, -o/--output"),
-    (["render", "q.toml", "-o", "q.png", "--method", "euler"],
-     "bsrt render: error: argument --method: invalid choice: 'euler' (choose from 'gradient', 'fast', 'newton', "
-     "'martin')"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ["render", "q.toml", "-o", "q.png", "--width", "0"],
+            "bsrt render: error: argument --width: expected a whole number >= 1, got 0",
+        ),
+        (["render"], "bsrt render: error: the following arguments are required: scene, -o/--output"),
+        (
+            ["render", "q.toml", "-o", "q.png", "--method", "euler"],
+            "bsrt render: error: argument --method: invalid choice: 'euler' (choose from 'gradient', 'fast', 'newton', "
+            "'martin')",
+        ),
+    ],
+)
 def test_a_usage_error_is_one_line(tmp_path, args, message):
     run = bsrt(*args, cwd=tmp_path)
     assert run.returncode == 2

@@ -5,16 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bsrt.geometry.bspline import make_surface
-from bsrt.scene.camera import Camera, pixel_rays
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import make_surface
 from bsrt.geometry.patches import PatchSet
 from bsrt.rendering.prelim import render_map
+from bsrt.scene.camera import Camera, pixel_rays
 
 
 def _flat(x0, x1, z0, z1, y=0.0):
-    return make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1],
-                        [[[x0, y, z0], [x0, y, z1]], [[x1, y, z0], [x1, y, z1]]])
+    return make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[x0, y, z0], [x0, y, z1]], [[x1, y, z0], [x1, y, z1]]])
 
 
 CAMERA = Camera(np.array([0.3, -4.0, 0.2]), np.array([0.1, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 40.0)
@@ -49,8 +48,7 @@ def test_map_pixel_sees_the_ray_of_that_pixel(ctx, width, height):
 
 def test_rgba8_map_decodes_with_eq6(ctx):
     """8-bit map: u0 = (umax - umin) g / 255 + umin, on a surface with domain [2, 6] x [-1, 1]."""
-    surf = make_surface((1, 1), [2, 2, 6, 6], [-1, -1, 1, 1],
-                        [[[-1, 0, -1], [-1, 0, 1]], [[1, 0, -1], [1, 0, 1]]])
+    surf = make_surface((1, 1), [2, 2, 6, 6], [-1, -1, 1, 1], [[[-1, 0, -1], [-1, 0, 1]], [[1, 0, -1], [1, 0, 1]]])
     ps = PatchSet([surf])
     width = height = 64
     prelim = render_map(ps, CAMERA, width, height, "rgba8", ctx=ctx)

@@ -4,14 +4,14 @@ the NumPy expressions they replace, which must agree bit for bit."""
 import numpy as np
 import pytest
 
+from bsrt.geometry.patches import PatchSet
+from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
 from bsrt.rendering import gl, prelim
-from bsrt.scene.camera import Camera, pixel_rays
 from bsrt.rendering.hard_pixels import FOLD_PIXELS, LAYER_SLACK_PIXELS, SEAM_RATIO, suspect_pixels
 from bsrt.rendering.hits import Hits
-from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
-from bsrt.geometry.patches import PatchSet
-from bsrt.scene import parse_scene
 from bsrt.rendering.solve import Rays
+from bsrt.scene import parse_scene
+from bsrt.scene.camera import Camera, pixel_rays
 
 DOMAIN = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
 
@@ -59,8 +59,13 @@ def random_pass(rng, h, w, mode):
 
 def run_decode(tri, tri_dist, line, line_dist, mode, out_shape, row0=0, col0=0, outs=None):
     if outs is None:
-        outs = (np.full(out_shape, 7, dtype=np.int64), np.zeros(out_shape), np.zeros(out_shape), np.zeros(out_shape),
-                np.zeros(out_shape + (3,), dtype=np.uint8))
+        outs = (
+            np.full(out_shape, 7, dtype=np.int64),
+            np.zeros(out_shape),
+            np.zeros(out_shape),
+            np.zeros(out_shape),
+            np.zeros(out_shape + (3,), dtype=np.uint8),
+        )
     n = tri.shape[0] * tri.shape[1]
     for start, stop in ((0, min(5, n)), (min(5, n), n)):  # two slices, as run_chunks calls it
         decode_tile(start, stop, tri, tri_dist, line, line_dist, mode == "float", DOMAIN, row0, col0, *outs)
@@ -104,8 +109,9 @@ def test_decode_tile_leaves_empty_pixels_unseeded():
     assert (picture == 0).all()
 
 
-CAMERA = Camera(eye=np.array([1.0, -2.0, 3.0]), look_at=np.array([0.5, 0.25, -0.5]), up=np.array([0.0, 0.0, 1.0]),
-                fov=50.0)
+CAMERA = Camera(
+    eye=np.array([1.0, -2.0, 3.0]), look_at=np.array([0.5, 0.25, -0.5]), up=np.array([0.0, 0.0, 1.0]), fov=50.0
+)
 
 
 @pytest.mark.parametrize("rows", [None, (3, 8)])
@@ -152,7 +158,7 @@ def reference_suspects(surface, distance, u, v, domain, hit, t, failed, footprin
     border = np.zeros((h, w), dtype=bool)
     for di in (-1, 0, 1):
         for dj in (-1, 0, 1):
-            border |= padded[1 + di: 1 + di + h, 1 + dj: 1 + dj + w] != surface
+            border |= padded[1 + di : 1 + di + h, 1 + dj : 1 + dj + w] != surface
     dist = np.where(np.isfinite(distance), distance, 0.0)
     fold = np.zeros(dist.shape, dtype=bool)
     for axis in (0, 1):
@@ -192,7 +198,7 @@ def test_map_suspects_are_the_numpy_border_fold_layer_and_seam_tests(shape):
     surface = np.where(rng.random(shape) < 0.8, 0, rng.integers(-1, 3, size=shape))
     distance = np.where(surface >= 0, 5.0 + rng.normal(scale=0.02, size=shape), np.inf)
     # smooth seeds, a fifth of them on another layer
-    rows, cols = np.mgrid[0:shape[0], 0:shape[1]]
+    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
     other = rng.random(shape) < 0.2
     u = np.where(surface >= 0, 0.01 * cols + 0.5 * other, np.nan)
     v = np.where(surface >= 0, 0.02 * rows + 0.003 * cols, np.nan)
@@ -203,10 +209,29 @@ def test_map_suspects_are_the_numpy_border_fold_layer_and_seam_tests(shape):
     failed = (surface.ravel() >= 0) & ~hit
     suspect, layer, seam = (np.empty(n, dtype=bool) for _ in range(3))
     for start, stop in ((0, min(3, n)), (min(3, n), n)):
-        map_suspects(start, stop, surface, distance, u, v, domain, hit, t, failed, FOLD_PIXELS * 0.01,
-                     LAYER_SLACK_PIXELS * 0.01, 1e-3, SEAM_RATIO, 1e-6, suspect, layer, seam)
-    expected_suspect, expected_layer, expected_seam = reference_suspects(surface, distance, u, v, domain, hit, t,
-                                                                         failed, 0.01, 1e-3, 1e-6)
+        map_suspects(
+            start,
+            stop,
+            surface,
+            distance,
+            u,
+            v,
+            domain,
+            hit,
+            t,
+            failed,
+            FOLD_PIXELS * 0.01,
+            LAYER_SLACK_PIXELS * 0.01,
+            1e-3,
+            SEAM_RATIO,
+            1e-6,
+            suspect,
+            layer,
+            seam,
+        )
+    expected_suspect, expected_layer, expected_seam = reference_suspects(
+        surface, distance, u, v, domain, hit, t, failed, 0.01, 1e-3, 1e-6
+    )
     assert expected_layer.any() and not expected_layer.all()
     if shape == (12, 17):
         assert expected_seam.any()
@@ -228,8 +253,9 @@ def test_suspects_of_a_hand_worked_map():
     hits.t[[0, 6]] = [1.0 + 0.08, 1.0 + 0.0801]  # slack: 8 footprints at distance 1 = 0.08 (+ tolerance 1e-9)
     failed = np.zeros(35, dtype=bool)
     failed[34] = True
-    suspect, layer, seam = suspect_pixels(prelim_map, hits, failed, footprint=0.01, tolerance=1e-9,
-                                          domain=np.array([[0.0, 1.0, 0.0, 1.0]] * 2))
+    suspect, layer, seam = suspect_pixels(
+        prelim_map, hits, failed, footprint=0.01, tolerance=1e-9, domain=np.array([[0.0, 1.0, 0.0, 1.0]] * 2)
+    )
     np.testing.assert_array_equal(np.flatnonzero(layer), [6])
     assert not seam.any()  # (u, v) = (0, 0) everywhere
     expected = np.zeros((5, 7), dtype=bool)
@@ -249,8 +275,14 @@ def test_seams_of_a_hand_worked_map():
     surface = np.zeros((5, 7), dtype=np.int64)
     prelim_map = prelim.PrelimMap(surface, u, v, np.ones((5, 7)), np.zeros((5, 7, 3), np.uint8))
     hits = Hits.empty(35)
-    suspect, layer, seam = suspect_pixels(prelim_map, hits, np.zeros(35, dtype=bool), footprint=0.01,
-                                          tolerance=1e-9, domain=np.array([[0.0, 2.0, 0.0, 1.0]]))
+    suspect, layer, seam = suspect_pixels(
+        prelim_map,
+        hits,
+        np.zeros(35, dtype=bool),
+        footprint=0.01,
+        tolerance=1e-9,
+        domain=np.array([[0.0, 2.0, 0.0, 1.0]]),
+    )
     expected = np.zeros((5, 7), dtype=bool)
     # (2, 3): steps 0.5 on both sides, 0.05 across them; its four neighbours: 0.5 against 0.05
     expected[2, 2:5] = expected[1:4, 3] = True
@@ -260,17 +292,32 @@ def test_seams_of_a_hand_worked_map():
     # a smooth map with a gentle change of speed (steps 0.05 then 0.15: less than SEAM_RATIO) has none
     u2 = np.where(cols < 3, 0.1 * cols, 0.3 + 0.3 * (cols - 3))
     prelim_map = prelim.PrelimMap(surface, u2, v, np.ones((5, 7)), np.zeros((5, 7, 3), np.uint8))
-    _, _, seam = suspect_pixels(prelim_map, hits, np.zeros(35, dtype=bool), footprint=0.01, tolerance=1e-9,
-                                domain=np.array([[0.0, 2.0, 0.0, 1.0]]))
+    _, _, seam = suspect_pixels(
+        prelim_map,
+        hits,
+        np.zeros(35, dtype=bool),
+        footprint=0.01,
+        tolerance=1e-9,
+        domain=np.array([[0.0, 2.0, 0.0, 1.0]]),
+    )
     assert not seam.any()
 
 
-PLATE = parse_scene({
-    "film": {"width": 24, "height": 16},
-    "camera": {"eye": [0.5, -0.8, 1.5], "look_at": [0.5, 0.5, 0.0], "up": [0, 0, 1]},
-    "surface": [{"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-                 "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]]}],
-}, "<plate>")
+PLATE = parse_scene(
+    {
+        "film": {"width": 24, "height": 16},
+        "camera": {"eye": [0.5, -0.8, 1.5], "look_at": [0.5, 0.5, 0.0], "up": [0, 0, 1]},
+        "surface": [
+            {
+                "degree": [1, 1],
+                "knots_u": [0, 0, 1, 1],
+                "knots_v": [0, 0, 1, 1],
+                "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]],
+            }
+        ],
+    },
+    "<plate>",
+)
 
 
 @pytest.mark.gl
@@ -281,8 +328,10 @@ def test_map_framebuffers_are_reused_and_give_the_same_map(mode):
     first = prelim.render_map(patches, PLATE.camera, 24, 16, mode=mode, ctx=ctx)
     kept = dict(ctx.extra["bsrt_kept"])
     second = prelim.render_map(patches, PLATE.camera, 24, 16, mode=mode, ctx=ctx)
-    assert ctx.extra["bsrt_kept"][("prelim", (24, 16), "f4" if mode == "float" else "f1")] is \
-        kept[("prelim", (24, 16), "f4" if mode == "float" else "f1")]
+    assert (
+        ctx.extra["bsrt_kept"][("prelim", (24, 16), "f4" if mode == "float" else "f1")]
+        is kept[("prelim", (24, 16), "f4" if mode == "float" else "f1")]
+    )
     for name in ("surface", "u", "v", "distance", "picture"):
         np.testing.assert_array_equal(getattr(first, name), getattr(second, name))
     assert (first.surface == 0).sum() > 0.3 * first.surface.size  # the plate fills the lower part of the film
@@ -296,10 +345,16 @@ def test_seeded_hits_are_as_hits_put_at_the_covered_pixels():
     n, patch_surface = 5000, np.array([0, 0, 1, 2, 2])
     covered = np.sort(rng.choice(n, size=3000, replace=False))
     m = covered.size
-    res = RootResult(converged=rng.random(m) < 0.8, trimmed=np.zeros(m, dtype=bool), u=rng.normal(size=m),
-                     v=np.where(rng.random(m) < 0.1, -0.0, rng.normal(size=m)), patch=rng.integers(0, 5, size=m),
-                     t=rng.normal(1.0, 1.0, size=m), residual=rng.random(m), iterations=rng.integers(1, 9, size=m,
-                                                                                                    dtype=np.int32))
+    res = RootResult(
+        converged=rng.random(m) < 0.8,
+        trimmed=np.zeros(m, dtype=bool),
+        u=rng.normal(size=m),
+        v=np.where(rng.random(m) < 0.1, -0.0, rng.normal(size=m)),
+        patch=rng.integers(0, 5, size=m),
+        t=rng.normal(1.0, 1.0, size=m),
+        residual=rng.random(m),
+        iterations=rng.integers(1, 9, size=m, dtype=np.int32),
+    )
     hits, failed = _seeded_hits(n, covered, res, patch_surface)
     expected = Hits.empty(n)
 

@@ -22,14 +22,15 @@ import pytest
 from PIL import Image
 
 from bsrt import preview
-from bsrt.scene.camera import Camera, orbit, pan, zoom
-from bsrt.scene.document import camera_toml
-from bsrt.preview import refine, script, solver as solver_module
-from bsrt.preview.bindings import ZOOM_STEP
 from bsrt.errors import InputError
+from bsrt.preview import refine, script
+from bsrt.preview import solver as solver_module
+from bsrt.preview.bindings import ZOOM_STEP
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import load_scene
+from bsrt.scene.camera import Camera, orbit, pan, zoom
+from bsrt.scene.document import camera_toml
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
@@ -47,11 +48,15 @@ def display():
         return
     xvfb = shutil.which("Xvfb")
     if xvfb is None:
-        pytest.fail("DISPLAY is unset and Xvfb is not installed (apt-get install xvfb xauth): the window tests need one")
+        pytest.fail(
+            "DISPLAY is unset and Xvfb is not installed (apt-get install xvfb xauth): the window tests need one"
+        )
     read_fd, write_fd = os.pipe()
     proc = subprocess.Popen(
         [xvfb, "-displayfd", str(write_fd), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
-        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        pass_fds=(write_fd,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
     )
     os.close(write_fd)
     with os.fdopen(read_fd) as pipe:
@@ -76,7 +81,11 @@ def run_preview(display, scene, *args, cwd=None, env_display=True):
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
     return subprocess.run(
         [sys.executable, "-m", "bsrt", "preview", str(scene), *map(str, args)],
-        capture_output=True, text=True, timeout=TIMEOUT, env=env, cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT,
+        env=env,
+        cwd=cwd,
     )
 
 
@@ -85,8 +94,15 @@ def cameras_printed(stdout: str) -> list[Camera]:
     out = []
     for chunk in stdout.split("[camera]")[1:]:
         table = tomllib.loads(chunk.split("\n\n")[0])
-        out.append(Camera(np.array(table["eye"]), np.array(table["look_at"]), np.array(table["up"]),
-                          table["fov"], table["fov_axis"]))
+        out.append(
+            Camera(
+                np.array(table["eye"]),
+                np.array(table["look_at"]),
+                np.array(table["up"]),
+                table["fov"],
+                table["fov_axis"],
+            )
+        )
     return out
 
 
@@ -130,8 +146,9 @@ def session(display, tmp_path_factory):
         "key m; frames 2; screenshot map.png; key m\n"
         "key s; quit\n"
     )
-    result = run_preview(display, scene, "--width", 200, "--height", 150, "--script", script,
-                         "--frame-log", "log.json", cwd=tmp)
+    result = run_preview(
+        display, scene, "--width", 200, "--height", 150, "--script", script, "--frame-log", "log.json", cwd=tmp
+    )
     return tmp, scene, result
 
 
@@ -153,7 +170,9 @@ def test_refined_image_equals_render(session):
     assert len(cameras) == 2
     geometry = Geometry(scene)
     for name, camera in zip(("a.png", "b.png"), cameras):
-        want = render(scene, RenderOptions.resolve(scene, camera=camera, width=200, height=150, spp=1), geometry=geometry).pixels
+        want = render(
+            scene, RenderOptions.resolve(scene, camera=camera, width=200, height=150, spp=1), geometry=geometry
+        ).pixels
         assert_same_image(read_png(tmp / name), want, name)
     # what the window showed is the exact image, pixel for pixel
     assert np.array_equal(read_png(tmp / "a-screen.png"), read_png(tmp / "a.png"))
@@ -222,8 +241,19 @@ def test_fast_view_honours_trims(display, tmp_path):
     moves the window draws what the exact image shows, not the untrimmed squares
     (drawn before the trim test: 6.7 % of the window more than the exact image)."""
     model = ROOT / "tests" / "data" / "iges" / "plane_circle_144.igs"
-    result = run_preview(display, model, "--width", 160, "--height", 120, "--frame-log", "log.json", "--events",
-                         "orbit 20 10 3; screenshot moving.png; wait; save exact.png; quit", cwd=tmp_path)
+    result = run_preview(
+        display,
+        model,
+        "--width",
+        160,
+        "--height",
+        120,
+        "--frame-log",
+        "log.json",
+        "--events",
+        "orbit 20 10 3; screenshot moving.png; wait; save exact.png; quit",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     assert json.loads((tmp_path / "log.json").read_text())["gl_error"] == "GL_NO_ERROR"
     moving, exact = read_png(tmp_path / "moving.png"), read_png(tmp_path / "exact.png")
@@ -237,8 +267,9 @@ def test_fast_view_honours_trims(display, tmp_path):
 
 def test_fast_view_frames_and_screenshot(display, tmp_path):
     out = tmp_path / "shot.png"
-    result = run_preview(display, SCENES / "quad.toml", "--width", 200, "--height", 150, "--frames", 3,
-                         "--screenshot", out)
+    result = run_preview(
+        display, SCENES / "quad.toml", "--width", 200, "--height", 150, "--frames", 3, "--screenshot", out
+    )
     assert result.returncode == 0, result.stderr
     image = read_png(out)
     assert image.shape == (150, 200, 3)
@@ -247,22 +278,43 @@ def test_fast_view_frames_and_screenshot(display, tmp_path):
 
 
 def test_resize_renders_at_the_new_framebuffer_size(display, tmp_path):
-    result = run_preview(display, SCENES / "quad.toml", "--width", 120, "--height", 90,
-                         "--events", "wait; resize 160 100; frames 3; wait; camera; save out.png; quit", cwd=tmp_path)
+    result = run_preview(
+        display,
+        SCENES / "quad.toml",
+        "--width",
+        120,
+        "--height",
+        90,
+        "--events",
+        "wait; resize 160 100; frames 3; wait; camera; save out.png; quit",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     image = read_png(tmp_path / "out.png")
     assert image.shape == (100, 160, 3)
     scene = load_scene(SCENES / "quad.toml")
     (camera,) = cameras_printed(result.stdout)
-    assert_same_image(image, render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1)).pixels, "resized")
+    assert_same_image(
+        image,
+        render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1)).pixels,
+        "resized",
+    )
 
 
 def test_martin_method_then_back_to_newton(display, tmp_path):
     """Key 4 (martin: no map, the hierarchy) shows the exact image render()
     gives for that method and camera; key 3 goes back to newton."""
-    result = run_preview(display, SCENES / "quad.toml", "--width", 80, "--height", 60, "--events",
-                         "key 4; wait; camera; save m.png; screenshot m-screen.png; key 3; wait; save n.png; quit",
-                         cwd=tmp_path)
+    result = run_preview(
+        display,
+        SCENES / "quad.toml",
+        "--width",
+        80,
+        "--height",
+        60,
+        "--events",
+        "key 4; wait; camera; save m.png; screenshot m-screen.png; key 3; wait; save n.png; quit",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     scene = load_scene(SCENES / "quad.toml")
     (camera,) = cameras_printed(result.stdout)
@@ -277,9 +329,25 @@ def test_martin_method_then_back_to_newton(display, tmp_path):
 def test_camera_overrides_and_format_like_bsrt_render(display, tmp_path):
     """--camera-eye/--camera-look-at/--camera-up/--fov and --format, loaded by
     bsrt/scene/loading.py as `bsrt render` does: the window starts at that camera."""
-    result = run_preview(display, SCENES / "quad.toml", "--width", 40, "--height", 30, "--camera-eye", "0,-6,1",
-                         "--camera-look-at", "0,0,1", "--camera-up", "0,0,1", "--fov", "25", "--events", "camera; quit",
-                         cwd=tmp_path)
+    result = run_preview(
+        display,
+        SCENES / "quad.toml",
+        "--width",
+        40,
+        "--height",
+        30,
+        "--camera-eye",
+        "0,-6,1",
+        "--camera-look-at",
+        "0,0,1",
+        "--camera-up",
+        "0,0,1",
+        "--fov",
+        "25",
+        "--events",
+        "camera; quit",
+        cwd=tmp_path,
+    )
     assert result.returncode == 0, result.stderr
     (camera,) = cameras_printed(result.stdout)
     assert camera.eye.tolist() == [0.0, -6.0, 1.0] and camera.look_at.tolist() == [0.0, 0.0, 1.0]
@@ -291,7 +359,9 @@ def test_camera_overrides_and_format_like_bsrt_render(display, tmp_path):
     unknown = run_preview(display, model, "--width", 40, "--height", 30, "--frames", 1)
     assert unknown.returncode == 2 and "patches.txt" in unknown.stderr
     bad = run_preview(None, SCENES / "quad.toml", "--fov", "200", "--frames", 1)
-    assert bad.returncode == 2 and bad.stderr.strip().splitlines() == ["bsrt: error: --fov: must be between 0 and 180 degrees, got 200"]
+    assert bad.returncode == 2 and bad.stderr.strip().splitlines() == [
+        "bsrt: error: --fov: must be between 0 and 180 degrees, got 200"
+    ]
 
 
 def test_no_display_exits_2_pointing_at_bsrt_render():
@@ -340,8 +410,10 @@ def test_input_callbacks_in_process(display, monkeypatch):
         assert not np.allclose(window.camera.look_at, orbited.look_at)
         before = window.camera
         win._on_scroll(w, 0.0, 1.0)
-        assert np.isclose(np.linalg.norm(window.camera.eye - window.camera.look_at),
-                          ZOOM_STEP * np.linalg.norm(before.eye - before.look_at))
+        assert np.isclose(
+            np.linalg.norm(window.camera.eye - window.camera.look_at),
+            ZOOM_STEP * np.linalg.norm(before.eye - before.look_at),
+        )
         win._on_key(w, glfw.KEY_LEFT, 0, glfw.PRESS, 0)
         assert not np.allclose(window.camera.eye, before.eye)
         win._on_key(w, glfw.KEY_M, 0, glfw.PRESS, 0)
@@ -371,6 +443,7 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
     solver = solver_module.Solver(scene, "float")
     solver.start()
     try:
+
         def job(generation, width, height, camera):
             prelim = render_map(patches, camera, width, height, ctx=ctx)
             return solver_module.Job(generation, 0, "newton", camera, width, height, prelim)
@@ -477,7 +550,7 @@ def test_every_binding_names_an_action_of_the_application():
     from bsrt.preview.bindings import BINDINGS
     from bsrt.preview.window import KEY_NAMES
 
-    for name, (action, *arguments) in BINDINGS.items():
+    for name, (action, *_arguments) in BINDINGS.items():
         assert callable(getattr(Preview, f"_do_{action}", None)), (name, action)
     # every key the window names is bound (Shift+arrows included)
     assert set(KEY_NAMES.values()) <= set(BINDINGS)

@@ -50,7 +50,9 @@ def test_the_bar_shows_percentage_stage_and_time_left():
     assert out.getvalue().split("\r")[-1] == "bsrt: [█████░░░░░░░░░░░░░░░]  25% shade, 2.0 s, about 6.0 s left"
     clock.now += 60.0
     bar("shade", 0.5)
-    assert out.getvalue().split("\r")[-1] == "bsrt: [██████████░░░░░░░░░░]  50% shade, 1 min 02 s, about 1 min 02 s left"
+    assert (
+        out.getvalue().split("\r")[-1] == "bsrt: [██████████░░░░░░░░░░]  50% shade, 1 min 02 s, about 1 min 02 s left"
+    )
 
 
 def test_the_bar_redraws_at_most_ten_times_a_second():
@@ -88,7 +90,7 @@ def test_finish_replaces_the_bar_by_one_summary_line():
     drawn = len(out.getvalue()) - 1
     bar.finish("rendered out.png 64x64, 1 spp, newton, 0.0 s")
     summary = "bsrt: rendered out.png 64x64, 1 spp, newton, 0.0 s\n"
-    assert out.getvalue()[drawn + 1:] == "\r" + " " * drawn + "\r" + summary
+    assert out.getvalue()[drawn + 1 :] == "\r" + " " * drawn + "\r" + summary
 
 
 def test_clear_erases_the_bar_and_only_once():
@@ -139,7 +141,14 @@ def test_lines_mode_writes_a_line_per_new_stage_and_at_most_one_a_second():
 def test_durations():
     d = progress_module._duration
     assert [d(0.04), d(9.94), d(10.4), d(59.4), d(61), d(3599), d(3600 * 2 + 61)] == [
-        "0.0 s", "9.9 s", "10 s", "59 s", "1 min 01 s", "59 min 59 s", "2 h 01 min"]
+        "0.0 s",
+        "9.9 s",
+        "10 s",
+        "59 s",
+        "1 min 01 s",
+        "59 min 59 s",
+        "2 h 01 min",
+    ]
 
 
 def test_wanted(monkeypatch):
@@ -170,8 +179,14 @@ def run_on_a_terminal(args, timeout=300.0, preexec_fn=None):
     """Run `bsrt ARGS` with stderr on a pseudo-terminal; (exit code, what the terminal got)."""
     master, slave = pty.openpty()
     try:
-        proc = subprocess.Popen(CLI + args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave, env=_env(),
-                                preexec_fn=preexec_fn)
+        proc = subprocess.Popen(
+            CLI + args,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=slave,
+            env=_env(),
+            preexec_fn=preexec_fn,
+        )
     finally:
         os.close(slave)
     received = b""
@@ -200,8 +215,9 @@ def run_on_a_terminal(args, timeout=300.0, preexec_fn=None):
 @pytest.mark.gl
 def test_render_on_a_terminal_shows_the_bar_then_the_summary(tmp_path):
     out = tmp_path / "out.png"
-    code, text = run_on_a_terminal(["render", str(SCENES / "column.toml"), "-o", str(out), "--width", "40",
-                                    "--height", "30"])
+    code, text = run_on_a_terminal(
+        ["render", str(SCENES / "column.toml"), "-o", str(out), "--width", "40", "--height", "30"]
+    )
     assert code == 0 and out.exists()
     assert re.search(r"\rbsrt: \[[█░]{20}\] +\d+% (setup|map|solve|shade)", text), text
     assert "% shade" in text
@@ -215,8 +231,9 @@ def test_render_on_a_terminal_shows_the_bar_then_the_summary(tmp_path):
 
 @pytest.mark.gl
 def test_no_progress_on_a_terminal(tmp_path):
-    code, text = run_on_a_terminal(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "q.png"),
-                                    "--no-progress"])
+    code, text = run_on_a_terminal(
+        ["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "q.png"), "--no-progress"]
+    )
     assert code == 0 and "%" not in text and "rendered" not in text
 
 
@@ -239,8 +256,9 @@ def test_a_failure_after_the_bar_started_gets_a_clean_line(tmp_path):
 @pytest.mark.gl
 def test_nothing_on_a_pipe(tmp_path):
     out = tmp_path / "q.png"
-    done = subprocess.run(CLI + ["render", str(SCENES / "quad.toml"), "-o", str(out)], capture_output=True,
-                          text=True, env=_env())
+    done = subprocess.run(
+        CLI + ["render", str(SCENES / "quad.toml"), "-o", str(out)], capture_output=True, text=True, env=_env()
+    )
     assert done.returncode == 0 and out.exists()
     assert done.stderr == "" and done.stdout == ""
 
@@ -248,14 +266,20 @@ def test_nothing_on_a_pipe(tmp_path):
 @pytest.mark.gl
 def test_progress_on_a_pipe_writes_lines(tmp_path):
     out = tmp_path / "q.png"
-    done = subprocess.run(CLI + ["render", str(SCENES / "column.toml"), "-o", str(out), "--width", "40",
-                                 "--height", "30", "--progress"], capture_output=True, text=True, env=_env())
+    done = subprocess.run(
+        CLI + ["render", str(SCENES / "column.toml"), "-o", str(out), "--width", "40", "--height", "30", "--progress"],
+        capture_output=True,
+        text=True,
+        env=_env(),
+    )
     assert done.returncode == 0 and done.stdout == ""
     lines = done.stderr.splitlines()
     assert "\r" not in done.stderr and done.stderr.endswith("\n")
     assert re.fullmatch(r"bsrt:   0% setup, \d\.\d s", lines[0])  # the clock runs from before the scene's load
-    assert all(re.fullmatch(r"bsrt: +\d+% (setup|map|solve|shade|aov), \d+(\.\d)? s(, about .* left)?", line)
-               for line in lines[:-1]), lines
+    assert all(
+        re.fullmatch(r"bsrt: +\d+% (setup|map|solve|shade|aov), \d+(\.\d)? s(, about .* left)?", line)
+        for line in lines[:-1]
+    ), lines
     assert {"map", "solve", "shade"} <= {line.split()[2].rstrip(",") for line in lines[:-1]}
     assert SUMMARY.match(lines[-1]) and SUMMARY.match(lines[-1]).group(1) == str(out)
 
@@ -263,11 +287,18 @@ def test_progress_on_a_pipe_writes_lines(tmp_path):
 @pytest.mark.gl
 def test_progress_with_aov_names_both_files(tmp_path):
     out, aov = tmp_path / "q.png", tmp_path / "q.npz"
-    done = subprocess.run(CLI + ["render", str(SCENES / "quad.toml"), "-o", str(out), "--aov", str(aov),
-                                 "--progress"], capture_output=True, text=True, env=_env())
+    done = subprocess.run(
+        CLI + ["render", str(SCENES / "quad.toml"), "-o", str(out), "--aov", str(aov), "--progress"],
+        capture_output=True,
+        text=True,
+        env=_env(),
+    )
     assert done.returncode == 0
-    assert re.fullmatch(rf"bsrt: rendered {re.escape(str(out))} \(AOVs: {re.escape(str(aov))}\) 64x64, 1 spp, "
-                        rf"newton, \d+\.\d s", done.stderr.splitlines()[-1])
+    assert re.fullmatch(
+        rf"bsrt: rendered {re.escape(str(out))} \(AOVs: {re.escape(str(aov))}\) 64x64, 1 spp, "
+        rf"newton, \d+\.\d s",
+        done.stderr.splitlines()[-1],
+    )
 
 
 @pytest.mark.parametrize("flag", ["--progress", "--no-progress"])

@@ -93,12 +93,14 @@ def test_cancelling_forgets_queued_map_bands_and_failures():
 
 
 def test_bands_top_to_bottom_then_stitched():
-    from bsrt.rendering.prelim import PrelimMap
     from dataclasses import fields
 
+    from bsrt.rendering.prelim import PrelimMap
+
     def part(first, stop):
-        return PrelimMap(*(np.full((stop - first, 4) + ((3,) if f.name == "picture" else ()), first)
-                           for f in fields(PrelimMap)))
+        return PrelimMap(
+            *(np.full((stop - first, 4) + ((3,) if f.name == "picture" else ()), first) for f in fields(PrelimMap))
+        )
 
     r = Refinement(levels=(1,), band_pixels=10)
     r.restart(now=0.0, settle=False)
@@ -124,4 +126,3 @@ def test_a_dead_solver_fails_every_later_generation():
 
 def test_default_levels_end_with_the_exact_image():
     assert LEVELS[-1] == 1 and list(LEVELS) == sorted(LEVELS, reverse=True)
-

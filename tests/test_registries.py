@@ -18,13 +18,17 @@ from bsrt.cli import _parser
 from bsrt.errors import InputError
 from bsrt.io.formats import BY_EXTENSION, READERS, format_choices
 from bsrt.methods import METHODS
+from bsrt.rendering.options import RenderOptions
 from bsrt.scene import parse_scene
 from bsrt.settings import SETTINGS, Film, RenderSettings
-from bsrt.rendering.options import RenderOptions
 
 ROOT = Path(__file__).resolve().parents[1]
-SQUARE = {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-          "points": [[[-1, 0, -1], [-1, 0, 1]], [[1, 0, -1], [1, 0, 1]]]}
+SQUARE = {
+    "degree": [1, 1],
+    "knots_u": [0, 0, 1, 1],
+    "knots_v": [0, 0, 1, 1],
+    "points": [[[-1, 0, -1], [-1, 0, 1]], [[1, 0, -1], [1, 0, 1]]],
+}
 CAMERA = {"eye": [0, -4, 0], "look_at": [0, 0, 0]}
 
 
@@ -49,8 +53,19 @@ def test_every_setting_is_a_flag_of_the_rendering_commands(command):
     text = help_text(command)
     for s in SETTINGS:
         assert s.flag in text, (command, s.flag)
-    args = _parser().parse_args([command, "in.toml", *(["-o", "x.png"] if command == "render" else ["--out", "d"]),
-                                 "--max-depth", "0", "--background", "0.1,0.2,0.3", "--tolerance", "1e-8"])
+    args = _parser().parse_args(
+        [
+            command,
+            "in.toml",
+            *(["-o", "x.png"] if command == "render" else ["--out", "d"]),
+            "--max-depth",
+            "0",
+            "--background",
+            "0.1,0.2,0.3",
+            "--tolerance",
+            "1e-8",
+        ]
+    )
     assert (args.max_depth, args.background, args.tolerance) == (0, (0.1, 0.2, 0.3), 1e-8)
 
 
@@ -75,8 +90,12 @@ def test_the_api_keywords_and_dataclasses_are_the_settings():
 
 @pytest.mark.parametrize("setting", SETTINGS, ids=lambda s: s.name)
 def test_each_setting_is_read_from_its_scene_key_and_checked_the_same_everywhere(setting):
-    value = {"int": lambda: setting.lo + 1, "float": lambda: 1e-6, "color": lambda: [0.5, 0.25, 0.125],
-             "choice": lambda: setting.choices[-1]}[setting.kind]()
+    value = {
+        "int": lambda: setting.lo + 1,
+        "float": lambda: 1e-6,
+        "color": lambda: [0.5, 0.25, 0.125],
+        "choice": lambda: setting.choices[-1],
+    }[setting.kind]()
     scene = parse_scene({"camera": CAMERA, setting.table: {setting.name: value}, "surface": [SQUARE]}, "s.toml")
     assert getattr(getattr(scene, setting.table), setting.name) == setting.check(value)
     bad = {"int": -1, "float": 2.0, "color": [1, 2], "choice": "nonsense"}[setting.kind]

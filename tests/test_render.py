@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import flat_patch, scene_dict
 
-from bsrt.scene.camera import pixel_rays
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import render
 from bsrt.scene import load_scene, parse_scene
-
-from conftest import flat_patch, scene_dict
+from bsrt.scene.camera import pixel_rays
 
 SCENES = __import__("pathlib").Path(__file__).resolve().parents[1] / "scenes"
 
@@ -68,8 +67,12 @@ def test_no_cracks_between_surfaces_and_knot_spans(ctx):
 
 def _paraboloid_table():
     xs, a = [-1.0, 0.0, 1.0], [1.0, -1.0, 1.0]
-    return {"degree": [2, 2], "knots_u": [0, 0, 0, 1, 1, 1], "knots_v": [0, 0, 0, 1, 1, 1],
-            "points": [[[xs[i], xs[j], a[i] + a[j]] for j in range(3)] for i in range(3)]}
+    return {
+        "degree": [2, 2],
+        "knots_u": [0, 0, 0, 1, 1, 1],
+        "knots_v": [0, 0, 0, 1, 1, 1],
+        "points": [[[xs[i], xs[j], a[i] + a[j]] for j in range(3)] for i in range(3)],
+    }
 
 
 def _paraboloid_truth(scene):
@@ -94,10 +97,13 @@ def _paraboloid_truth(scene):
     return best, margin
 
 
-@pytest.mark.parametrize("eye,look_at", [
-    ((2.5, -3.0, 3.0), (0.0, 0.0, 0.8)),    # from above: silhouette against the rim
-    ((2.0, -2.5, -1.5), (0.0, 0.0, 0.7)),   # from below: the ray meets the bowl twice (self-occlusion)
-])
+@pytest.mark.parametrize(
+    "eye,look_at",
+    [
+        ((2.5, -3.0, 3.0), (0.0, 0.0, 0.8)),  # from above: silhouette against the rim
+        ((2.0, -2.5, -1.5), (0.0, 0.0, 0.7)),  # from below: the ray meets the bowl twice (self-occlusion)
+    ],
+)
 def test_paraboloid_silhouette_and_self_occlusion(ctx, eye, look_at):
     scene = parse_scene(scene_dict([_paraboloid_table()], width=96, height=96, eye=eye, look_at=look_at, fov=45.0))
     res = render(scene, ctx=ctx)
@@ -113,7 +119,10 @@ def test_paraboloid_silhouette_and_self_occlusion(ctx, eye, look_at):
 @pytest.mark.parametrize("name", ["column", "water-lily"])
 def test_methods_agree_on_every_pixel(ctx, name):
     scene = load_scene(SCENES / f"{name}.toml")
-    results = {m: render(scene, RenderOptions.resolve(scene, method=m, width=128, height=128), ctx=ctx) for m in ("newton", "gradient", "fast", "martin")}
+    results = {
+        m: render(scene, RenderOptions.resolve(scene, method=m, width=128, height=128), ctx=ctx)
+        for m in ("newton", "gradient", "fast", "martin")
+    }
     ref = results["newton"].hits
     tol = scene.render.tolerance * 1e3 * 20  # scene sizes are ~10: distances agree to ~1e-7
     for method, res in results.items():
@@ -130,9 +139,17 @@ def test_aovs_follow_the_scene_format(ctx):
     res = render(scene, ctx=ctx)
     aov = res.aovs()
     h, w = scene.film.height, scene.film.width
-    spec = {"hit": (bool, (h, w)), "t": (np.float64, (h, w)), "surface": (np.int32, (h, w)),
-            "u": (np.float64, (h, w)), "v": (np.float64, (h, w)), "position": (np.float64, (h, w, 3)),
-            "normal": (np.float64, (h, w, 3)), "iterations": (np.int32, (h, w)), "residual": (np.float64, (h, w))}
+    spec = {
+        "hit": (bool, (h, w)),
+        "t": (np.float64, (h, w)),
+        "surface": (np.int32, (h, w)),
+        "u": (np.float64, (h, w)),
+        "v": (np.float64, (h, w)),
+        "position": (np.float64, (h, w, 3)),
+        "normal": (np.float64, (h, w, 3)),
+        "iterations": (np.int32, (h, w)),
+        "residual": (np.float64, (h, w)),
+    }
     for key, (dtype, shape) in spec.items():
         assert aov[key].dtype == dtype, key
         assert aov[key].shape == shape, key
@@ -177,10 +194,15 @@ def test_a_plane_of_the_highest_allowed_degree_is_exact(ctx, degree, method):
     which is the same plane): every pixel centre 10..53 of 64 on each axis hits, at t = 4 / cos."""
     grid = np.linspace(-1.0, 1.0, degree + 1)
     knots = [0.0] * (degree + 1) + [1.0] * (degree + 1)
-    table = {"degree": [degree, degree], "knots_u": knots, "knots_v": knots,
-             "points": [[[x, 0.0, z] for z in grid] for x in grid]}
-    scene = parse_scene(scene_dict([table], width=64, height=64, eye=(0.0, -4.0, 0.0), look_at=(0.0, 0.0, 0.0),
-                                   fov=40.0))
+    table = {
+        "degree": [degree, degree],
+        "knots_u": knots,
+        "knots_v": knots,
+        "points": [[[x, 0.0, z] for z in grid] for x in grid],
+    }
+    scene = parse_scene(
+        scene_dict([table], width=64, height=64, eye=(0.0, -4.0, 0.0), look_at=(0.0, 0.0, 0.0), fov=40.0)
+    )
     res = render(scene, RenderOptions.resolve(scene, method=method), ctx=ctx)
     hit = res.hits.hit.reshape(64, 64)
     assert hit.sum() == 44 * 44 and hit[10:54, 10:54].all()

@@ -18,8 +18,21 @@ import pytest
 pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py checks)
 
 ROOT = Path(__file__).resolve().parents[1]
-COMMAND = [sys.executable, "-m", "bsrt", "render", str(ROOT / "scenes" / "column.toml"), "-o", "out.png",
-           "--aov", "out.npz", "--width", "160", "--height", "160"]
+COMMAND = [
+    sys.executable,
+    "-m",
+    "bsrt",
+    "render",
+    str(ROOT / "scenes" / "column.toml"),
+    "-o",
+    "out.png",
+    "--aov",
+    "out.npz",
+    "--width",
+    "160",
+    "--height",
+    "160",
+]
 TEMPORARY = re.compile(r"\.bsrt-\d+-[0-9a-f]{8}\.tmp")
 RENDERS = 20
 
@@ -76,8 +89,19 @@ def test_sigkill_at_any_moment_leaves_no_lone_output(tmp_path, whole_run_seconds
 
 def test_a_signal_during_bsrt_map_leaves_the_map_or_nothing(tmp_path):
     """bsrt map writes through the same staged outputs and safe points as render."""
-    command = [sys.executable, "-m", "bsrt", "map", str(ROOT / "scenes" / "water-lily.toml"), "-o", "map.png",
-               "--width", "1024", "--height", "1024"]
+    command = [
+        sys.executable,
+        "-m",
+        "bsrt",
+        "map",
+        str(ROOT / "scenes" / "water-lily.toml"),
+        "-o",
+        "map.png",
+        "--width",
+        "1024",
+        "--height",
+        "1024",
+    ]
     rng = random.Random(5)
     interrupted = 0
     for i in range(8):

@@ -51,8 +51,17 @@ def test_rays_shot_at_points_recover_t_and_uv(method):
     seed_u = np.clip(u + rng.normal(0, 2e-3, n), 0, 1)
     seed_v = np.clip(v + rng.normal(0, 2e-3, n), 0, 1)
     tol = 1e-9 * ps.scene_diagonal()
-    res = find_roots(ps, rays, np.arange(n), np.zeros(n, dtype=np.int64), seed_u, seed_v, method=method,
-                     tolerance=tol, max_iterations=200)
+    res = find_roots(
+        ps,
+        rays,
+        np.arange(n),
+        np.zeros(n, dtype=np.int64),
+        seed_u,
+        seed_v,
+        method=method,
+        tolerance=tol,
+        max_iterations=200,
+    )
     assert res.converged.mean() > (0.999 if method == "newton" else 0.97)
     ok = res.converged
     assert np.all(res.residual[ok] <= tol)
@@ -76,8 +85,7 @@ def _camera_rays(eye, n_side, half=0.9, target=(0.0, 0.0, 0.0)):
 def test_hyperbolic_bilinear_patch_closed_form(method):
     # S(u, v) = (u, v, u v): a ray o + t d meets it where
     # dx dy t^2 + (ox dy + oy dx - dz) t + ox oy - oz = 0.
-    surf = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1],
-                        [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 1]]])
+    surf = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 1]]])
     ps = PatchSet([surf])
     origin, d = _camera_rays((0.3, 0.2, 3.0), 25, half=0.45, target=(0.5, 0.5, 0.0))
     d = d / np.linalg.norm(d, axis=1, keepdims=True)
@@ -94,8 +102,17 @@ def test_hyperbolic_bilinear_patch_closed_form(method):
     hit_point = o + t_true[:, None] * d
     n = len(o)
     rays = Rays.from_arrays(o, d)
-    res = find_roots(ps, rays, np.arange(n), np.zeros(n, dtype=np.int64), np.full(n, 0.5), np.full(n, 0.5),
-                     method=method, tolerance=1e-12, max_iterations=500)
+    res = find_roots(
+        ps,
+        rays,
+        np.arange(n),
+        np.zeros(n, dtype=np.int64),
+        np.full(n, 0.5),
+        np.full(n, 0.5),
+        method=method,
+        tolerance=1e-12,
+        max_iterations=500,
+    )
     assert res.converged.all()
     np.testing.assert_allclose(res.t, t_true, atol=1e-10)
     np.testing.assert_allclose(res.u, hit_point[:, 0], atol=1e-10)
@@ -133,8 +150,9 @@ def test_paraboloid_closed_form(method):
     rng = np.random.default_rng(3)
     u0 = np.clip((p[:, 0] + 1) / 2 + rng.uniform(-0.02, 0.02, n), 0, 1)
     v0 = np.clip((p[:, 1] + 1) / 2 + rng.uniform(-0.02, 0.02, n), 0, 1)
-    res = find_roots(ps, rays, np.arange(n), np.zeros(n, dtype=np.int64), u0, v0, method=method,
-                     tolerance=1e-11, max_iterations=500)
+    res = find_roots(
+        ps, rays, np.arange(n), np.zeros(n, dtype=np.int64), u0, v0, method=method, tolerance=1e-11, max_iterations=500
+    )
     inside = np.all(np.abs(p[:, :2]) <= 1.0, axis=1)  # else the ray meets z = x^2 + y^2 off the patch
     assert 100 < inside.sum() < n
     assert res.converged[inside].all()
@@ -161,8 +179,20 @@ def test_fast_reaches_a_skewed_planes_root_in_two_steps_where_gradient_zigzags()
     rays = Rays.from_arrays(origin, target - origin)
     t_true = np.linalg.norm(target - origin, axis=1)
     seed_u, seed_v = u + rng.uniform(-0.05, 0.05, n), v + rng.uniform(-0.05, 0.05, n)
-    results = {m: find_roots(ps, rays, np.arange(n), np.zeros(n, dtype=np.int64), seed_u, seed_v, method=m,
-                             tolerance=1e-10, max_iterations=500) for m in ("fast", "gradient")}
+    results = {
+        m: find_roots(
+            ps,
+            rays,
+            np.arange(n),
+            np.zeros(n, dtype=np.int64),
+            seed_u,
+            seed_v,
+            method=m,
+            tolerance=1e-10,
+            max_iterations=500,
+        )
+        for m in ("fast", "gradient")
+    }
     for res in results.values():
         assert res.converged.all()
         np.testing.assert_allclose(res.t, t_true, atol=1e-10)
@@ -178,8 +208,16 @@ def test_roots_outside_the_domain_are_not_converged():
     # rays that meet the plane z = 0 outside the unit square
     o = np.array([[2.0, 0.5, 1.0], [0.5, -1.0, 1.0]])
     d = np.array([[0, 0, -1.0], [0, 0, -1.0]])
-    res = find_roots(ps, Rays.from_arrays(o, d), np.arange(2), np.zeros(2, dtype=np.int64),
-                     np.full(2, 0.5), np.full(2, 0.5), tolerance=1e-9, max_iterations=64)
+    res = find_roots(
+        ps,
+        Rays.from_arrays(o, d),
+        np.arange(2),
+        np.zeros(2, dtype=np.int64),
+        np.full(2, 0.5),
+        np.full(2, 0.5),
+        tolerance=1e-9,
+        max_iterations=64,
+    )
     assert not res.converged.any()
     assert res.iterations.max() < 64  # stuck at the border: given up early
 
@@ -191,7 +229,15 @@ def test_singular_jacobian_gives_finite_steps():
     ps = PatchSet([surf])
     o = np.array([[0.5, 0.1, 1.0]])
     d = np.array([[0, 0, -1.0]])
-    res = find_roots(ps, Rays.from_arrays(o, d), np.arange(1), np.zeros(1, dtype=np.int64),
-                     np.zeros(1), np.full(1, 0.5), tolerance=1e-12, max_iterations=64)
+    res = find_roots(
+        ps,
+        Rays.from_arrays(o, d),
+        np.arange(1),
+        np.zeros(1, dtype=np.int64),
+        np.zeros(1),
+        np.full(1, 0.5),
+        tolerance=1e-12,
+        max_iterations=64,
+    )
     assert res.converged.all()
     np.testing.assert_allclose(evaluate(surf, res.u, res.v)[0], [[0.5, 0.1, 0.0]], atol=1e-10)

@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_bvh import rational_bowl, wavy_surface
 
 from bsrt.geometry.bspline import bezier_patches, evaluate, make_surface
-from bsrt.rendering.bvh import build_bvh
-from bsrt.kernels.tables import permute_rows
 from bsrt.geometry.patches import PatchSet, power_from_bernstein
-
-from test_bvh import rational_bowl, wavy_surface
+from bsrt.kernels.tables import permute_rows
+from bsrt.rendering.bvh import build_bvh
 
 
 def test_a_polynomial_bspline_has_weights_exactly_one_and_polynomial_patches():
@@ -41,7 +40,7 @@ def test_power_coefficients_equal_the_matrix_product():
         for k, net in zip(ids, nets):
             x = net[..., :3] / net[..., 3:4] if a.dim[k] == 3 else net
             want = np.einsum("ai,bj,abc->icj", power_from_bernstein(p), power_from_bernstein(q), x).ravel()
-            got = a.coef[a.coef_start[k]:a.coef_start[k] + want.size]
+            got = a.coef[a.coef_start[k] : a.coef_start[k] + want.size]
             np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
 
 
@@ -75,6 +74,7 @@ def test_a_whole_patch_leaf_shares_its_patchs_net_and_cut_pieces_have_their_own(
         p, q = bvh.leaf_degree[leaf]
         corners = net[[0, p, 0, p], [0, 0, q, q]]
         u0, u1, v0, v1 = bvh.leaf_rect[leaf]
-        at = patches.evaluate(np.full(4, bvh.leaf_patch[leaf]), np.array([u0, u1, u0, u1]),
-                              np.array([v0, v0, v1, v1]), derivatives=False).T
+        at = patches.evaluate(
+            np.full(4, bvh.leaf_patch[leaf]), np.array([u0, u1, u0, u1]), np.array([v0, v0, v1, v1]), derivatives=False
+        ).T
         np.testing.assert_allclose(corners[:, :3] / corners[:, 3:], at, rtol=0, atol=1e-12)

@@ -17,11 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numba import njit
 
-from bsrt.geometry.bspline import make_surface
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import make_surface
+from bsrt.geometry.trim import TrimCurve, TrimLoop, build_trim_table, check_loops, kept, make_trim_curve
 from bsrt.kernels import trim as K
 from bsrt.kernels import trim_pieces as P
-from bsrt.geometry.trim import TrimCurve, TrimLoop, build_trim_table, check_loops, kept, make_trim_curve
 
 W = math.sqrt(0.5)
 UNIT = (0.0, 1.0, 0.0, 1.0)
@@ -51,16 +51,20 @@ def circle3(cx, cy, r):
     for k in range(3):
         a0 = math.radians(-30 + 120 * k)
         am, a1 = a0 + math.radians(60), a0 + math.radians(120)
-        pts = [[cx + r * math.cos(a0), cy + r * math.sin(a0)], [cx + 2 * r * math.cos(am), cy + 2 * r * math.sin(am)],
-               [cx + r * math.cos(a1), cy + r * math.sin(a1)]]
+        pts = [
+            [cx + r * math.cos(a0), cy + r * math.sin(a0)],
+            [cx + 2 * r * math.cos(am), cy + 2 * r * math.sin(am)],
+            [cx + r * math.cos(a1), cy + r * math.sin(a1)],
+        ]
         curves.append(make_trim_curve(2, [0, 0, 0, 1, 1, 1], pts, [1.0, 0.5, 1.0]))
     return TrimLoop(tuple(curves))
 
 
 def polygon(points):
     """A loop of segments (degree 1) through the (u, v) points, closed."""
-    return TrimLoop(tuple(make_trim_curve(1, [0, 0, 1, 1], [list(a), list(b)])
-                          for a, b in zip(points, points[1:] + points[:1])))
+    return TrimLoop(
+        tuple(make_trim_curve(1, [0, 0, 1, 1], [list(a), list(b)]) for a, b in zip(points, points[1:] + points[:1]))
+    )
 
 
 def reversed_curve(c: TrimCurve) -> TrimCurve:
@@ -176,8 +180,12 @@ def test_both_orientations_give_the_same_answer():
     ru, rv = ring_points(rng, 0.5, 0.5, 0.3, 1e-9 * rng.choice([-1, 1], 20012), 20000)
     poly = star(12, rng.uniform(0.1, 0.45, 12))
     su, sv = rng.random(3000), np.array(poly)[rng.integers(0, 12, 3000), 1]  # on the vertices' rows
-    loops = [[circle(0.5, 0.5, 0.3)], [circle3(0.5, 0.5, 0.3), circle(0.5, 0.5, 0.1)], [polygon(poly)],
-             [closed_cubic()]]
+    loops = [
+        [circle(0.5, 0.5, 0.3)],
+        [circle3(0.5, 0.5, 0.3), circle(0.5, 0.5, 0.1)],
+        [polygon(poly)],
+        [closed_cubic()],
+    ]
     for loop_set in loops:
         forward = plate().with_trims(loop_set)
         backward = plate().with_trims([reversed_loop(loop) for loop in loop_set])
@@ -237,8 +245,22 @@ def test_rows_through_the_vertices_of_a_diamond():
 def test_rows_along_horizontal_edges():
     """A staircase: horizontal edges on the query rows, vertices where the loop turns back in v
     and where it passes through; exact rational point-in-polygon decides."""
-    stairs = [(0.1, 0.1), (0.9, 0.1), (0.9, 0.3), (0.7, 0.3), (0.7, 0.5), (0.5, 0.5), (0.5, 0.7),
-              (0.8, 0.7), (0.8, 0.9), (0.1, 0.9), (0.1, 0.5), (0.3, 0.5), (0.3, 0.3), (0.1, 0.3)]
+    stairs = [
+        (0.1, 0.1),
+        (0.9, 0.1),
+        (0.9, 0.3),
+        (0.7, 0.3),
+        (0.7, 0.5),
+        (0.5, 0.5),
+        (0.5, 0.7),
+        (0.8, 0.7),
+        (0.8, 0.9),
+        (0.1, 0.9),
+        (0.1, 0.5),
+        (0.3, 0.5),
+        (0.3, 0.3),
+        (0.1, 0.3),
+    ]
     surf = plate().with_trims([polygon(stairs)])
     u = np.linspace(0.0, 1.0, 401)
     for row in (0.1, 0.3, 0.5, 0.7, 0.9, 0.2, 0.6):
@@ -267,11 +289,15 @@ def test_a_star_polygon_against_exact_point_in_polygon(n, data):
 def test_a_gap_check_loops_lets_through_is_closed():
     """The right edge in two curves 1e-11 apart (under the 1e-9 allowed): a row through the gap still
     crosses the edge once, so points far from every curve on it are right."""
-    loop = TrimLoop((make_trim_curve(1, [0, 0, 1, 1], [[0.1, 0.1], [0.9, 0.1]]),
-                     make_trim_curve(1, [0, 0, 1, 1], [[0.9, 0.1], [0.9, 0.5]]),
-                     make_trim_curve(2, [0, 0, 0, 1, 1, 1], [[0.9, 0.5 + 1e-11], [0.9, 0.7], [0.9, 0.9]]),
-                     make_trim_curve(1, [0, 0, 1, 1], [[0.9, 0.9], [0.1, 0.9]]),
-                     make_trim_curve(1, [0, 0, 1, 1], [[0.1, 0.9], [0.1, 0.1]])))
+    loop = TrimLoop(
+        (
+            make_trim_curve(1, [0, 0, 1, 1], [[0.1, 0.1], [0.9, 0.1]]),
+            make_trim_curve(1, [0, 0, 1, 1], [[0.9, 0.1], [0.9, 0.5]]),
+            make_trim_curve(2, [0, 0, 0, 1, 1, 1], [[0.9, 0.5 + 1e-11], [0.9, 0.7], [0.9, 0.9]]),
+            make_trim_curve(1, [0, 0, 1, 1], [[0.9, 0.9], [0.1, 0.9]]),
+            make_trim_curve(1, [0, 0, 1, 1], [[0.1, 0.9], [0.1, 0.1]]),
+        )
+    )
     surf = plate().with_trims([loop])
     v = 0.5 + np.array([0.0, 2e-12, 5e-12, 9e-12, 1e-11])
     assert kept(surf, np.full(5, 0.5), v).all()
@@ -308,13 +334,28 @@ def evaluate_piece(table, k, s):
 
 
 def test_the_table_layout():
-    surfaces = [plate(), plate().with_trims([circle3(0.5, 0.5, 0.3)]), plate().with_trims([closed_cubic()]),
-                plate().with_trims([circle(0.5, 0.5, 0.4), polygon(star(9, [0.2, 0.3] * 4 + [0.25]))])]
+    surfaces = [
+        plate(),
+        plate().with_trims([circle3(0.5, 0.5, 0.3)]),
+        plate().with_trims([closed_cubic()]),
+        plate().with_trims([circle(0.5, 0.5, 0.4), polygon(star(9, [0.2, 0.3] * 4 + [0.25]))]),
+    ]
     table = build_trim_table(surfaces)
-    for name, dtype in (("trimmed", np.bool_), ("band_first", np.int64), ("band_count", np.int64),
-                        ("band_v0", np.float64), ("band_scale", np.float64), ("magnitude", np.float64),
-                        ("degree", np.int64), ("coef", np.float64), ("ends", np.float64), ("box", np.float64),
-                        ("band_start", np.int64), ("entry_piece", np.int64), ("entry_box", np.float64)):
+    for name, dtype in (
+        ("trimmed", np.bool_),
+        ("band_first", np.int64),
+        ("band_count", np.int64),
+        ("band_v0", np.float64),
+        ("band_scale", np.float64),
+        ("magnitude", np.float64),
+        ("degree", np.int64),
+        ("coef", np.float64),
+        ("ends", np.float64),
+        ("box", np.float64),
+        ("band_start", np.int64),
+        ("entry_piece", np.int64),
+        ("entry_box", np.float64),
+    ):
         a = getattr(table, name)
         assert a.dtype == dtype and a.flags.c_contiguous, name
     k = table.degree.size
@@ -323,7 +364,7 @@ def test_the_table_layout():
     assert table.band_start[0] == 0 and table.band_start[-1] == table.entry_piece.size == table.entry_box.shape[0]
     assert table.band_start.size == table.band_count.sum() + 1
     # three 120-degree arcs, each cut once at the turning point inside it: six pieces, none a chord
-    first = table.entry_piece[table.band_start[table.band_first[1]]: table.band_start[table.band_first[2]]]
+    first = table.entry_piece[table.band_start[table.band_first[1]] : table.band_start[table.band_first[2]]]
     assert sorted(set(first.tolist())) == list(range(6)) and np.all(table.degree[:6] == 2)
     s = np.linspace(0, 1, 257)
     for piece in range(k):
@@ -333,8 +374,12 @@ def test_the_table_layout():
             step = np.diff(p[:, c])
             assert np.all(step >= -1e-13) or np.all(step <= 1e-13), (piece, c)
         b = table.box[piece]
-        assert np.all((p[:, 0] >= b[0] - 1e-13) & (p[:, 0] <= b[1] + 1e-13) & (p[:, 1] >= b[2] - 1e-13)
-                      & (p[:, 1] <= b[3] + 1e-13))
+        assert np.all(
+            (p[:, 0] >= b[0] - 1e-13)
+            & (p[:, 0] <= b[1] + 1e-13)
+            & (p[:, 1] >= b[2] - 1e-13)
+            & (p[:, 1] <= b[3] + 1e-13)
+        )
     # the pieces of one loop chain exactly, end to start, the last back to the first
     one = build_trim_table([plate().with_trims([closed_cubic()])])
     assert np.array_equal(one.ends[:, 2:], np.roll(one.ends[:, :2], -1, axis=0))
@@ -343,17 +388,31 @@ def test_the_table_layout():
         for band in range(table.band_first[m], table.band_first[m] + table.band_count[m]):
             e = np.arange(table.band_start[band], table.band_start[band + 1])
             assert np.all(np.diff(table.entry_box[e, 1]) <= 0)
-            assert np.array_equal(table.entry_box[e], np.stack(
-                [table.box[table.entry_piece[e], 0], table.box[table.entry_piece[e], 1],
-                 table.ends[table.entry_piece[e]][:, [1, 3]].min(axis=1),
-                 table.ends[table.entry_piece[e]][:, [1, 3]].max(axis=1)], axis=1).reshape(-1, 4))
-    mine = np.concatenate([np.arange(table.band_start[table.band_first[m]],
-                                     table.band_start[table.band_first[m] + table.band_count[m]]) for m in (3,)])
+            assert np.array_equal(
+                table.entry_box[e],
+                np.stack(
+                    [
+                        table.box[table.entry_piece[e], 0],
+                        table.box[table.entry_piece[e], 1],
+                        table.ends[table.entry_piece[e]][:, [1, 3]].min(axis=1),
+                        table.ends[table.entry_piece[e]][:, [1, 3]].max(axis=1),
+                    ],
+                    axis=1,
+                ).reshape(-1, 4),
+            )
+    mine = np.concatenate(
+        [
+            np.arange(
+                table.band_start[table.band_first[m]], table.band_start[table.band_first[m] + table.band_count[m]]
+            )
+            for m in (3,)
+        ]
+    )
     pieces = np.unique(table.entry_piece[mine])
     for v in np.random.default_rng(8).random(500):
         x = (v - table.band_v0[3]) * table.band_scale[3]
         band = table.band_first[3] + (0 if not x > 0 else min(int(x), table.band_count[3] - 1))
-        listed = set(table.entry_piece[table.band_start[band]: table.band_start[band + 1]].tolist())
+        listed = set(table.entry_piece[table.band_start[band] : table.band_start[band + 1]].tolist())
         lo, hi = np.minimum(table.ends[:, 1], table.ends[:, 3]), np.maximum(table.ends[:, 1], table.ends[:, 3])
         assert set(pieces[(lo[pieces] <= v) & (v < hi[pieces])].tolist()) <= listed
 
@@ -368,13 +427,13 @@ def test_bezier_spans_match_boehm_knot_insertion():
         ctrl = np.concatenate([rng.random((n, 2)) * (w := rng.uniform(0.5, 2.0, n))[:, None], w[:, None]], axis=1)
         nets = P.bezier_spans(knots, ctrl, p)
         k, c = knots, ctrl
-        for x in np.unique(knots[p: n + 1]):
+        for x in np.unique(knots[p : n + 1]):
             while np.count_nonzero(k == x) < p:
                 k, c = insert_knot(k, c, p, x)
         spans = [i for i in range(p, c.shape[0]) if k[i] < k[i + 1]]
         assert nets.shape == (len(spans), p + 1, 3)
         for net, i in zip(nets, spans):
-            assert np.allclose(net, c[i - p: i + 1], rtol=0, atol=1e-12)
+            assert np.allclose(net, c[i - p : i + 1], rtol=0, atol=1e-12)
 
 
 def test_a_turning_point_is_cut_exactly_and_the_depth_cap_leaves_a_chord():
@@ -383,7 +442,7 @@ def test_a_turning_point_is_cut_exactly_and_the_depth_cap_leaves_a_chord():
     assert degree.tolist() == [2, 2] and src.tolist() == [0, 0]
     turn = pieces[0, 2, :2] / pieces[0, 2, 2]  # u(s) = 1 + 2 s - 4 s^2 has its top, 1.25, at s = 1/4
     assert np.array_equal(turn, pieces[1, 0, :2] / pieces[1, 0, 2]) and abs(turn[0] - 1.25) < 1e-15
-    assert abs(turn[1] - (2 * 0.25 * 0.75 + 0.25 ** 2)) < 1e-15
+    assert abs(turn[1] - (2 * 0.25 * 0.75 + 0.25**2)) < 1e-15
     pieces, degree, src = P.monotone_pieces(arc, np.array([2]), 0)
     assert degree.tolist() == [1] and np.array_equal(pieces[0, :2], arc[0, [0, 2]]) and not pieces[0, 2].any()
     # a repeated first point (no slope there) and weights: still one exact cut, u(s) largest there
@@ -391,7 +450,7 @@ def test_a_turning_point_is_cut_exactly_and_the_depth_cap_leaves_a_chord():
     pieces, degree, src = P.monotone_pieces(cusp, np.array([3]), 48)
     assert degree.tolist() == [3, 3]
     s = np.linspace(0, 1, 100001)
-    b = np.stack([(1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s ** 2 * (1 - s), s ** 3], axis=1) @ cusp[0]
+    b = np.stack([(1 - s) ** 3, 3 * s * (1 - s) ** 2, 3 * s**2 * (1 - s), s**3], axis=1) @ cusp[0]
     assert abs(pieces[0, 3, 0] / pieces[0, 3, 2] - np.max(b[:, 0] / b[:, 2])) < 1e-9
 
 
@@ -507,37 +566,43 @@ def test_classify_grid_matches_rect_state_cell_by_cell():
 
 def test_an_open_loop_names_the_loop_and_the_curve():
     square = polygon([(0.1, 0.1), (0.9, 0.1), (0.9, 0.9), (0.1, 0.9)])
-    broken = TrimLoop(square.curves[:2] + (make_trim_curve(1, [0, 0, 1, 1], [[0.8, 0.9], [0.1, 0.9]]),)
-                      + square.curves[3:])
+    broken = TrimLoop(
+        square.curves[:2] + (make_trim_curve(1, [0, 0, 1, 1], [[0.8, 0.9], [0.1, 0.9]]),) + square.curves[3:]
+    )
     with pytest.raises(InputError) as err:
         check_loops([circle(0.5, 0.5, 0.05), broken], UNIT)
-    assert str(err.value) == ("trim[1].curves[2]: the loop is open: the curve starts at (0.8, 0.9), "
-                              "not where curves[1] ends (0.9, 0.9)")
+    assert str(err.value) == (
+        "trim[1].curves[2]: the loop is open: the curve starts at (0.8, 0.9), not where curves[1] ends (0.9, 0.9)"
+    )
     single = TrimLoop((make_trim_curve(2, [0, 0, 0, 1, 1, 1], [[0.1, 0.1], [0.5, 0.9], [0.9, 0.1]]),))
     with pytest.raises(InputError) as err:
         check_loops([single], UNIT)
-    assert str(err.value) == ("trim[0].curves[0]: the loop is open: the curve starts at (0.1, 0.1) "
-                              "but it ends at (0.9, 0.1)")
+    assert str(err.value) == (
+        "trim[0].curves[0]: the loop is open: the curve starts at (0.1, 0.1) but it ends at (0.9, 0.1)"
+    )
     with pytest.raises(InputError) as err:
         check_loops([TrimLoop(())], UNIT)
     assert str(err.value) == "trim[0].curves: a loop needs at least one curve"
-    gap = TrimLoop(square.curves[:1] + (make_trim_curve(1, [0, 0, 1, 1], [[0.9 + 1e-11, 0.1], [0.9, 0.9]]),)
-                   + square.curves[2:])
+    gap = TrimLoop(
+        square.curves[:1] + (make_trim_curve(1, [0, 0, 1, 1], [[0.9 + 1e-11, 0.1], [0.9, 0.9]]),) + square.curves[2:]
+    )
     check_loops([gap], UNIT)  # a gap of 1e-11 (under 1e-9 of the diagonal) closes
 
 
 def test_a_curve_leaving_the_domain_names_the_loop_and_the_curve():
     with pytest.raises(InputError) as err:
         check_loops([circle(0.5, 0.5, 0.1), circle(0.5, 0.5, 0.55)], UNIT)
-    assert str(err.value).startswith("trim[1].curves[0]: the curve leaves the surface's domain [0, 1] x [0, 1] "
-                                     "(it passes (1.05, "), str(err.value)
+    assert str(err.value).startswith(
+        "trim[1].curves[0]: the curve leaves the surface's domain [0, 1] x [0, 1] (it passes (1.05, "
+    ), str(err.value)
     # a dip below v = 0 between the ends: the parabola's lowest point, (0.5, -0.1), is reported
     dip = make_trim_curve(2, [0, 0, 0, 1, 1, 1], [[0.9, 0.1], [0.5, -0.3], [0.1, 0.1]])
     loop = TrimLoop((dip, make_trim_curve(1, [0, 0, 1, 1], [[0.1, 0.1], [0.9, 0.1]])))
     with pytest.raises(InputError) as err:
         check_loops([loop], UNIT)
-    assert str(err.value) == ("trim[0].curves[0]: the curve leaves the surface's domain [0, 1] x [0, 1] "
-                              "(it passes (0.5, -0.1))")
+    assert str(err.value) == (
+        "trim[0].curves[0]: the curve leaves the surface's domain [0, 1] x [0, 1] (it passes (0.5, -0.1))"
+    )
     # the exact test: control points outside the domain, the curve inside (a 3-arc circle of radius
     # 0.45 has its middle control points 0.9 from the centre), or outside by less than 1e-5
     check_loops([circle3(0.5, 0.5, 0.45)], UNIT)
@@ -550,12 +615,18 @@ def test_trim_curve_messages_name_the_key_and_scenes_add_surface_loop_and_curve(
         ((1, [0, 0, 1], [[0, 0], [1, 1]]), "knots: expected 4 values (2 points + degree 1 + 1), got 3"),
         ((1, [0, 1, 0, 1], [[0, 0], [1, 1]]), "knots: expected finite, non-decreasing numbers"),
         ((2, [0, 0, 0, 1, 1, 1], [[0, 0], [1, 1]]), "points: degree 2 needs at least 3 points, got 2"),
-        ((2, [0, 0, 0, 1, 1, 1], [[0, 0], [1, 1], [1, 0]], [1, -1, 1]),
-         "weights: every weight must be a finite number > 0"),
-        ((1, [0, 0, 1, 1], [[0, 0, 0], [1, 1, 1]]),
-         "points: expected a list of [u, v] pairs, got an array of shape (2, 3)"),
-        ((1, [0, 0, 0.5, 0.5, 1, 1], [[0, 0], [1, 1], [0, 1], [1, 0]]),
-         "knots: an interior knot is repeated more than the degree 1"),
+        (
+            (2, [0, 0, 0, 1, 1, 1], [[0, 0], [1, 1], [1, 0]], [1, -1, 1]),
+            "weights: every weight must be a finite number > 0",
+        ),
+        (
+            (1, [0, 0, 1, 1], [[0, 0, 0], [1, 1, 1]]),
+            "points: expected a list of [u, v] pairs, got an array of shape (2, 3)",
+        ),
+        (
+            (1, [0, 0, 0.5, 0.5, 1, 1], [[0, 0], [1, 1], [0, 1], [1, 0]]),
+            "knots: an interior knot is repeated more than the degree 1",
+        ),
     ]
     for args, message in cases:
         with pytest.raises(InputError) as err:
@@ -563,14 +634,27 @@ def test_trim_curve_messages_name_the_key_and_scenes_add_surface_loop_and_curve(
         assert str(err.value) == message
     from bsrt.scene import parse_scene
 
-    square = [{"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]} for a, b in
-              (([0.2, 0.2], [0.8, 0.2]), ([0.8, 0.2], [0.8, 0.8]), ([0.8, 0.8], [0.2, 0.8]), ([0.2, 0.8], [0.2, 0.2]))]
+    square = [
+        {"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]}
+        for a, b in (
+            ([0.2, 0.2], [0.8, 0.2]),
+            ([0.8, 0.2], [0.8, 0.8]),
+            ([0.8, 0.8], [0.2, 0.8]),
+            ([0.2, 0.8], [0.2, 0.2]),
+        )
+    ]
     bad = [dict(c) for c in square]
     bad[3] = {**bad[3], "weights": [1.0, 0.0]}
-    flat = {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-            "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]]}
-    doc = {"camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0]},
-           "surface": [flat, {**flat, "trim": [{"curves": square}, {"curves": bad}]}]}
+    flat = {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]],
+    }
+    doc = {
+        "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0]},
+        "surface": [flat, {**flat, "trim": [{"curves": square}, {"curves": bad}]}],
+    }
     with pytest.raises(InputError) as err:
         parse_scene(doc, "part.toml")
     assert str(err.value) == "part.toml: surface[1].trim[1].curves[3].weights: every weight must be a finite number > 0"

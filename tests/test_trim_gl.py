@@ -18,21 +18,33 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bsrt.rendering import gl
-from bsrt.scene.camera import pixel_rays
+from bsrt.geometry.patches import PatchSet
 from bsrt.io import load_model
 from bsrt.kernels.trim import kept_many
-from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.pipeline import Geometry
 from bsrt.preview.view import View
-from bsrt.scene import parse_scene
+from bsrt.rendering import gl
+from bsrt.rendering.pipeline import Geometry
 from bsrt.rendering.trim_gl import kept_gl
+from bsrt.scene import parse_scene
+from bsrt.scene.camera import pixel_rays
 
 HERE = Path(__file__).parent
-IGES = [HERE / "data" / "iges" / name for name in (  # every file there with trimmed surfaces (curves.igs has none)
-    "box_brep.igs", "cone_194.igs", "cylinder_128_model_space.igs", "cylinder_192.igs", "cylinder_brep.igs",
-    "cylinder_brep_inverted.igs", "plane_143.igs", "plane_circle_144.igs", "sphere_cap_brep.igs",
-    "sphere_torus.igs", "surfaces_misc.igs")]
+IGES = [
+    HERE / "data" / "iges" / name
+    for name in (  # every file there with trimmed surfaces (curves.igs has none)
+        "box_brep.igs",
+        "cone_194.igs",
+        "cylinder_128_model_space.igs",
+        "cylinder_192.igs",
+        "cylinder_brep.igs",
+        "cylinder_brep_inverted.igs",
+        "plane_143.igs",
+        "plane_circle_144.igs",
+        "sphere_cap_brep.igs",
+        "sphere_torus.igs",
+        "surfaces_misc.igs",
+    )
+]
 BEARING = HERE / "data" / "models" / "iges" / "occt" / "bearing.iges"
 W = math.sqrt(0.5)
 
@@ -51,25 +63,35 @@ def circle(cx, cy, r):
 
 def square_loop(u0, u1, v0, v1):
     corners = [[u0, v0], [u1, v0], [u1, v1], [u0, v1]]
-    return {"curves": [{"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]}
-                       for a, b in zip(corners, corners[1:] + corners[:1])]}
+    return {
+        "curves": [
+            {"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]} for a, b in zip(corners, corners[1:] + corners[:1])
+        ]
+    }
 
 
 def plate(trims):
     """The square [0, 1] x [0, 1] at z = 0; u = x, v = y."""
-    return {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-            "points": [[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0], [1.0, 1.0, 0.0]]], "trim": trims}
+    return {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0], [1.0, 1.0, 0.0]]],
+        "trim": trims,
+    }
 
 
 def top_view(surface, size, half=0.6, height=10.0):
     """A camera straight above (0.5, 0.5) seeing [-half, half] around it at z = 0."""
     fov = 2 * math.degrees(math.atan(half / height))
-    return parse_scene({
-        "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},
-        "camera": {"eye": [0.5, 0.5, height], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0], "fov": fov},
-        "light": [{"kind": "ambient", "intensity": 1.0}],
-        "surface": [surface],
-    })
+    return parse_scene(
+        {
+            "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},
+            "camera": {"eye": [0.5, 0.5, height], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0], "fov": fov},
+            "light": [{"kind": "ambient", "intensity": 1.0}],
+            "surface": [surface],
+        }
+    )
 
 
 def fast_view_coverage(ctx, scene, size):
@@ -159,8 +181,10 @@ def check_model(ctx, path, points_per_surface=4000):
     assert 0 < cpu.sum() < cpu.size  # both answers occur
     differ = np.flatnonzero(gpu != cpu)
     near = near_a_curve(table, m[differ].astype(np.int64), u[differ], v[differ], 1e-5)
-    assert near.all(), (f"{path.name}: {int((~near).sum())} of {m.size} points differ farther than 1e-5 "
-                        f"(relative) from a curve, e.g. surface {m[differ][~near][:3]}")
+    assert near.all(), (
+        f"{path.name}: {int((~near).sum())} of {m.size} points differ farther than 1e-5 "
+        f"(relative) from a curve, e.g. surface {m[differ][~near][:3]}"
+    )
     assert differ.size <= 1e-3 * m.size
     return differ.size, m.size
 

@@ -13,11 +13,11 @@ import math
 import numpy as np
 import pytest
 
-from bsrt.scene.camera import pixel_rays
+from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import parse_scene
+from bsrt.scene.camera import pixel_rays
 from bsrt.settings import METHODS
-from bsrt.rendering.options import RenderOptions
 
 W = math.sqrt(0.5)
 
@@ -38,27 +38,43 @@ def circle(cx, cy, r, reverse=False):
 
 def polygon(points):
     """A loop of line segments through the (u, v) points, closed."""
-    return {"curves": [{"degree": 1, "knots": [0, 0, 1, 1], "points": [list(a), list(b)]}
-                       for a, b in zip(points, points[1:] + points[:1])]}
+    return {
+        "curves": [
+            {"degree": 1, "knots": [0, 0, 1, 1], "points": [list(a), list(b)]}
+            for a, b in zip(points, points[1:] + points[:1])
+        ]
+    }
 
 
 def plate(x0, x1, y0, y1, z, trims=(), **extra):
     """The square [x0, x1] x [y0, y1] at height z; u, v in [0, 1] along x, y."""
-    return {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-            "points": [[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]], "trim": list(trims), **extra}
+    return {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[x0, y0, z], [x0, y1, z]], [[x1, y0, z], [x1, y1, z]]],
+        "trim": list(trims),
+        **extra,
+    }
 
 
 def top_view(surfaces, size=64, centre=(0.5, 0.5), height=10.0, half=0.55, lights=None, **render_keys):
     """A camera straight above (x, y) = centre seeing [-half, half] around it at z = 0."""
     fov = 2 * math.degrees(math.atan(half / height))
-    return parse_scene({
-        "film": {"width": size, "height": size},
-        "camera": {"eye": [centre[0], centre[1], height], "look_at": [centre[0], centre[1], 0.0],
-                   "up": [0.0, 1.0, 0.0], "fov": fov},
-        "render": render_keys,
-        "light": lights or [{"kind": "ambient", "intensity": 1.0}],
-        "surface": surfaces,
-    })
+    return parse_scene(
+        {
+            "film": {"width": size, "height": size},
+            "camera": {
+                "eye": [centre[0], centre[1], height],
+                "look_at": [centre[0], centre[1], 0.0],
+                "up": [0.0, 1.0, 0.0],
+                "fov": fov,
+            },
+            "render": render_keys,
+            "light": lights or [{"kind": "ambient", "intensity": 1.0}],
+            "surface": surfaces,
+        }
+    )
 
 
 def ground_points(scene, z=0.0):
@@ -103,8 +119,9 @@ def test_disc_edge_to_a_millionth(ctx):
     """Pixels 1e-6 wide straddling the circle: each side of the edge classified right."""
     size, pixel = 24, 1e-6
     edge = (0.5 + 0.3 * math.cos(0.7), 0.5 + 0.3 * math.sin(0.7))
-    scene = top_view([plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.3)])], size=size, centre=edge, height=1.0,
-                     half=size * pixel / 2)
+    scene = top_view(
+        [plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.3)])], size=size, centre=edge, height=1.0, half=size * pixel / 2
+    )
     xy, t = ground_points(scene)
     margin = 0.3 - np.hypot(xy[:, 0] - 0.5, xy[:, 1] - 0.5)
     inside, outside = margin > 1e-9, margin < -1e-9
@@ -124,8 +141,9 @@ def test_a_hole(ctx):
 
 
 def test_nested_islands(ctx):
-    scene = top_view([plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.45), circle(0.5, 0.5, 0.3, reverse=True),
-                                              circle(0.5, 0.5, 0.15)])])
+    scene = top_view(
+        [plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.45), circle(0.5, 0.5, 0.3, reverse=True), circle(0.5, 0.5, 0.15)])]
+    )
     xy, _ = ground_points(scene)
     r = np.hypot(xy[:, 0] - 0.5, xy[:, 1] - 0.5)
     kept = (r < 0.15) | ((r > 0.3) & (r < 0.45))
@@ -154,23 +172,25 @@ def test_a_ray_through_a_hole_hits_the_surface_behind(ctx):
     through = r < 0.12
     margin = 3 * np.abs(r - 0.12)  # scene units
     expected_t = np.where(through, t_floor, t_plate)
-    check(scene, np.ones(r.size, dtype=bool), margin, expected_t=expected_t,
-          expected_surface=np.where(through, 1, 0))
+    check(scene, np.ones(r.size, dtype=bool), margin, expected_t=expected_t, expected_surface=np.where(through, 1, 0))
 
 
 def test_a_shadow_through_a_trimmed_hole_has_the_holes_exact_shape(ctx):
-    holed = plate(-1, 2, -1, 2, 1.0, [polygon([(0, 0), (1, 0), (1, 1), (0, 1)]), circle(0.5, 0.5, 0.15)],
-                  material="white")
+    holed = plate(
+        -1, 2, -1, 2, 1.0, [polygon([(0, 0), (1, 0), (1, 1), (0, 1)]), circle(0.5, 0.5, 0.15)], material="white"
+    )
     floor = plate(-3, 4, -3, 4, 0.0, material="white")
     light = np.array([0.2, -0.1, -1.0])
-    scene = parse_scene({
-        "film": {"width": 72, "height": 72},
-        # under the plate, looking at the floor from below the plate's height
-        "camera": {"eye": [0.5, 0.5, 0.6], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0], "fov": 90.0},
-        "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
-        "light": [{"kind": "directional", "direction": light.tolist(), "intensity": 1.0}],
-        "surface": [holed, floor],
-    })
+    scene = parse_scene(
+        {
+            "film": {"width": 72, "height": 72},
+            # under the plate, looking at the floor from below the plate's height
+            "camera": {"eye": [0.5, 0.5, 0.6], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0], "fov": 90.0},
+            "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
+            "light": [{"kind": "directional", "direction": light.tolist(), "intensity": 1.0}],
+            "surface": [holed, floor],
+        }
+    )
     to_light = -light / np.linalg.norm(light)
     for method, res in render_all(scene).items():
         on_floor = res.hits.hit & (res.hits.surface == 1)
@@ -198,20 +218,28 @@ def _box_faces():
                 p[axis], p[a], p[b] = value, s, t
                 return p
 
-            faces.append({"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-                          "points": [[point(-1, -1), point(-1, 2)], [point(2, -1), point(2, 2)]],
-                          "trim": [square]})
+            faces.append(
+                {
+                    "degree": [1, 1],
+                    "knots_u": [0, 0, 1, 1],
+                    "knots_v": [0, 0, 1, 1],
+                    "points": [[point(-1, -1), point(-1, 2)], [point(2, -1), point(2, 2)]],
+                    "trim": [square],
+                }
+            )
     return faces
 
 
 def test_a_box_of_six_trimmed_faces_has_no_crack(ctx):
     eye = np.array([2.6, -1.9, 2.2])
-    scene = parse_scene({
-        "film": {"width": 96, "height": 96},
-        "camera": {"eye": eye.tolist(), "look_at": [0.5, 0.5, 0.5], "fov": 40.0},
-        "light": [{"kind": "ambient", "intensity": 1.0}],
-        "surface": _box_faces(),
-    })
+    scene = parse_scene(
+        {
+            "film": {"width": 96, "height": 96},
+            "camera": {"eye": eye.tolist(), "look_at": [0.5, 0.5, 0.5], "fov": 40.0},
+            "light": [{"kind": "ambient", "intensity": 1.0}],
+            "surface": _box_faces(),
+        }
+    )
     d = pixel_rays(scene.camera, 96, 96)
     with np.errstate(divide="ignore", invalid="ignore"):  # slab test against the unit cube
         t1, t2 = (0.0 - eye) / d, (1.0 - eye) / d
@@ -223,36 +251,56 @@ def test_a_box_of_six_trimmed_faces_has_no_crack(ctx):
     check(scene, expected, margin, expected_t=np.where(expected, near, np.nan))
 
 
-@pytest.mark.parametrize("edit, message", [
-    (lambda loop: loop["curves"][1]["points"].__setitem__(0, [0.9, 0.2]),
-     "scene.toml: surface[0].trim[0].curves[1]: the loop is open: the curve starts at (0.9, 0.2), "
-     "not where curves[0] ends (1, 0)"),
-    (lambda loop: loop["curves"][2]["points"].__setitem__(1, [0.5, 1.5]),
-     "scene.toml: surface[0].trim[0].curves[2]: the curve leaves the surface's domain [0, 1] x [0, 1]"),
-    (lambda loop: loop["curves"][0].__setitem__("knots", [0, 1, 1]),
-     "scene.toml: surface[0].trim[0].curves[0].knots: expected 4 values (2 points + degree 1 + 1), got 3"),
-    (lambda loop: loop["curves"][0].__setitem__("degree", True),
-     "scene.toml: surface[0].trim[0].curves[0].degree: expected a whole number >= 1, got True"),
-    (lambda loop: loop["curves"][0].__setitem__("colour", 1),
-     "scene.toml: surface[0].trim[0].curves[0].colour: unknown key"),
-])
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (
+            lambda loop: loop["curves"][1]["points"].__setitem__(0, [0.9, 0.2]),
+            "scene.toml: surface[0].trim[0].curves[1]: the loop is open: the curve starts at (0.9, 0.2), "
+            "not where curves[0] ends (1, 0)",
+        ),
+        (
+            lambda loop: loop["curves"][2]["points"].__setitem__(1, [0.5, 1.5]),
+            "scene.toml: surface[0].trim[0].curves[2]: the curve leaves the surface's domain [0, 1] x [0, 1]",
+        ),
+        (
+            lambda loop: loop["curves"][0].__setitem__("knots", [0, 1, 1]),
+            "scene.toml: surface[0].trim[0].curves[0].knots: expected 4 values (2 points + degree 1 + 1), got 3",
+        ),
+        (
+            lambda loop: loop["curves"][0].__setitem__("degree", True),
+            "scene.toml: surface[0].trim[0].curves[0].degree: expected a whole number >= 1, got True",
+        ),
+        (
+            lambda loop: loop["curves"][0].__setitem__("colour", 1),
+            "scene.toml: surface[0].trim[0].curves[0].colour: unknown key",
+        ),
+    ],
+)
 def test_bad_trim_loops_name_the_surface_loop_and_curve(edit, message):
     from bsrt.errors import InputError
 
     loop = polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
     edit(loop)
     with pytest.raises(InputError) as err:
-        parse_scene({"camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0]},
-                     "surface": [plate(0, 1, 0, 1, 0.0, [loop])]}, "scene.toml")
+        parse_scene(
+            {
+                "camera": {"eye": [0, 0, 5], "look_at": [0, 0, 0], "up": [0, 1, 0]},
+                "surface": [plate(0, 1, 0, 1, 0.0, [loop])],
+            },
+            "scene.toml",
+        )
     assert str(err.value).startswith(message), str(err.value)
 
 
 def test_info_counts_trimmed_surfaces_and_loops(tmp_path, capsys):
-    from bsrt.scene.document import dumps_toml
     from bsrt.cli import main
+    from bsrt.scene.document import dumps_toml
 
-    doc = {"camera": {"eye": [0.5, 0.5, 5.0], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0]},
-           "surface": [plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.3), circle(0.5, 0.5, 0.1)]), plate(0, 1, 0, 1, 1.0)]}
+    doc = {
+        "camera": {"eye": [0.5, 0.5, 5.0], "look_at": [0.5, 0.5, 0.0], "up": [0.0, 1.0, 0.0]},
+        "surface": [plate(0, 1, 0, 1, 0.0, [circle(0.5, 0.5, 0.3), circle(0.5, 0.5, 0.1)]), plate(0, 1, 0, 1, 1.0)],
+    }
     path = tmp_path / "two.toml"
     path.write_text(dumps_toml(doc), encoding="utf-8")
     assert main(["info", str(path)]) == 0

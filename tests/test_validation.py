@@ -15,13 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_io import BILINEAR_128, iges_text
 
 import bsrt
 from bsrt import cli, validate
 from bsrt.errors import InputError
 from bsrt.io import load_model
-
-from test_io import BILINEAR_128, iges_text
 
 ROOT = Path(__file__).resolve().parent.parent
 QUAD = (ROOT / "scenes" / "quad.toml").read_text()
@@ -31,8 +30,14 @@ BPT = "1\n1 1\n0 0 0\n0 1 0\n1 0 0\n1 1 0\n"  # the unit square z = 0
 def bsrt_cli(*args, env=None, cwd=None) -> subprocess.CompletedProcess:
     environ = dict(os.environ, PYTHONPATH=str(ROOT))
     environ.update(env or {})
-    return subprocess.run([sys.executable, "-m", "bsrt", *map(str, args)], capture_output=True, text=True,
-                          env=environ, cwd=cwd, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "bsrt", *map(str, args)],
+        capture_output=True,
+        text=True,
+        env=environ,
+        cwd=cwd,
+        timeout=300,
+    )
 
 
 def refused(path: Path, *words: str, env=None, extra=(), named=True) -> str:
@@ -190,23 +195,42 @@ def test_egl_device_index_that_is_not_a_number_is_refused(tmp_path):
 # Wrong types
 
 
-@pytest.mark.parametrize("old, new, words", [
-    ("degree = [1, 1]", "degree = [true, true]", ("surface[0].degree", "two whole numbers")),
-    ("knots_u = [0.0, 0.0, 1.0, 1.0]", 'knots_u = ["0", "0", "1", "1"]', ("surface[0].knots_u", "expected numbers")),
-    ("[[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0]]", "[[true, 0.0, -1.0], [-1.0, 0.0, 1.0]]",
-     ("surface[0].points", "expected numbers, got True")),
-    ("degree = [1, 1]", "degree = [26, 1]", ("surface[0].degree", "at most 25")),
-], ids=["boolean degrees", "string knots", "boolean point", "degree over 25"])
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ("degree = [1, 1]", "degree = [true, true]", ("surface[0].degree", "two whole numbers")),
+        (
+            "knots_u = [0.0, 0.0, 1.0, 1.0]",
+            'knots_u = ["0", "0", "1", "1"]',
+            ("surface[0].knots_u", "expected numbers"),
+        ),
+        (
+            "[[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0]]",
+            "[[true, 0.0, -1.0], [-1.0, 0.0, 1.0]]",
+            ("surface[0].points", "expected numbers, got True"),
+        ),
+        ("degree = [1, 1]", "degree = [26, 1]", ("surface[0].degree", "at most 25")),
+    ],
+    ids=["boolean degrees", "string knots", "boolean point", "degree over 25"],
+)
 def test_wrong_types_in_scene_files_are_refused(tmp_path, old, new, words):
     refused(scene(tmp_path, old, new), *words)
 
 
-@pytest.mark.parametrize("name, text, words", [
-    ("digits.bpt", BPT.replace("1 1\n", "１ 1\n", 1), (":2:", "'１'")),
-    ("digits.nurbs", "uOrder 2\nvOrder 2\nuDimension ２\nvDimension 2\nuKnot [0 0 1 1]\nvKnot [0 0 1 1]\n"
-     "controlPoint [0 0 0, 1 0 0, 0 1 0, 1 1 0]\n", (":3:", "'２'")),
-    ("digits.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 ٠\n", (":4:", "'٠'")),
-], ids=["bpt", "nurbs", "obj"])
+@pytest.mark.parametrize(
+    "name, text, words",
+    [
+        ("digits.bpt", BPT.replace("1 1\n", "１ 1\n", 1), (":2:", "'１'")),
+        (
+            "digits.nurbs",
+            "uOrder 2\nvOrder 2\nuDimension ２\nvDimension 2\nuKnot [0 0 1 1]\nvKnot [0 0 1 1]\n"
+            "controlPoint [0 0 0, 1 0 0, 0 1 0, 1 1 0]\n",
+            (":3:", "'２'"),
+        ),
+        ("digits.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 ٠\n", (":4:", "'٠'")),
+    ],
+    ids=["bpt", "nurbs", "obj"],
+)
 def test_unicode_digits_in_model_files_are_refused(tmp_path, name, text, words):
     path = tmp_path / name
     path.write_text(text, encoding="utf-8")
@@ -280,12 +304,15 @@ def test_render_refuses_a_model_format_for_a_scene(tmp_path):
 def test_bench_with_no_method_is_refused(methods):
     run = bsrt_cli("bench", "--methods", methods)
     assert run.returncode == 2 and run.stdout == ""
-    assert run.stderr.splitlines() == ["bsrt: error: --methods: names no method (expected a comma-separated list of "
-                                       "gradient, fast, newton, martin)"]
+    assert run.stderr.splitlines() == [
+        "bsrt: error: --methods: names no method (expected a comma-separated list of gradient, fast, newton, martin)"
+    ]
 
 
-@pytest.mark.parametrize("value, traceback", [("0", False), ("", False), ("no", False), ("false", False),
-                                              ("1", True), ("true", True), ("YES", True)])
+@pytest.mark.parametrize(
+    "value, traceback",
+    [("0", False), ("", False), ("no", False), ("false", False), ("1", True), ("true", True), ("YES", True)],
+)
 def test_bsrt_debug_shows_a_traceback_only_for_1_true_yes(monkeypatch, capsys, value, traceback):
     def broken(args):
         raise ZeroDivisionError("a bug")
@@ -297,8 +324,9 @@ def test_bsrt_debug_shows_a_traceback_only_for_1_true_yes(monkeypatch, capsys, v
             cli.main(["doctor"])
         return
     assert cli.main(["doctor"]) == 1
-    assert capsys.readouterr().err == ("bsrt: internal error: ZeroDivisionError: a bug "
-                                       "(set BSRT_DEBUG=1 for a traceback)\n")
+    assert capsys.readouterr().err == (
+        "bsrt: internal error: ZeroDivisionError: a bug (set BSRT_DEBUG=1 for a traceback)\n"
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -306,13 +334,17 @@ def test_bsrt_debug_shows_a_traceback_only_for_1_true_yes(monkeypatch, capsys, v
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("old, new", [
-    ("[[surface]]", "[[surface]]\ntransform = { scale = 1e14 }"),
-    ("fov = 40.0", "fov = 0.001"),
-    ("fov = 40.0", "fov = 179.9"),
-    ('method = "newton"', 'method = "newton"\nmax_iterations = 10000\nmax_depth = 16\nspp = 2\ntolerance = 1.0'),
-    ("intensity = 20.0", "intensity = 1e15"),
-], ids=["scale 1e14", "fov 0.001", "fov 179.9", "top limits", "intensity 1e15"])
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        ("[[surface]]", "[[surface]]\ntransform = { scale = 1e14 }"),
+        ("fov = 40.0", "fov = 0.001"),
+        ("fov = 40.0", "fov = 179.9"),
+        ('method = "newton"', 'method = "newton"\nmax_iterations = 10000\nmax_depth = 16\nspp = 2\ntolerance = 1.0'),
+        ("intensity = 20.0", "intensity = 1e15"),
+    ],
+    ids=["scale 1e14", "fov 0.001", "fov 179.9", "top limits", "intensity 1e15"],
+)
 def test_extreme_but_accepted_values_render_silently(tmp_path, old, new):
     path = scene(tmp_path, old, new)
     if "scale = 1e14" in new:  # the camera and the key light move with the scene
@@ -325,14 +357,26 @@ def test_extreme_but_accepted_values_render_silently(tmp_path, old, new):
 # The Python API checks as the scene file does
 
 
-@pytest.mark.parametrize("overrides, message", [
-    ({"spp": 10**29}, "spp: must be at most 256 (see Limits in docs/scene-format.md), got 100000000000000000000000000000"),
-    ({"width": 0}, "width: expected a whole number >= 1, got 0"),
-    ({"max_iterations": 10_001}, "max_iterations: must be at most 10000 (see Limits in docs/scene-format.md), got 10001"),
-    ({"fov": 1e-9}, "fov: must be at least 0.001 degrees (see Limits in docs/scene-format.md), got 1e-09"),
-    ({"camera_eye": (0.0, -1e300, 0.0)}, "camera_eye: value 1 (-1e+300) is beyond +-1e+15 (see Limits in docs/scene-format.md)"),
-    ({"camera_eye": (True, -4.0, 0.0)}, "camera_eye: expected numbers, got True"),
-])
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (
+            {"spp": 10**29},
+            "spp: must be at most 256 (see Limits in docs/scene-format.md), got 100000000000000000000000000000",
+        ),
+        ({"width": 0}, "width: expected a whole number >= 1, got 0"),
+        (
+            {"max_iterations": 10_001},
+            "max_iterations: must be at most 10000 (see Limits in docs/scene-format.md), got 10001",
+        ),
+        ({"fov": 1e-9}, "fov: must be at least 0.001 degrees (see Limits in docs/scene-format.md), got 1e-09"),
+        (
+            {"camera_eye": (0.0, -1e300, 0.0)},
+            "camera_eye: value 1 (-1e+300) is beyond +-1e+15 (see Limits in docs/scene-format.md)",
+        ),
+        ({"camera_eye": (True, -4.0, 0.0)}, "camera_eye: expected numbers, got True"),
+    ],
+)
 def test_api_overrides_are_checked_at_load(overrides, message):
     with pytest.raises(InputError) as exc:
         bsrt.load(ROOT / "scenes" / "quad.toml", **overrides)
@@ -347,8 +391,10 @@ def test_api_tolerance_below_float64_is_refused_at_render():
 
 def test_map_command_checks_camera_overrides_too(tmp_path):
     """`bsrt map` does not go through the render options: the overrides are checked when loading."""
-    for option, value, words in (("--fov", "1e-300", "--fov: must be at least 0.001 degrees"),
-                                 ("--camera-eye", "0,-1e300,0", "--camera-eye: value 1 (-1e+300) is beyond +-1e+15")):
+    for option, value, words in (
+        ("--fov", "1e-300", "--fov: must be at least 0.001 degrees"),
+        ("--camera-eye", "0,-1e300,0", "--camera-eye: value 1 (-1e+300) is beyond +-1e+15"),
+    ):
         run = bsrt_cli("map", ROOT / "scenes" / "quad.toml", "-o", tmp_path / "map.png", option, value)
         assert run.returncode == 2 and len(run.stderr.splitlines()) == 1 and words in run.stderr, run.stderr
         assert not (tmp_path / "map.png").exists()

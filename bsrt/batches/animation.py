@@ -38,8 +38,10 @@ def frame_cameras(scene, frames: int, orbit: float | None) -> list[Camera]:
         return [orbit_camera(scene.camera, orbit, k, frames) for k in range(1, frames + 1)]
     keys = getattr(scene, "keyframes", ())
     if not keys:
-        raise InputError(f"{scene.path}: camera.keyframe: the scene has no [[camera.keyframe]] tables; "
-                         "give --orbit DEGREES or add keyframes")
+        raise InputError(
+            f"{scene.path}: camera.keyframe: the scene has no [[camera.keyframe]] tables; "
+            "give --orbit DEGREES or add keyframes"
+        )
     try:
         return [keyframe_camera(scene.camera, keys, k) for k in range(1, frames + 1)]
     except InputError as exc:
@@ -57,11 +59,11 @@ def animation_writer(frames_png: list[bytes], fps: float, kind: str):
     def write(f) -> None:
         first, rest = images[0], images[1:]
         if kind == "webp":
-            first.save(f, format="WEBP", save_all=True, append_images=rest, duration=duration, loop=0,
-                       lossless=True)
+            first.save(f, format="WEBP", save_all=True, append_images=rest, duration=duration, loop=0, lossless=True)
         else:
-            first.save(f, format="PNG", save_all=True, append_images=rest, duration=duration, loop=0,
-                       disposal=0, blend=0)
+            first.save(
+                f, format="PNG", save_all=True, append_images=rest, duration=duration, loop=0, disposal=0, blend=0
+            )
 
     return write
 

@@ -50,8 +50,12 @@ def connect(command: str, workers: int | None = None, scheduler: str | None = No
             yield connection
         return
     n = workers or os.cpu_count() or 1
-    with distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                  silence_logs=logging.ERROR) as cluster, distributed.Client(cluster) as local:
+    with (
+        distributed.LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
+        ) as cluster,
+        distributed.Client(cluster) as local,
+    ):
         yield local
 
 
@@ -77,8 +81,21 @@ def _summary_path(path) -> Path | None:
     return path
 
 
-def batch(inputs, out, *, aov=False, workers=None, scheduler=None, client=None, resume=False, summary=None,
-          progress=None, report=None, cache=True, **settings):
+def batch(
+    inputs,
+    out,
+    *,
+    aov=False,
+    workers=None,
+    scheduler=None,
+    client=None,
+    resume=False,
+    summary=None,
+    progress=None,
+    report=None,
+    cache=True,
+    **settings,
+):
     """Render every scene or model file of ``inputs`` (files, folders, globs) to
     ``out/<name>.png`` (and ``<name>.npz`` with ``aov``) on Dask; returns the
     :class:`bsrt.batches.engine.Summary` (``.items``, ``.exit_code``, ``.to_dict()``).
@@ -91,6 +108,7 @@ def batch(inputs, out, *, aov=False, workers=None, scheduler=None, client=None, 
     Raises InputError for bad usage (an input that does not exist, no Dask).
     """
     from bsrt.batches import engine as batching
+
     start = time.perf_counter()
     require_dask("batch")
     paths = batching.discover([inputs] if isinstance(inputs, (str, os.PathLike)) else inputs)
@@ -107,16 +125,32 @@ def batch(inputs, out, *, aov=False, workers=None, scheduler=None, client=None, 
     return result
 
 
-def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, workers=None, scheduler=None,
-            client=None, resume=False, summary=None, progress=None, report=None, cache=True, **settings):
+def animate(
+    input,
+    out,
+    *,
+    frames=None,
+    orbit=None,
+    fps=24.0,
+    animation=None,
+    workers=None,
+    scheduler=None,
+    client=None,
+    resume=False,
+    summary=None,
+    progress=None,
+    report=None,
+    cache=True,
+    **settings,
+):
     """Render the frames of ``input`` (a scene or model file) to ``out/frame_0001.png``
     ... on Dask: an orbit of ``orbit`` degrees, else the scene's
     ``[[camera.keyframe]]`` path; ``animation`` "webp" or "apng" also writes
     ``out/<name>.webp`` / ``.png``. Returns the Summary (the animated file, if
     any, is its last item). cache: False reads the model files without the
     converted-model cache. settings: render settings, as for :func:`batch`."""
-    from bsrt.batches import engine as batching
     from bsrt.batches import animation as camera_path
+    from bsrt.batches import engine as batching
     from bsrt.scene.loading import CameraOverrides
 
     start = time.perf_counter()
@@ -158,8 +192,8 @@ def animate(input, out, *, frames=None, orbit=None, fps=24.0, animation=None, wo
 
 def _write_animation(frames, target: Path, fps: float, kind: str):
     """The animated file from the frames' PNGs (read once, in frame order), written atomically."""
-    from bsrt.batches.engine import Item
     from bsrt.batches.animation import animation_writer
+    from bsrt.batches.engine import Item
     from bsrt.errors import OutputError
     from bsrt.outputs import write_file
 

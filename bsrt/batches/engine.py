@@ -224,12 +224,16 @@ class Unpacked:
 def load_job(job: Job, path: Path):
     """The Scene of a job's input (already unpacked at ``path``)."""
     from bsrt.scene.loading import load_input
-
     from bsrt.settings import with_settings
 
     settings = job.options.get("settings", {})
-    scene = load_input(path, width=settings.get("width"), height=settings.get("height"), camera=job.camera,
-                       cache=job.options.get("cache", True))
+    scene = load_input(
+        path,
+        width=settings.get("width"),
+        height=settings.get("height"),
+        camera=job.camera,
+        cache=job.options.get("cache", True),
+    )
     return with_settings(scene, settings)
 
 
@@ -259,8 +263,8 @@ def render_job(job: Job) -> dict:
 
 def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
     from bsrt.rendering.image import npz_writer, png_writer
-    from bsrt.rendering.pipeline import render
     from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import render
 
     options = RenderOptions.resolve(scene)  # the job's settings are in the scene (load_job)
     result = render(scene, options)
@@ -351,20 +355,35 @@ class Summary:
         return 1 if self.count("failed") else 0
 
     def line(self) -> str:
-        return (f"{len(self.items)} items: {self.count('ok')} rendered, {self.count('skipped')} skipped, "
-                f"{self.count('failed')} failed, {self.seconds:.1f} s, into {self.out}")
+        return (
+            f"{len(self.items)} items: {self.count('ok')} rendered, {self.count('skipped')} skipped, "
+            f"{self.count('failed')} failed, {self.seconds:.1f} s, into {self.out}"
+        )
 
     def to_dict(self) -> dict:
-        return {"out": self.out, "seconds": self.seconds, "ok": self.count("ok"), "skipped": self.count("skipped"),
-                "failed": self.count("failed"), "items": [asdict(item) for item in self.items]}
+        return {
+            "out": self.out,
+            "seconds": self.seconds,
+            "ok": self.count("ok"),
+            "skipped": self.count("skipped"),
+            "failed": self.count("failed"),
+            "items": [asdict(item) for item in self.items],
+        }
 
 
 # ---------------------------------------------------------------------------
 # Running
 
 
-def run(client, work: list[tuple[Item, Job | None]], *, resume: bool = False, progress=None,
-        report=None, window: int | None = None) -> list[Item]:
+def run(
+    client,
+    work: list[tuple[Item, Job | None]],
+    *,
+    resume: bool = False,
+    progress=None,
+    report=None,
+    window: int | None = None,
+) -> list[Item]:
     """Render every (item, job) through ``client`` and write the outputs.
 
     An item whose job is None has already failed (its message set). With

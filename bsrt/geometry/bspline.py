@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.geometry.basis import basis_functions, basis_matrix, find_span, insert_knot  # noqa: F401  (re-exported: the readers')
 from bsrt.errors import InputError
+from bsrt.geometry.basis import basis_functions, basis_matrix, find_span, insert_knot  # noqa: F401  (re-exported: the readers')
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,7 +75,7 @@ class BSplineSurface:
         w = np.ones(self.shape) if self.weights is None else self.weights
         return np.concatenate([self.points * w[..., None], w[..., None]], axis=-1)
 
-    def transformed(self, world_from_local: np.ndarray) -> "BSplineSurface":
+    def transformed(self, world_from_local: np.ndarray) -> BSplineSurface:
         """The same surface with its control points mapped by a 4x4 affine matrix.
 
         Affine maps commute with (rational) B-spline evaluation, so the
@@ -85,20 +85,19 @@ class BSplineSurface:
         pts = self.points @ m[:3, :3].T + m[:3, 3]
         return BSplineSurface(self.degree, self.knots_u, self.knots_v, pts, self.weights, self.trims)
 
-    def with_trims(self, loops) -> "BSplineSurface":
+    def with_trims(self, loops) -> BSplineSurface:
         """The same surface trimmed by ``loops`` (TrimLoop, checked to close and lie in the domain)."""
         from bsrt.geometry.trim import check_loops
 
         domain = (*self.domain_u, *self.domain_v)
-        return BSplineSurface(self.degree, self.knots_u, self.knots_v, self.points, self.weights,
-                              check_loops(tuple(loops), domain))
+        return BSplineSurface(
+            self.degree, self.knots_u, self.knots_v, self.points, self.weights, check_loops(tuple(loops), domain)
+        )
 
 
 def _check_knots(key: str, knots: np.ndarray, n: int, p: int) -> None:
     if knots.ndim != 1 or knots.size != n + p + 1:
-        raise InputError(
-            f"{key}: expected {n + p + 1} values ({n} points + degree {p} + 1), got {knots.size}"
-        )
+        raise InputError(f"{key}: expected {n + p + 1} values ({n} points + degree {p} + 1), got {knots.size}")
     if not np.all(np.isfinite(knots)):
         raise InputError(f"{key}: values must be finite numbers")
     if np.any(np.diff(knots) < 0):
@@ -114,9 +113,7 @@ def _check_knots(key: str, knots: np.ndarray, n: int, p: int) -> None:
         values, counts = np.unique(inner, return_counts=True)
         if counts.max() > p:
             x = values[np.argmax(counts)]
-            raise InputError(
-                f"{key}: interior knot {x:g} is repeated {counts.max()} times, more than the degree {p}"
-            )
+            raise InputError(f"{key}: interior knot {x:g} is repeated {counts.max()} times, more than the degree {p}")
 
 
 def make_surface(degree, knots_u, knots_v, points, weights=None) -> BSplineSurface:
@@ -137,14 +134,10 @@ def make_surface(degree, knots_u, knots_v, points, weights=None) -> BSplineSurfa
     except (TypeError, ValueError):
         raise InputError("points: expected a grid of [x, y, z] numbers (nu rows of nv points)") from None
     if pts.ndim != 3 or pts.shape[2] != 3:
-        raise InputError(
-            f"points: expected nu rows of nv [x, y, z] points, got an array of shape {pts.shape}"
-        )
+        raise InputError(f"points: expected nu rows of nv [x, y, z] points, got an array of shape {pts.shape}")
     nu, nv = pts.shape[:2]
     if nu < p + 1 or nv < q + 1:
-        raise InputError(
-            f"points: degree [{p}, {q}] needs at least {p + 1} x {q + 1} points, got {nu} x {nv}"
-        )
+        raise InputError(f"points: degree [{p}, {q}] needs at least {p + 1} x {q + 1} points, got {nu} x {nv}")
     if not np.all(np.isfinite(pts)):
         i, j, _ = np.argwhere(~np.isfinite(pts))[0]
         raise InputError(f"points: point [{i}][{j}] has a non-finite coordinate")

@@ -74,9 +74,13 @@ class PatchSet:
             breaks_u.append(np.unique(bnd[:, :2]))
             breaks_v.append(np.unique(bnd[:, 2:]))
         self.size = size
-        self.groups = [parts[0] if len(parts) == 1 else  # one surface: its array as it is (no copy)
-                       (np.concatenate([i for i, _ in parts]), np.concatenate([c for _, c in parts]))
-                       for parts in by_degree.values()]
+        self.groups = [
+            parts[0]
+            if len(parts) == 1
+            # one surface: its array as it is (no copy)
+            else (np.concatenate([i for i, _ in parts]), np.concatenate([c for _, c in parts]))
+            for parts in by_degree.values()
+        ]
         self.surface = np.concatenate(surface) if surface else np.zeros(0, np.int64)
         self.bounds = np.concatenate(bounds).reshape(self.size, 4) if bounds else np.zeros((0, 4))
         self.box_min, self.box_max = np.empty((self.size, 3)), np.empty((self.size, 3))
@@ -161,9 +165,14 @@ def _second_differences(pts: np.ndarray) -> np.ndarray:
     """(K, 3) bounds (m_uu, m_vv, m_uv) on a degree (p, q) patch's second
     derivatives in (s, t), from its projected control points (K, p + 1, q + 1, 3)."""
     p, q = pts.shape[1] - 1, pts.shape[2] - 1
-    return np.stack([p * (p - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2]),
-                     q * (q - 1) * _max_norm(pts[:, :, 2:] - 2 * pts[:, :, 1:-1] + pts[:, :, :-2]),
-                     p * q * _max_norm(pts[:, 1:, 1:] - pts[:, 1:, :-1] - pts[:, :-1, 1:] + pts[:, :-1, :-1])], axis=1)
+    return np.stack(
+        [
+            p * (p - 1) * _max_norm(pts[:, 2:] - 2 * pts[:, 1:-1] + pts[:, :-2]),
+            q * (q - 1) * _max_norm(pts[:, :, 2:] - 2 * pts[:, :, 1:-1] + pts[:, :, :-2]),
+            p * q * _max_norm(pts[:, 1:, 1:] - pts[:, 1:, :-1] - pts[:, :-1, 1:] + pts[:, :-1, :-1]),
+        ],
+        axis=1,
+    )
 
 
 def _max_norm(a: np.ndarray) -> np.ndarray:

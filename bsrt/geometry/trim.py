@@ -71,13 +71,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from math import comb
-
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bsrt.geometry.basis import basis_functions, find_span, insert_knot
 from bsrt.errors import InputError
+from bsrt.geometry.basis import basis_functions, find_span, insert_knot
 
 if TYPE_CHECKING:
     from bsrt.kernels.trim import TrimTable
@@ -216,11 +215,15 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
             if np.hypot(*(e[0] - prev)) > gap:
                 if j == 0:
                     what = "the last curve ends" if len(ends) > 1 else "it ends"
-                    raise InputError(f"trim[{i}].curves[{j}]: the loop is open: the curve starts at "
-                                     f"({e[0][0]:g}, {e[0][1]:g}) but {what} at ({prev[0]:g}, {prev[1]:g})")
-                raise InputError(f"trim[{i}].curves[{j}]: the loop is open: the curve starts at "
-                                 f"({e[0][0]:g}, {e[0][1]:g}), not where curves[{j - 1}] ends "
-                                 f"({prev[0]:g}, {prev[1]:g})")
+                    raise InputError(
+                        f"trim[{i}].curves[{j}]: the loop is open: the curve starts at "
+                        f"({e[0][0]:g}, {e[0][1]:g}) but {what} at ({prev[0]:g}, {prev[1]:g})"
+                    )
+                raise InputError(
+                    f"trim[{i}].curves[{j}]: the loop is open: the curve starts at "
+                    f"({e[0][0]:g}, {e[0][1]:g}), not where curves[{j - 1}] ends "
+                    f"({prev[0]:g}, {prev[1]:g})"
+                )
             pts = curve.points
             if not _all_within(pts, umin - slack, umax + slack, vmin - slack, vmax + slack):
                 far = point_outside(curve, (umin - slack, umax + slack, vmin - slack, vmax + slack))
@@ -254,10 +257,10 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
     u0, u1, v0, v1 = box
     p = curve.degree
     knots, ctrl = curve.knots, curve.homogeneous()
-    for x in np.unique(knots[p + 1: -p - 1]):
+    for x in np.unique(knots[p + 1 : -p - 1]):
         for _ in range(p - int(np.count_nonzero(knots == x))):
             knots, ctrl = insert_knot(knots, ctrl, p, x)
-    nets = np.stack([ctrl[i * p: i * p + p + 1] for i in range((ctrl.shape[0] - 1) // p)])  # (S, p + 1, 3)
+    nets = np.stack([ctrl[i * p : i * p + p + 1] for i in range((ctrl.shape[0] - 1) // p)])  # (S, p + 1, 3)
     for _ in range(30):
         xy = nets[..., :2] / nets[..., 2:3]
         out = (xy[..., 0] < u0) | (xy[..., 0] > u1) | (xy[..., 1] < v0) | (xy[..., 1] > v1)
@@ -286,7 +289,7 @@ BANDS_PER_PIECE = 2.0  # 1 to 4 measured within 10 % of each other; 2 the best o
 MAX_BANDS = 4096  # per surface
 
 
-def build_trim_table(surfaces) -> "TrimTable":
+def build_trim_table(surfaces) -> TrimTable:
     """The TrimTable of a list of BSplineSurface (their ``trims``); surface m of the table is surfaces[m]."""
     from bsrt.kernels.trim import TrimTable
     from bsrt.kernels.trim_pieces import bezier_spans, monotone_pieces
@@ -309,8 +312,8 @@ def build_trim_table(surfaces) -> "TrimTable":
     span_degree = np.zeros(padded.shape[0], dtype=np.int64)
     at = 0
     for x in nets:
-        padded[at: at + x.shape[0], : x.shape[1]] = x
-        span_degree[at: at + x.shape[0]] = x.shape[1] - 1
+        padded[at : at + x.shape[0], : x.shape[1]] = x
+        span_degree[at : at + x.shape[0]] = x.shape[1] - 1
         at += x.shape[0]
     pieces, degree, src = monotone_pieces(padded, span_degree, MAX_DEPTH)
     loop = np.concatenate(span_loop)[src] if nets else np.zeros(0, dtype=np.int64)
@@ -348,20 +351,33 @@ def build_trim_table(surfaces) -> "TrimTable":
     magnitude = np.zeros(m_count)
     np.maximum.at(magnitude, owner, np.abs(box).max(axis=1, initial=0.0))
     ev = ends[entry_piece][:, [1, 3]]
-    entry_box = np.stack([box[entry_piece, 0], box[entry_piece, 1], ev.min(axis=1, initial=np.inf),
-                          ev.max(axis=1, initial=-np.inf)], axis=1).reshape(-1, 4)
+    entry_box = np.stack(
+        [box[entry_piece, 0], box[entry_piece, 1], ev.min(axis=1, initial=np.inf), ev.max(axis=1, initial=-np.inf)],
+        axis=1,
+    ).reshape(-1, 4)
     c = np.ascontiguousarray
-    return TrimTable(c(trimmed, dtype=np.bool_), c(band_first, dtype=np.int64), c(band_count, dtype=np.int64),
-                     c(band_v0, dtype=np.float64), c(band_scale, dtype=np.float64), c(magnitude, dtype=np.float64),
-                     c(degree, dtype=np.int64),
-                     c(coef, dtype=np.float64), c(ends, dtype=np.float64), c(box, dtype=np.float64),
-                     c(band_start, dtype=np.int64), c(entry_piece, dtype=np.int64), c(entry_box, dtype=np.float64))
+    return TrimTable(
+        c(trimmed, dtype=np.bool_),
+        c(band_first, dtype=np.int64),
+        c(band_count, dtype=np.int64),
+        c(band_v0, dtype=np.float64),
+        c(band_scale, dtype=np.float64),
+        c(magnitude, dtype=np.float64),
+        c(degree, dtype=np.int64),
+        c(coef, dtype=np.float64),
+        c(ends, dtype=np.float64),
+        c(box, dtype=np.float64),
+        c(band_start, dtype=np.int64),
+        c(entry_piece, dtype=np.int64),
+        c(entry_box, dtype=np.float64),
+    )
 
 
 def _bernstein_to_power(d: int) -> np.ndarray:
     """(d + 1, d + 1) M with sum_k B_k,d(s) c_k = sum_j s^j (M^T c)_j, i.e. M[k, j] = C(d, j) C(j, k) (-1)^(j - k)."""
-    return np.array([[comb(d, j) * comb(j, k) * (-1) ** (j - k) if j >= k else 0.0 for j in range(d + 1)]
-                     for k in range(d + 1)])
+    return np.array(
+        [[comb(d, j) * comb(j, k) * (-1) ** (j - k) if j >= k else 0.0 for j in range(d + 1)] for k in range(d + 1)]
+    )
 
 
 def _band_index(v, v0, scale, count):

@@ -29,10 +29,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, make_surface, restrict  # noqa: F401  (restrict: the readers')
 from bsrt import validate
 from bsrt.errors import InputError
 from bsrt.files import check_input_file
+from bsrt.geometry.bspline import BSplineSurface, make_surface, restrict  # noqa: F401  (restrict: the readers')
 from bsrt.io.formats import BY_EXTENSION as FORMATS
 from bsrt.io.formats import READERS
 from bsrt.io.model import LoadRecord, Model
@@ -40,8 +40,9 @@ from bsrt.io.model import LoadRecord, Model
 __all__ = ["FORMATS", "READERS", "LoadRecord", "Model", "load_model"]
 
 
-def load_model(path, format: str = "auto", *, cache: bool = True,
-               progress: Callable[[int, int], None] | None = None) -> Model:
+def load_model(
+    path, format: str = "auto", *, cache: bool = True, progress: Callable[[int, int], None] | None = None
+) -> Model:
     """Read a model file.
 
     format: "auto" (by extension, case-insensitive) or a format name of
@@ -83,9 +84,7 @@ def _resolve_format(path: str, format: str) -> str:
         if ext in FORMATS:
             return FORMATS[ext]
         exts = ", ".join(sorted(FORMATS))
-        raise InputError(
-            f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}"
-        )
+        raise InputError(f"{path}: unknown model file extension {ext or '(none)'!r}; supported extensions are {exts}")
     if format not in READERS:
         raise InputError(f"{path}: unknown model format {format!r}; supported formats are {', '.join(sorted(READERS))}")
     return format
@@ -176,7 +175,11 @@ def parse_float(path: str, line: int, token: str, what: str) -> float:
         raise fail(path, line, f"expected {what} (a number), got {token!r}")
     value = float(token)
     if not abs(value) <= validate.MAX_COORDINATE:
-        raise fail(path, line, f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see Limits in docs/scene-format.md)")
+        raise fail(
+            path,
+            line,
+            f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see Limits in docs/scene-format.md)",
+        )
     return value
 
 
@@ -260,14 +263,19 @@ def cut(path: str, line: int, which: str, surface: BSplineSurface, ranges, label
         tol = 1e-9 * max(1.0, abs(lo), abs(hi))
         if not (lo - tol <= a < b <= hi + tol):
             raise fail(
-                path, line,
+                path,
+                line,
                 f"{which}: the range {label} = [{a:g}, {b:g}] is not inside the knot domain [{lo:g}, {hi:g}]",
             )
         a, b = min(max(a, lo), hi), max(min(b, hi), lo)  # ends within tol past the domain: on its ends
         a, b = (lo if a - lo <= tol else a, hi if hi - b <= tol else b)
         if not a < b:
-            raise fail(path, line, f"{which}: the range {label} covers no part of the knot domain [{lo:g}, {hi:g}] "
-                       f"(it lies within {tol:g} of its end)")
+            raise fail(
+                path,
+                line,
+                f"{which}: the range {label} covers no part of the knot domain [{lo:g}, {hi:g}] "
+                f"(it lies within {tol:g} of its end)",
+            )
         clean.append((a, b))
     try:
         return restrict(surface, *clean)

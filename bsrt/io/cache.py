@@ -124,8 +124,14 @@ def entry_key(digest: bytes, path: str, format: str) -> bytes:
     from bsrt import __version__
 
     h = hashlib.sha256()
-    for part in (f"bsrt-model-cache {FORMAT_VERSION}", __version__, format, os.path.basename(path), _code_fingerprint(),
-                 _occt_fingerprint() if READERS[format].module == "occt" else ""):
+    for part in (
+        f"bsrt-model-cache {FORMAT_VERSION}",
+        __version__,
+        format,
+        os.path.basename(path),
+        _code_fingerprint(),
+        _occt_fingerprint() if READERS[format].module == "occt" else "",
+    ):
         data = part.encode("utf-8", "surrogateescape")
         h.update(len(data).to_bytes(8, "big") + data)
     h.update(digest)
@@ -245,8 +251,11 @@ def _store(entry: Path, key: bytes, model) -> None:
             temporary.unlink(missing_ok=True)
             raise
     except OSError as exc:
-        _note_once("write", f"cannot write to {where} ({exc.strerror or exc}); models are read without the cache "
-                   f"(set BSRT_CACHE_DIR to another folder, or use --no-cache)")
+        _note_once(
+            "write",
+            f"cannot write to {where} ({exc.strerror or exc}); models are read without the cache "
+            f"(set BSRT_CACHE_DIR to another folder, or use --no-cache)",
+        )
         return
     evict(where, max_bytes())
 

@@ -39,22 +39,49 @@ class Reader:
         return self.extra is None or importlib.util.find_spec(EXTRAS[self.extra]) is not None
 
 
-READERS: dict[str, Reader] = {r.name: r for r in (
-    Reader("bez", (".bez",), "Newell/Utah indexed Bezier patches (the Qt3D tea set)", "bez"),
-    Reader("bpt", (".bpt",), "Bezier patch text (Ryan Holmes' teapot, teacup, teaspoon)", "bpt"),
-    Reader("brep", (".brep", ".brp"), "OpenCASCADE BREP: trimmed faces of any surface, through OpenCASCADE",
-           "occt", extra="cad", cached=True),
-    Reader("g2", (".g2",), "GoTools / Splipy spline surfaces (class 200)", "g2"),
-    Reader("iges", (".igs", ".iges"), "IGES 5.3 (bsrt's own reader): NURBS 128, analytic 108/114/118/120/122 "
-           "and 190-198 as exact NURBS, trimmed 144/142, bounded 143/141, B-rep solids 186, subfigures 308/408", "iges", cached=True),
-    Reader("nurbs", (".nurbs",), "GLScene NURBS surface (VRML97 NurbsSurface fields)", "nurbs"),
-    Reader("obj", (".obj",), "Wavefront OBJ free-form surfaces (bezier, bspline, rational)", "obj"),
-    Reader("step", (".step", ".stp", ".p21"), "STEP AP203/AP214/AP242 B-reps and assemblies with colours, "
-           "through OpenCASCADE", "occt", extra="cad", cached=True),
-    Reader("occt", (".step", ".stp", ".p21", ".brep", ".brp", ".igs", ".iges"),
-           "STEP, BREP or IGES (by extension) through OpenCASCADE: IGES read by OpenCASCADE instead of bsrt",
-           "occt", extra="cad", cached=True, by_extension=False),
-)}
+READERS: dict[str, Reader] = {
+    r.name: r
+    for r in (
+        Reader("bez", (".bez",), "Newell/Utah indexed Bezier patches (the Qt3D tea set)", "bez"),
+        Reader("bpt", (".bpt",), "Bezier patch text (Ryan Holmes' teapot, teacup, teaspoon)", "bpt"),
+        Reader(
+            "brep",
+            (".brep", ".brp"),
+            "OpenCASCADE BREP: trimmed faces of any surface, through OpenCASCADE",
+            "occt",
+            extra="cad",
+            cached=True,
+        ),
+        Reader("g2", (".g2",), "GoTools / Splipy spline surfaces (class 200)", "g2"),
+        Reader(
+            "iges",
+            (".igs", ".iges"),
+            "IGES 5.3 (bsrt's own reader): NURBS 128, analytic 108/114/118/120/122 "
+            "and 190-198 as exact NURBS, trimmed 144/142, bounded 143/141, B-rep solids 186, subfigures 308/408",
+            "iges",
+            cached=True,
+        ),
+        Reader("nurbs", (".nurbs",), "GLScene NURBS surface (VRML97 NurbsSurface fields)", "nurbs"),
+        Reader("obj", (".obj",), "Wavefront OBJ free-form surfaces (bezier, bspline, rational)", "obj"),
+        Reader(
+            "step",
+            (".step", ".stp", ".p21"),
+            "STEP AP203/AP214/AP242 B-reps and assemblies with colours, through OpenCASCADE",
+            "occt",
+            extra="cad",
+            cached=True,
+        ),
+        Reader(
+            "occt",
+            (".step", ".stp", ".p21", ".brep", ".brp", ".igs", ".iges"),
+            "STEP, BREP or IGES (by extension) through OpenCASCADE: IGES read by OpenCASCADE instead of bsrt",
+            "occt",
+            extra="cad",
+            cached=True,
+            by_extension=False,
+        ),
+    )
+}
 
 #: extension -> the format read by default
 BY_EXTENSION: dict[str, str] = {ext: r.name for r in READERS.values() if r.by_extension for ext in r.extensions}

@@ -29,15 +29,42 @@ import numpy as np
 from bsrt.io import Model, Tokens, build_surface, fail, read_text
 
 _CLASS_NAMES = {
-    100: "spline curve", 110: "curve on surface", 120: "line", 130: "circle", 140: "ellipse",
-    150: "bounded curve", 160: "hyperbola", 170: "parabola", 200: "spline surface",
-    210: "bounded surface", 211: "surface on volume", 220: "barycentric polynomial surface",
-    230: "hierarchical B-spline surface", 240: "composite surface", 250: "plane", 260: "cylinder",
-    261: "surface of linear extrusion", 270: "sphere", 280: "cone", 290: "torus",
-    291: "surface of revolution", 292: "disc", 293: "LR-spline surface", 294: "T-spline surface",
-    300: "3ds object", 310: "triangulation", 320: "triangulation", 330: "quad mesh",
-    340: "hybrid mesh", 350: "parametric triangulation", 360: "VRML geometry", 400: "point cloud",
-    410: "line cloud", 500: "triangle sets", 510: "rectangular grid", 700: "spline volume",
+    100: "spline curve",
+    110: "curve on surface",
+    120: "line",
+    130: "circle",
+    140: "ellipse",
+    150: "bounded curve",
+    160: "hyperbola",
+    170: "parabola",
+    200: "spline surface",
+    210: "bounded surface",
+    211: "surface on volume",
+    220: "barycentric polynomial surface",
+    230: "hierarchical B-spline surface",
+    240: "composite surface",
+    250: "plane",
+    260: "cylinder",
+    261: "surface of linear extrusion",
+    270: "sphere",
+    280: "cone",
+    290: "torus",
+    291: "surface of revolution",
+    292: "disc",
+    293: "LR-spline surface",
+    294: "T-spline surface",
+    300: "3ds object",
+    310: "triangulation",
+    320: "triangulation",
+    330: "quad mesh",
+    340: "hybrid mesh",
+    350: "parametric triangulation",
+    360: "VRML geometry",
+    400: "point cloud",
+    410: "line cloud",
+    500: "triangle sets",
+    510: "rectangular grid",
+    700: "spline volume",
     710: "bounded volume",
 }
 
@@ -78,7 +105,12 @@ def _is_header_line(t: Tokens) -> bool:
     if t.pos > 0 and t.items[t.pos - 1][1] == line:
         return False
     head = [tok for tok, ln in t.items[t.pos : t.pos + 4] if ln == line]
-    return len(head) == 4 and (head[0].isascii() and head[0].isdigit()) and int(head[0]) in _CLASS_NAMES and head[1:3] == ["1", "0"]
+    return (
+        len(head) == 4
+        and (head[0].isascii() and head[0].isdigit())
+        and int(head[0]) in _CLASS_NAMES
+        and head[1:3] == ["1", "0"]
+    )
 
 
 def read(path: str) -> Model:

@@ -24,20 +24,26 @@ def describe(model: Model) -> str:
     degrees = Counter(s.degree for s in surfaces)
     lines.append("  degrees (u,v): " + ", ".join(f"({p},{q}) x {n}" for (p, q), n in degrees.most_common()))
     shapes = Counter(s.shape for s in surfaces)
-    lines.append("  control nets:  " + ", ".join(f"{a}x{b} x {n}" for (a, b), n in shapes.most_common(5))
-                 + (f", ... ({len(shapes)} kinds)" if len(shapes) > 5 else ""))
+    lines.append(
+        "  control nets:  "
+        + ", ".join(f"{a}x{b} x {n}" for (a, b), n in shapes.most_common(5))
+        + (f", ... ({len(shapes)} kinds)" if len(shapes) > 5 else "")
+    )
     lines.append(f"  rational:      {sum(s.is_rational for s in surfaces)}")
     if trimmed:
         per = Counter(len(s.trims) for s in trimmed)
-        lines.append("  trim loops:    " + ", ".join(f"{k} loop{'s' if k != 1 else ''} x {n}"
-                                                   for k, n in sorted(per.items())))
+        lines.append(
+            "  trim loops:    " + ", ".join(f"{k} loop{'s' if k != 1 else ''} x {n}" for k, n in sorted(per.items()))
+        )
     lines.append(f"  rendered untrimmed although trimmed in the file: {model.untrimmed}")
     if model.load is not None:
         lines.append(load_line([model.load]))
     pts = np.concatenate([s.points.reshape(-1, 3) for s in surfaces]) if surfaces else np.zeros((1, 3))
     lo, hi = pts.min(axis=0), pts.max(axis=0)
-    lines.append(f"  bounding box of the control points: min ({_xyz(lo)}), max ({_xyz(hi)}), "
-                 f"diagonal {np.linalg.norm(hi - lo):.6g}")
+    lines.append(
+        f"  bounding box of the control points: min ({_xyz(lo)}), max ({_xyz(hi)}), "
+        f"diagonal {np.linalg.norm(hi - lo):.6g}"
+    )
     if model.skipped:
         lines.append(f"  skipped (not drawable), {sum(model.skipped.values())} in all:")
         lines.extend(f"    {n:6d}  {what}" for what, n in sorted(model.skipped.items(), key=lambda kv: -kv[1]))

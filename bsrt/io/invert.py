@@ -51,8 +51,10 @@ def invert(surface: BSplineSurface, points: np.ndarray, x, y, size: float, itera
         x0, y0 = bx[ids], by[ids]
         held_x = ((x0 <= a0) & (dx < 0)) | ((x0 >= a1) & (dx > 0))
         held_y = ((y0 <= b0) & (dy < 0)) | ((y0 >= b1) & (dy > 0))
-        dx, dy = (np.where(held_x, 0.0, np.where(held_y, g0 / a, dx)),
-                  np.where(held_y, 0.0, np.where(held_x, g1 / c, dy)))
+        dx, dy = (
+            np.where(held_x, 0.0, np.where(held_y, g0 / a, dx)),
+            np.where(held_y, 0.0, np.where(held_x, g1 / c, dy)),
+        )
         x[ids] = np.clip(x0 + dx, a0, a1)
         y[ids] = np.clip(y0 + dy, b0, b1)
         return np.hypot(x[ids] - x0, y[ids] - y0) <= 1e-14 * scale
@@ -76,8 +78,13 @@ def invert(surface: BSplineSurface, points: np.ndarray, x, y, size: float, itera
         if idx.size == 0:
             continue
         best[idx], bx[idx], by[idx] = dist, x[idx], y[idx]
-        normal[:, idx] = np.einsum("ni,ni->n", su, su), np.einsum("ni,ni->n", su, sv), \
-            np.einsum("ni,ni->n", sv, sv), np.einsum("ni,ni->n", su, r), np.einsum("ni,ni->n", sv, r)
+        normal[:, idx] = (
+            np.einsum("ni,ni->n", su, su),
+            np.einsum("ni,ni->n", su, sv),
+            np.einsum("ni,ni->n", sv, sv),
+            np.einsum("ni,ni->n", su, r),
+            np.einsum("ni,ni->n", sv, r),
+        )
         done = step(idx) | (dist <= 1e-14 * size)
         mu[idx] = np.maximum(mu[idx] * 0.1, _DAMP)
         active[idx[done]] = False

@@ -82,13 +82,15 @@ def read(path: str) -> Model:
         line, knots = arrays[key]
         if knots.size != n + order:
             raise fail(
-                path, line,
+                path,
+                line,
                 f"{key} has {knots.size} values, expected {n + order} ({key[0]}Dimension + {key[0]}Order)",
             )
     line, coords = arrays["controlPoint"]
     if coords.size != 3 * nu * nv:
         raise fail(
-            path, line,
+            path,
+            line,
             f"controlPoint has {coords.size} numbers, expected {3 * nu * nv} (3 per point, {nu} x {nv} points)",
         )
     # u fastest in the file: (nv, nu, 3) -> points[i, j]

@@ -34,8 +34,28 @@ import numpy as np
 from bsrt.io import Model, bezier_knots, build_surface, cut, fail, parse_float, parse_int, read_text, split_lines
 
 _IGNORED = {
-    "vt", "vn", "vp", "bmat", "step", "con", "g", "o", "s", "mg", "usemtl", "mtllib", "lod", "bevel",
-    "c_interp", "d_interp", "shadow_obj", "trace_obj", "ctech", "stech", "usemap", "maplib",
+    "vt",
+    "vn",
+    "vp",
+    "bmat",
+    "step",
+    "con",
+    "g",
+    "o",
+    "s",
+    "mg",
+    "usemtl",
+    "mtllib",
+    "lod",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "shadow_obj",
+    "trace_obj",
+    "ctech",
+    "stech",
+    "usemap",
+    "maplib",
 }
 _TRIM = ("trim", "hole", "scrv", "sp")
 _TYPES = ("bmatrix", "bezier", "bspline", "cardinal", "taylor")
@@ -111,7 +131,8 @@ def read(path: str) -> Model:
         elif key == "surf":
             if body is not None or curve_line:
                 raise fail(
-                    path, line,
+                    path,
+                    line,
                     f"a new surf starts before the 'end' of the element on line {body.line if body else curve_line}",
                 )
             if cstype is None:
@@ -131,7 +152,8 @@ def read(path: str) -> Model:
         elif key in ("curv", "curv2"):
             if body is not None or curve_line:
                 raise fail(
-                    path, line,
+                    path,
+                    line,
                     f"a new {key} starts before the 'end' of the element on line {body.line if body else curve_line}",
                 )
             curve_line = line
@@ -165,7 +187,8 @@ def read(path: str) -> Model:
             unknown.add(key)
     if body is not None or curve_line:
         raise fail(
-            path, last,
+            path,
+            last,
             f"the file ends inside the element that starts on line {body.line if body else curve_line} (missing 'end')",
         )
     if not surfaces:
@@ -201,13 +224,15 @@ def _build(path: str, body: _Body, verts: list[list[float]], number: int):
     p, q = body.degree
     if nu < 1 or nv < 1 or nu * nv != len(body.refs):
         raise fail(
-            path, body.line,
+            path,
+            body.line,
             f"{which}: the surf lists {len(body.refs)} control vertices, but its parm and deg values call for "
             f"{max(nu, 0)} x {max(nv, 0)}",
         )
     if max(body.refs) >= len(verts):
         raise fail(
-            path, body.line,
+            path,
+            body.line,
             f"{which}: control vertex {max(body.refs) + 1} does not exist ({len(verts)} vertices)",
         )
     if body.kind == "bspline":

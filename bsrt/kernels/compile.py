@@ -16,13 +16,30 @@ import os
 from bsrt.kernels import flatten, patches, prelim, roots, shading, tables, traverse, trim, trim_pieces
 
 # the kernels called from Python (the rest are compiled as part of them)
-ENTRY_KERNELS = (roots.solve_items, traverse.trace_rays, patches.evaluate_many, patches.locate_many,
-                 flatten.count_leaves, flatten.flatten_patches, flatten.leaf_boxes, flatten.build_tree,
-                 tables.permute_rows, tables.power_coefficients,
-                 shading.frames_many, shading.blinn_phong,
-                 prelim.decode_tile, prelim.pixel_rays_into, prelim.normalise_rows, prelim.map_suspects,
-                 prelim.seeded_hits,
-                 trim._kept_many, trim._rect_states, trim.classify_grid, trim_pieces.bezier_spans, trim_pieces.monotone_pieces)
+ENTRY_KERNELS = (
+    roots.solve_items,
+    traverse.trace_rays,
+    patches.evaluate_many,
+    patches.locate_many,
+    flatten.count_leaves,
+    flatten.flatten_patches,
+    flatten.leaf_boxes,
+    flatten.build_tree,
+    tables.permute_rows,
+    tables.power_coefficients,
+    shading.frames_many,
+    shading.blinn_phong,
+    prelim.decode_tile,
+    prelim.pixel_rays_into,
+    prelim.normalise_rows,
+    prelim.map_suspects,
+    prelim.seeded_hits,
+    trim._kept_many,
+    trim._rect_states,
+    trim.classify_grid,
+    trim_pieces.bezier_spans,
+    trim_pieces.monotone_pieces,
+)
 
 
 def cache_folder() -> str | None:

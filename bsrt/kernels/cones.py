@@ -57,8 +57,12 @@ def binomials(n):
 
 # Explicit signatures: called with literal and variable component indices, numba would compile
 # one specialisation per kind of call site (tests/test_compile.py wants one per kernel).
-@njit("void(float64[:, :, ::1], int64, int64, int64, float64[:, :, ::1], int64, int64, int64, float64, "
-      "float64[:, :, ::1], int64, float64[:, ::1])", cache=True, no_cpython_wrapper=True)
+@njit(
+    "void(float64[:, :, ::1], int64, int64, int64, float64[:, :, ::1], int64, int64, int64, float64, "
+    "float64[:, :, ::1], int64, float64[:, ::1])",
+    cache=True,
+    no_cpython_wrapper=True,
+)
 def _mul_add(f, fc, fu, fv, g, gc, gu, gv, sign, out, oc, binom):
     """out[oc] += sign * f[fc] g[gc] (f of degree (fu, fv), g of degree (gu, gv)), Bernstein
     coefficients before the division by C(fu + gu, k) C(fv + gv, l) (the caller's, once)."""
@@ -84,8 +88,14 @@ def _normalise(out, c, du, dv, binom):
 def scratch(pm, qm):
     """Work arrays for normal_cone_within on nets of up to (pm, qm) points:
     (h, hu, hv (4, pm, qm), uv (6, 2 pm, 2 qm), nrm (3, 4 pm, 4 qm), binom)."""
-    return (np.empty((4, pm, qm)), np.empty((4, pm, qm)), np.empty((4, pm, qm)), np.empty((6, 2 * pm, 2 * qm)),
-            np.empty((3, 4 * pm, 4 * qm)), binomials(4 * max(pm, qm)))
+    return (
+        np.empty((4, pm, qm)),
+        np.empty((4, pm, qm)),
+        np.empty((4, pm, qm)),
+        np.empty((6, 2 * pm, 2 * qm)),
+        np.empty((3, 4 * pm, 4 * qm)),
+        binomials(4 * max(pm, qm)),
+    )
 
 
 @njit(cache=True, no_cpython_wrapper=True)

@@ -68,8 +68,12 @@ def measures(net, p, q):
     size = np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
     twist = 0.0
     for k in range(3):
-        twist += (net[0, 0, k] / net[0, 0, 3] - net[p, 0, k] / net[p, 0, 3] - net[0, q, k] / net[0, q, 3]
-                  + net[p, q, k] / net[p, q, 3]) ** 2
+        twist += (
+            net[0, 0, k] / net[0, 0, 3]
+            - net[p, 0, k] / net[p, 0, 3]
+            - net[0, q, k] / net[0, q, 3]
+            + net[p, q, k] / net[p, q, 3]
+        ) ** 2
     twist = 0.25 * np.sqrt(twist)
     if uneven:  # uneven weights bend the parametrisation even of a flat piece
         spread_u = spread_v = 0.0
@@ -91,8 +95,11 @@ def measures(net, p, q):
 
 # Explicit signatures: called with a literal axis (traverse) and a variable one (_cut), or a
 # literal fill/first and variable ones, numba would compile one specialisation per call site.
-@njit("void(float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], int64, int64, int64, float64[::1])",
-      cache=True, no_cpython_wrapper=True)
+@njit(
+    "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], int64, int64, int64, float64[::1])",
+    cache=True,
+    no_cpython_wrapper=True,
+)
 def split_half(src, lo, hi, p, q, axis, tmp):
     """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)
     into lo, hi; tmp: scratch of at least max(p, q) + 1 floats."""
@@ -122,8 +129,13 @@ def copy_net(src, dst, p, q):
 
 
 # (explicit signature: see split_half)
-@njit("int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, int64, boolean, float64[:, ::1], "
-      "int64[::1], float64[:, :, :, ::1], int64[::1])", cache=True, no_cpython_wrapper=True, nogil=True)
+@njit(
+    "int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, int64, boolean, float64[:, ::1], "
+    "int64[::1], float64[:, :, :, ::1], int64[::1])",
+    cache=True,
+    no_cpython_wrapper=True,
+    nogil=True,
+)
 def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_net, hist):
     """Cut one patch depth-first. Returns the leaf count.
 
@@ -196,8 +208,9 @@ def count_leaves(start, stop, nets, degree, rects, eps, bend, max_depth, counts)
     hist = np.empty(2 * (max_depth + 1), dtype=np.int64)
     for k in range(start, stop):
         hist[:] = 0
-        _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, dummy_r, dummy_d, dummy_n,
-             hist)
+        _cut(
+            nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, dummy_r, dummy_d, dummy_n, hist
+        )
         leaves = 0
         for d in range(max_depth + 1):
             leaves += hist[d]
@@ -205,8 +218,24 @@ def count_leaves(start, stop, nets, degree, rects, eps, bend, max_depth, counts)
 
 
 @njit(cache=True, nogil=True)
-def flatten_patches(start, stop, nets, degree, rects, eps, bend, max_depth, counts, starts, net_starts,
-                    patch, out_rect, out_depth, row, out_net):
+def flatten_patches(
+    start,
+    stop,
+    nets,
+    degree,
+    rects,
+    eps,
+    bend,
+    max_depth,
+    counts,
+    starts,
+    net_starts,
+    patch,
+    out_rect,
+    out_depth,
+    row,
+    out_net,
+):
     """Leaves of patches start..stop-1 into the caller's arrays (slices by threads.run_chunks).
 
     nets, degree, rects: as count_leaves; counts (P,) int64: each patch's
@@ -229,8 +258,20 @@ def flatten_patches(start, stop, nets, degree, rects, eps, bend, max_depth, coun
             out_depth[first] = 0
             row[first] = -1 - k
         else:
-            _cut(nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, True,
-                 out_rect[first:], out_depth[first:], out_net[net_starts[k]:], hist)
+            _cut(
+                nets[k],
+                degree[k, 0],
+                degree[k, 1],
+                rects[k],
+                eps,
+                bend,
+                max_depth,
+                True,
+                out_rect[first:],
+                out_depth[first:],
+                out_net[net_starts[k] :],
+                hist,
+            )
             for i in range(counts[k]):
                 row[first + i] = net_starts[k] + i
         for i in range(first, starts[k + 1]):
@@ -352,15 +393,22 @@ def build_tree(box_min, box_max, leaf_size):
                             j -= 1
                 else:
                     half = c // 2
-                    keys = centre[order[f:f + c], axis]
-                    order[f:f + c] = order[f:f + c][np.argsort(keys, kind="mergesort")]
+                    keys = centre[order[f : f + c], axis]
+                    order[f : f + c] = order[f : f + c][np.argsort(keys, kind="mergesort")]
             left[node], right[node] = made, made + 1
             first[made], count[made] = f, half
             first[made + 1], count[made + 1] = f + half, c - half
             made += 2
         node += 1
-    return (order, node_min[:made].copy(), node_max[:made].copy(), left[:made].copy(), right[:made].copy(),
-            first[:made].copy(), count[:made].copy())
+    return (
+        order,
+        node_min[:made].copy(),
+        node_max[:made].copy(),
+        left[:made].copy(),
+        right[:made].copy(),
+        first[:made].copy(),
+        count[:made].copy(),
+    )
 
 
 @njit(cache=True, nogil=True)

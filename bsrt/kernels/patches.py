@@ -103,8 +103,9 @@ def frame(P, k, u, v):
     du, dv = P.inv_size[k, 0], P.inv_size[k, 1]
     s = (u - P.bounds[k, 0]) * du
     t = (v - P.bounds[k, 2]) * dv
-    x, y, z, w, xs, ys, zs, ws, xt, yt, zt, wt = _horner(P.coef, P.coef_start[k], P.degree[k, 0], P.degree[k, 1],
-                                                       P.dim[k], s, t, True)
+    x, y, z, w, xs, ys, zs, ws, xt, yt, zt, wt = _horner(
+        P.coef, P.coef_start[k], P.degree[k, 0], P.degree[k, 1], P.dim[k], s, t, True
+    )
     x, y, z = x / w, y / w, z / w  # the quotient rule (w = 1, ws = wt = 0 for a polynomial patch)
     xs, ys, zs = (xs - x * ws) / w, (ys - y * ws) / w, (zs - z * ws) / w
     xt, yt, zt = (xt - x * wt) / w, (yt - y * wt) / w, (zt - z * wt) / w

@@ -14,8 +14,9 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def decode_tile(start, stop, tri, tri_dist, line, line_dist, float_map, domain, row0, col0,
-                surface, u, v, distance, picture):
+def decode_tile(
+    start, stop, tri, tri_dist, line, line_dist, float_map, domain, row0, col0, surface, u, v, distance, picture
+):
     """Merge the two passes of one tile and decode them into the map's arrays.
 
     tri, line: (h, w, 4) float32 (float map: r = index + 1, g, b in [0, 1])
@@ -59,8 +60,14 @@ def _decode(red, green, blue, float_map):
     if float_map:
         ident = np.int64(np.rint(np.float64(red))) - 1
         g, b = np.float64(green), np.float64(blue)
-        return (ident, g, b, np.uint8(min(max(ident + 1, 0), 255)), np.uint8(np.rint(g * 255)),
-                np.uint8(np.rint(b * 255)))
+        return (
+            ident,
+            g,
+            b,
+            np.uint8(min(max(ident + 1, 0), 255)),
+            np.uint8(np.rint(g * 255)),
+            np.uint8(np.rint(b * 255)),
+        )
     ident = np.int64(red) - 1
     return ident, np.float64(green) / 255.0, np.float64(blue) / 255.0, np.uint8(red), np.uint8(green), np.uint8(blue)
 
@@ -90,8 +97,26 @@ def normalise_rows(start, stop, d, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def map_suspects(start, stop, surface, distance, u, v, domain, hit, t, failed, fold_scale, layer_scale, tolerance,
-                 seam_ratio, seam_floor, suspect, layer, seam):
+def map_suspects(
+    start,
+    stop,
+    surface,
+    distance,
+    u,
+    v,
+    domain,
+    hit,
+    t,
+    failed,
+    fold_scale,
+    layer_scale,
+    tolerance,
+    seam_ratio,
+    seam_floor,
+    suspect,
+    layer,
+    seam,
+):
     """The suspect pixels k = i * W + j of a solved map (hard_pixels' module doc).
 
     surface: (H, W) int64; distance: (H, W) float64 (inf where empty, taken
@@ -124,11 +149,13 @@ def map_suspects(start, stop, surface, distance, u, v, domain, hit, t, failed, f
         if not odd and s >= 0:  # all 8 neighbours show s
             su, sv = 1.0 / (domain[s, 1] - domain[s, 0]), 1.0 / (domain[s, 3] - domain[s, 2])
             if 0 < i < h - 1:
-                seam[k] = _seam(u[i - 1, j], v[i - 1, j], u[i, j], v[i, j], u[i + 1, j], v[i + 1, j], su, sv,
-                                seam_ratio, seam_floor)
+                seam[k] = _seam(
+                    u[i - 1, j], v[i - 1, j], u[i, j], v[i, j], u[i + 1, j], v[i + 1, j], su, sv, seam_ratio, seam_floor
+                )
             if not seam[k] and 0 < j < w - 1:
-                seam[k] = _seam(u[i, j - 1], v[i, j - 1], u[i, j], v[i, j], u[i, j + 1], v[i, j + 1], su, sv,
-                                seam_ratio, seam_floor)
+                seam[k] = _seam(
+                    u[i, j - 1], v[i, j - 1], u[i, j], v[i, j], u[i, j + 1], v[i, j + 1], su, sv, seam_ratio, seam_floor
+                )
             odd = seam[k]
         suspect[k] = odd
         i, j = (i, j + 1) if j + 1 < w else (i + 1, 0)
@@ -164,8 +191,28 @@ def _kink(a, b, c, fold_scale):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def seeded_hits(start, stop, covered, converged, t, u, v, patch, residual, iterations, patch_surface,
-                hit_out, t_out, surface_out, patch_out, u_out, v_out, iterations_out, residual_out, failed):
+def seeded_hits(
+    start,
+    stop,
+    covered,
+    converged,
+    t,
+    u,
+    v,
+    patch,
+    residual,
+    iterations,
+    patch_surface,
+    hit_out,
+    t_out,
+    surface_out,
+    patch_out,
+    u_out,
+    v_out,
+    iterations_out,
+    residual_out,
+    failed,
+):
     """The hits of pixels start..stop-1 from the roots of their map seeds.
 
     covered: (M,) sorted pixel index of each root item; converged, t, u, v,

@@ -76,7 +76,7 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
     Returns (converged, u, v, patch, t, residual, iterations): the final
     parameters (in the domain), their patch, the distance along the ray and
     the ray-surface distance there.
-    
+
     (Long: one loop serves the three methods, which share the evaluation,
     the acceptance test and the clipping; it is inlined into its callers, so
     splitting it would cost nothing at run time but scatter one algorithm.)
@@ -193,8 +193,28 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
-def solve_items(start, stop, P, origin, direction, ray, surface, u0, v0, method, tolerance, max_iterations,
-                stop_on_growth, converged, u, v, patch, t, residual, iterations):
+def solve_items(
+    start,
+    stop,
+    P,
+    origin,
+    direction,
+    ray,
+    surface,
+    u0,
+    v0,
+    method,
+    tolerance,
+    max_iterations,
+    stop_on_growth,
+    converged,
+    u,
+    v,
+    patch,
+    t,
+    residual,
+    iterations,
+):
     """solve_one for items start..stop-1: item i is ray[i] (into origin, direction
     (N, 3), unit directions), surface[i], start (u0[i], v0[i]); results into
     the (M,) outputs. Called on slices by threads.run_chunks."""
@@ -202,7 +222,20 @@ def solve_items(start, stop, P, origin, direction, ray, surface, u0, v0, method,
     for i in range(start, stop):
         r = ray[i]
         ok, uu, vv, k, tt, res, its = solve_one(
-            P, surface[i], u0[i], v0[i], origin[r, 0], origin[r, 1], origin[r, 2],
-            direction[r, 0], direction[r, 1], direction[r, 2], method, tol2, max_iterations, stop_on_growth)
+            P,
+            surface[i],
+            u0[i],
+            v0[i],
+            origin[r, 0],
+            origin[r, 1],
+            origin[r, 2],
+            direction[r, 0],
+            direction[r, 1],
+            direction[r, 2],
+            method,
+            tol2,
+            max_iterations,
+            stop_on_growth,
+        )
         converged[i] = ok
         u[i], v[i], patch[i], t[i], residual[i], iterations[i] = uu, vv, k, tt, res, its

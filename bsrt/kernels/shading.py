@@ -52,8 +52,21 @@ def frames_many(start, stop, P, patch, u, v, towards, position, normal, speed):
 
 
 @njit(cache=True)
-def blinn_phong(position, normal, view, material, albedo, specular, shininess, kind, light_position, light_direction,
-                strength, visibility, out):
+def blinn_phong(
+    position,
+    normal,
+    view,
+    material,
+    albedo,
+    specular,
+    shininess,
+    kind,
+    light_position,
+    light_direction,
+    strength,
+    visibility,
+    out,
+):
     """Radiance toward the viewer at K points into out (K, 3).
 
     position, normal (unit, facing the viewer), view (unit, viewer to point):

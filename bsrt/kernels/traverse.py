@@ -37,8 +37,8 @@ import numpy as np
 from numba import njit
 
 from bsrt.kernels.flatten import copy_net, leaf_net, split_half
-from bsrt.kernels.patches import frame
 from bsrt.kernels.method_ids import NEWTON
+from bsrt.kernels.patches import frame
 from bsrt.kernels.roots import ray_frame, solve_one
 from bsrt.kernels.trim import point_kept
 
@@ -160,8 +160,34 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, max_iterations, retry_depth,
-                 cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv, nets, rects, depth, tmp):
+def _solve_piece(
+    P,
+    T,
+    B,
+    leaf,
+    ox,
+    oy,
+    oz,
+    dx,
+    dy,
+    dz,
+    e,
+    t_min,
+    t_max,
+    tol,
+    max_iterations,
+    retry_depth,
+    cull_tol,
+    ex_m,
+    ex_u,
+    ex_v,
+    ex_ru,
+    ex_rv,
+    nets,
+    rects,
+    depth,
+    tmp,
+):
     """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations).
 
     nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
@@ -169,8 +195,22 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
     m = B.leaf_surface[leaf]
     rect = B.leaf_rect[leaf]
     tol2 = tol * tol
-    ok, u, v, k, t, res, its = solve_one(P, m, 0.5 * (rect[0] + rect[1]), 0.5 * (rect[2] + rect[3]),
-                                         ox, oy, oz, dx, dy, dz, NEWTON, tol2, max_iterations, True)
+    ok, u, v, k, t, res, its = solve_one(
+        P,
+        m,
+        0.5 * (rect[0] + rect[1]),
+        0.5 * (rect[2] + rect[3]),
+        ox,
+        oy,
+        oz,
+        dx,
+        dy,
+        dz,
+        NEWTON,
+        tol2,
+        max_iterations,
+        True,
+    )
     iterations = its
     state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
     found = state == 1
@@ -206,8 +246,22 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
             if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
                 continue
             sr = rects[s]
-            ok, u, v, k, t, res, its = solve_one(P, m, 0.5 * (sr[0] + sr[1]), 0.5 * (sr[2] + sr[3]),
-                                                 ox, oy, oz, dx, dy, dz, NEWTON, tol2, max_iterations, True)
+            ok, u, v, k, t, res, its = solve_one(
+                P,
+                m,
+                0.5 * (sr[0] + sr[1]),
+                0.5 * (sr[2] + sr[3]),
+                ox,
+                oy,
+                oz,
+                dx,
+                dy,
+                dz,
+                NEWTON,
+                tol2,
+                max_iterations,
+                True,
+            )
             iterations += its
             state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
             again = True
@@ -229,15 +283,45 @@ def _solve_piece(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, t_max, tol, ma
         # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
         ok, u, v, k, t, res, its = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
         iterations += its
-        if res < best_res and abs(t - best_t) * cosine <= 4.0 * best_res and _root_in(
-                P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1:
+        if (
+            res < best_res
+            and abs(t - best_t) * cosine <= 4.0 * best_res
+            and _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1
+        ):
             best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
     return found, best_t, best_u, best_v, best_k, best_res, iterations
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations, any_hit, retry_depth, cull_tol,
-              ex_m, ex_u, ex_v, ex_ru, ex_rv, stack, stack_t, nets, rects, depth, tmp):
+def trace_one(
+    P,
+    T,
+    B,
+    ox,
+    oy,
+    oz,
+    dx,
+    dy,
+    dz,
+    t_min,
+    t_max,
+    tol,
+    max_iterations,
+    any_hit,
+    retry_depth,
+    cull_tol,
+    ex_m,
+    ex_u,
+    ex_v,
+    ex_ru,
+    ex_rv,
+    stack,
+    stack_t,
+    nets,
+    rects,
+    depth,
+    tmp,
+):
     """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations)."""
     e = ray_frame(dx, dy, dz)
     ix = 1.0 / dx if abs(dx) > 1e-300 else np.copysign(1e300, dx)
@@ -267,12 +351,50 @@ def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations
                 lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
                 if not (lo <= hi and hi >= t_min and lo <= t_max and lo < best_t):
                     continue
-                if not _straddles(leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf), B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e,
-                                  dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
+                if not _straddles(
+                    leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf),
+                    B.leaf_degree[leaf, 0],
+                    B.leaf_degree[leaf, 1],
+                    ox,
+                    oy,
+                    oz,
+                    e,
+                    dx,
+                    dy,
+                    dz,
+                    t_min,
+                    min(t_max, best_t),
+                    cull_tol,
+                ):
                     continue  # the piece's hull misses the ray: no root, no Newton
                 found, t, u, v, k, res, its = _solve_piece(
-                    P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_min, min(t_max, best_t), tol, max_iterations,
-                    retry_depth, cull_tol, ex_m, ex_u, ex_v, ex_ru, ex_rv, nets, rects, depth, tmp)
+                    P,
+                    T,
+                    B,
+                    leaf,
+                    ox,
+                    oy,
+                    oz,
+                    dx,
+                    dy,
+                    dz,
+                    e,
+                    t_min,
+                    min(t_max, best_t),
+                    tol,
+                    max_iterations,
+                    retry_depth,
+                    cull_tol,
+                    ex_m,
+                    ex_u,
+                    ex_v,
+                    ex_ru,
+                    ex_rv,
+                    nets,
+                    rects,
+                    depth,
+                    tmp,
+                )
                 iterations += its
                 if found and t < best_t:
                     best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
@@ -300,8 +422,30 @@ def trace_one(P, T, B, ox, oy, oz, dx, dy, dz, t_min, t_max, tol, max_iterations
 
 
 @njit(cache=True, nogil=True)
-def trace_rays(start, stop, P, T, B, origin, direction, t_min, t_max, tol, max_iterations, any_hit, retry_depth,
-               cull_tol, ex, hit, t, u, v, patch, residual, iterations):
+def trace_rays(
+    start,
+    stop,
+    P,
+    T,
+    B,
+    origin,
+    direction,
+    t_min,
+    t_max,
+    tol,
+    max_iterations,
+    any_hit,
+    retry_depth,
+    cull_tol,
+    ex,
+    hit,
+    t,
+    u,
+    v,
+    patch,
+    residual,
+    iterations,
+):
     """trace_one for rays start..stop-1 of origin, direction (N, 3) (unit directions),
     with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays);
     results into (N,) outputs. Called on slices by threads.run_chunks."""
@@ -315,7 +459,32 @@ def trace_rays(start, stop, P, T, B, origin, direction, t_min, t_max, tol, max_i
     tmp = np.empty(max(pm, qm))
     for i in range(start, stop):
         h, tt, uu, vv, k, res, its = trace_one(
-            P, T, B, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1], direction[i, 2],
-            t_min[i], t_max[i], tol, max_iterations, any_hit, retry_depth, cull_tol,
-            ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i], stack, stack_t, nets, rects, depth, tmp)
+            P,
+            T,
+            B,
+            origin[i, 0],
+            origin[i, 1],
+            origin[i, 2],
+            direction[i, 0],
+            direction[i, 1],
+            direction[i, 2],
+            t_min[i],
+            t_max[i],
+            tol,
+            max_iterations,
+            any_hit,
+            retry_depth,
+            cull_tol,
+            ex.surface[i],
+            ex.u[i],
+            ex.v[i],
+            ex.radius_u[i],
+            ex.radius_v[i],
+            stack,
+            stack_t,
+            nets,
+            rects,
+            depth,
+            tmp,
+        )
         hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its

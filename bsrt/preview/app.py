@@ -20,8 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from bsrt.scene.camera import Camera, orbit, pan, zoom
-from bsrt.scene.document import camera_toml
 from bsrt.errors import InputError, RenderError
 from bsrt.preview import script
 from bsrt.preview.bindings import BINDINGS, ORBIT_DEGREES_PER_PIXEL
@@ -29,6 +27,8 @@ from bsrt.preview.refine import MAP_BAND_PIXELS, Refinement
 from bsrt.preview.solver import Job, Solver
 from bsrt.preview.view import View
 from bsrt.preview.window import Window
+from bsrt.scene.camera import Camera, orbit, pan, zoom
+from bsrt.scene.document import camera_toml
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ class WindowOptions:
     frame_log: str | None = None
     commands: tuple = ()
 
-    def checked(self) -> "WindowOptions":
+    def checked(self) -> WindowOptions:
         for name in ("width", "height"):
             if getattr(self, name) < 1:
                 raise InputError(f"--{name}: must be at least 1, got {getattr(self, name)}")
@@ -112,8 +112,10 @@ class FrameLog:
     def write(self, path: Path, extra: dict) -> None:
         doc = dict(extra)
         doc["summary"] = self.summary()
-        doc["frames"] = [{"t": round(t, 6), "state": s, "ms": {k: round(v, 2) for k, v in w.items()}}
-                         for t, s, w in zip(self.times, self.states, self.work)]
+        doc["frames"] = [
+            {"t": round(t, 6), "state": s, "ms": {k: round(v, 2) for k, v in w.items()}}
+            for t, s, w in zip(self.times, self.states, self.work)
+        ]
         path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
 
 
@@ -290,8 +292,9 @@ class Preview:
         if self.method != "martin" or self.show_map:
             rows, count = self.refine.next_band(width, height)
             try:
-                part = render_map(self.geometry.patches, self.camera, width, height, self.map_mode,
-                                  ctx=self.window.ctx, rows=rows)
+                part = render_map(
+                    self.geometry.patches, self.camera, width, height, self.map_mode, ctx=self.window.ctx, rows=rows
+                )
             except (InputError, RenderError) as exc:
                 self.refine.fail(f"map: {exc}")
                 return
@@ -454,11 +457,18 @@ def run(scene, scene_path: Path, options: WindowOptions) -> int:
         if preview.window.handle is not None:
             preview.close()
     if options.frame_log:
-        preview.log.write(Path(options.frame_log), {
-            "scene": str(scene_path), "framebuffer": list(preview.fb_size), "levels": list(preview.refine.levels),
-            "max_fps": options.max_fps, "map_band_pixels": MAP_BAND_PIXELS, "gl_error": preview.gl_error,
-            "gl_objects_released": preview.released,
-            "gl_objects_left": len(preview.view.owned) if preview.view else 0,
-            "solver_swaps": preview.solver.swaps,
-        })
+        preview.log.write(
+            Path(options.frame_log),
+            {
+                "scene": str(scene_path),
+                "framebuffer": list(preview.fb_size),
+                "levels": list(preview.refine.levels),
+                "max_fps": options.max_fps,
+                "map_band_pixels": MAP_BAND_PIXELS,
+                "gl_error": preview.gl_error,
+                "gl_objects_released": preview.released,
+                "gl_objects_left": len(preview.view.owned) if preview.view else 0,
+                "solver_swaps": preview.solver.swaps,
+            },
+        )
     return 0

@@ -14,17 +14,23 @@ KEY_PAN_FRACTION = 0.05  # of the view height
 ZOOM_STEP = 0.9  # distance factor per wheel notch or '+' press
 
 BINDINGS = {
-    "q": ("quit",), "escape": ("quit",),
+    "q": ("quit",),
+    "escape": ("quit",),
     "m": ("toggle_map",),
     **{str(k): ("method", name) for k, name in enumerate(METHODS, start=1)},
     "s": ("save",),
     "c": ("print_camera",),
     "r": ("reset",),
-    "plus": ("zoom", ZOOM_STEP), "minus": ("zoom", 1.0 / ZOOM_STEP),
-    "left": ("orbit", -KEY_ORBIT_DEGREES, 0.0), "right": ("orbit", KEY_ORBIT_DEGREES, 0.0),
-    "up": ("orbit", 0.0, KEY_ORBIT_DEGREES), "down": ("orbit", 0.0, -KEY_ORBIT_DEGREES),
-    "shift+left": ("pan", -KEY_PAN_FRACTION, 0.0), "shift+right": ("pan", KEY_PAN_FRACTION, 0.0),
-    "shift+up": ("pan", 0.0, KEY_PAN_FRACTION), "shift+down": ("pan", 0.0, -KEY_PAN_FRACTION),
+    "plus": ("zoom", ZOOM_STEP),
+    "minus": ("zoom", 1.0 / ZOOM_STEP),
+    "left": ("orbit", -KEY_ORBIT_DEGREES, 0.0),
+    "right": ("orbit", KEY_ORBIT_DEGREES, 0.0),
+    "up": ("orbit", 0.0, KEY_ORBIT_DEGREES),
+    "down": ("orbit", 0.0, -KEY_ORBIT_DEGREES),
+    "shift+left": ("pan", -KEY_PAN_FRACTION, 0.0),
+    "shift+right": ("pan", KEY_PAN_FRACTION, 0.0),
+    "shift+up": ("pan", 0.0, KEY_PAN_FRACTION),
+    "shift+down": ("pan", 0.0, -KEY_PAN_FRACTION),
 }
 
 KEYS_HELP = """\

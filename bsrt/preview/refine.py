@@ -60,8 +60,9 @@ class Refinement:
     :meth:`accept`.
     """
 
-    def __init__(self, levels: tuple[int, ...] = LEVELS, settle: float = SETTLE_SECONDS,
-                 band_pixels: int = MAP_BAND_PIXELS):
+    def __init__(
+        self, levels: tuple[int, ...] = LEVELS, settle: float = SETTLE_SECONDS, band_pixels: int = MAP_BAND_PIXELS
+    ):
         self.levels, self.settle, self.band_pixels = tuple(levels), settle, band_pixels
         self.generation = 0
         self.last_change = -math.inf
@@ -98,7 +99,7 @@ class Refinement:
         return self.exact is not None
 
     def state(self, now: float, held: bool = False) -> str:
-        """"moving", "failed", "exact" or "refining" (the frame log's states)."""
+        """ "moving", "failed", "exact" or "refining" (the frame log's states)."""
         if self.moving(now, held):
             return "moving"
         if self.failed:

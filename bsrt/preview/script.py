@@ -11,11 +11,11 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from bsrt.scene.camera import orbit, pan, zoom
-from bsrt.scene.document import camera_toml
 from bsrt.errors import InputError, RenderError
 from bsrt.methods import METHODS
 from bsrt.preview.bindings import BINDINGS
+from bsrt.scene.camera import orbit, pan, zoom
+from bsrt.scene.document import camera_toml
 
 RESIZE_SECONDS = 5.0  # how long ``resize`` waits for the window to take the size
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bsrt.scene.camera import Camera
 from bsrt.errors import InputError, RenderError
 from bsrt.rendering.options import RenderOptions
+from bsrt.scene.camera import Camera
 
 SOLVER_NICENESS = 10  # os.nice of the solver processes: the window keeps its core
 STARTING, IDLE = -2, -1  # a worker's ``running`` value besides the generation it solves
@@ -77,8 +77,9 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     clock = time.perf_counter()
     outcome = Outcome(replace(job, prelim=None))
     try:
-        options = RenderOptions.resolve(scene, method=job.method, map=map_mode, width=job.width,
-                                        height=job.height, spp=1, camera=job.camera)
+        options = RenderOptions.resolve(
+            scene, method=job.method, map=map_mode, width=job.width, height=job.height, spp=1, camera=job.camera
+        )
         result = render(scene, options, geometry=geometry, ctx=_NoGLHere(), prelim=job.prelim, progress=progress)
         outcome.pixels = result.pixels
     except _Cancelled:
@@ -125,6 +126,8 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
         outcome = _solve(scene, map_mode, geometry, job, generation)
         running.value = IDLE
         outcomes.put(outcome)
+
+
 class _Worker:
     """One solver process, its queues and its state (main process side)."""
 
@@ -133,8 +136,10 @@ class _Worker:
         self.running = mp.Value("q", STARTING, lock=False)
         self.job: Job | None = None  # in flight: sent, its outcome not back yet
         self.process = mp.Process(
-            target=_solver_process, args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running),
-            name="bsrt-preview-solver", daemon=True,
+            target=_solver_process,
+            args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running),
+            name="bsrt-preview-solver",
+            daemon=True,
         )
         self.process.start()
         if hasattr(os, "setpriority"):  # from the start (its imports too): the window keeps its core
@@ -223,9 +228,14 @@ class Solver:
         self._generation.value = generation
         self._pending = collections.deque(j for j in self._pending if j.generation >= generation)
         active, spare = self.active, self.spare
-        if (active is not None and active.job is not None and active.job.generation < generation
-                and active.running.value == active.job.generation  # read whole and being solved
-                and spare is not None and spare.running.value == IDLE):
+        if (
+            active is not None
+            and active.job is not None
+            and active.job.generation < generation
+            and active.running.value == active.job.generation  # read whole and being solved
+            and spare is not None
+            and spare.running.value == IDLE
+        ):
             active.kill()
             self._dying.append(active)
             self.active, self.spare = spare, None

@@ -16,8 +16,8 @@ import moderngl
 import numpy as np
 
 from bsrt.rendering import gl
-from bsrt.scene.camera import Camera, clip_from_eye
 from bsrt.rendering.trim_gl import TrimTextures
+from bsrt.scene.camera import Camera, clip_from_eye
 
 MAX_LIGHTS = 8
 # The fast view's mesh is the map's tessellation for a film this fraction of
@@ -153,17 +153,24 @@ class View:
         self.trim_program = self.trim_vao = self.trims = None  # only for triangles that trim curves cross
         self.vbo = self._own(ctx.buffer(verts.tobytes()))
         self.ibo = self._own(ctx.buffer(tris.astype(np.uint32).tobytes()))
-        self.mesh_vao = self._own(ctx.vertex_array(
-            self.program, [(self.vbo, "3f 3f 3f 2f 12x", "position", "normal", "albedo", "gloss")],
-            index_buffer=self.ibo, index_element_size=4,
-        ))
+        self.mesh_vao = self._own(
+            ctx.vertex_array(
+                self.program,
+                [(self.vbo, "3f 3f 3f 2f 12x", "position", "normal", "albedo", "gloss")],
+                index_buffer=self.ibo,
+                index_element_size=4,
+            )
+        )
         if self.untested < self.triangles:
             self.trim_program = self._own(gl.load_program(ctx, "preview", ("TRIM_TEST",)))
-            self.trim_vao = self._own(ctx.vertex_array(
-                self.trim_program,
-                [(self.vbo, "3f 3f 3f 2f 2f 1f", "position", "normal", "albedo", "gloss", "param", "surface")],
-                index_buffer=self.ibo, index_element_size=4,
-            ))
+            self.trim_vao = self._own(
+                ctx.vertex_array(
+                    self.trim_program,
+                    [(self.vbo, "3f 3f 3f 2f 2f 1f", "position", "normal", "albedo", "gloss", "param", "surface")],
+                    index_buffer=self.ibo,
+                    index_element_size=4,
+                )
+            )
             self.trims = self._own(TrimTextures(ctx, geometry.patches.trims))  # units 1..7; the image is on 0
             self.trim_program["trim_grow"].value = TRIM_GROW_PIXELS
             self.trims.use(self.trim_program)
@@ -226,8 +233,10 @@ class View:
         ctx.clear(float(bg[0]), float(bg[1]), float(bg[2]), 1.0, depth=1.0)
         # the triangles inside their trim loops (or untrimmed) with the plain program, then those
         # that trim curves cross with the trim test
-        parts = [(self.program, self.mesh_vao, 0, self.untested),
-                 (self.trim_program, self.trim_vao, self.untested, self.triangles - self.untested)]
+        parts = [
+            (self.program, self.mesh_vao, 0, self.untested),
+            (self.trim_program, self.trim_vao, self.untested, self.triangles - self.untested),
+        ]
         for program, vao, first, count in parts:
             if count == 0:
                 continue

@@ -14,19 +14,36 @@ import sys
 
 import glfw
 
-from bsrt.rendering import gl
 from bsrt.errors import InputError, RenderError
+from bsrt.rendering import gl
 
 # glfw key -> the name the application binds (and the script's ``key NAME``).
 # Keys in REPEATING also act on auto-repeat; the others once per press.
 KEY_NAMES = {
-    glfw.KEY_LEFT: "left", glfw.KEY_RIGHT: "right", glfw.KEY_UP: "up", glfw.KEY_DOWN: "down",
-    glfw.KEY_KP_ADD: "plus", glfw.KEY_EQUAL: "plus", glfw.KEY_PAGE_UP: "plus",
-    glfw.KEY_KP_SUBTRACT: "minus", glfw.KEY_MINUS: "minus", glfw.KEY_PAGE_DOWN: "minus",
+    glfw.KEY_LEFT: "left",
+    glfw.KEY_RIGHT: "right",
+    glfw.KEY_UP: "up",
+    glfw.KEY_DOWN: "down",
+    glfw.KEY_KP_ADD: "plus",
+    glfw.KEY_EQUAL: "plus",
+    glfw.KEY_PAGE_UP: "plus",
+    glfw.KEY_KP_SUBTRACT: "minus",
+    glfw.KEY_MINUS: "minus",
+    glfw.KEY_PAGE_DOWN: "minus",
     glfw.KEY_ESCAPE: "escape",
-    glfw.KEY_M: "m", glfw.KEY_S: "s", glfw.KEY_C: "c", glfw.KEY_R: "r", glfw.KEY_Q: "q",
-    glfw.KEY_1: "1", glfw.KEY_2: "2", glfw.KEY_3: "3", glfw.KEY_4: "4",
-    glfw.KEY_KP_1: "1", glfw.KEY_KP_2: "2", glfw.KEY_KP_3: "3", glfw.KEY_KP_4: "4",
+    glfw.KEY_M: "m",
+    glfw.KEY_S: "s",
+    glfw.KEY_C: "c",
+    glfw.KEY_R: "r",
+    glfw.KEY_Q: "q",
+    glfw.KEY_1: "1",
+    glfw.KEY_2: "2",
+    glfw.KEY_3: "3",
+    glfw.KEY_4: "4",
+    glfw.KEY_KP_1: "1",
+    glfw.KEY_KP_2: "2",
+    glfw.KEY_KP_3: "3",
+    glfw.KEY_KP_4: "4",
 }
 REPEATING = {"left", "right", "up", "down", "plus", "minus", "escape"}
 SHIFTABLE = {"left", "right", "up", "down"}  # Shift+arrow is its own name: "shift+left"
@@ -76,11 +93,15 @@ class Window:
             self.handle = glfw.create_window(width, height, title, None, None)
         except glfw.GLFWError as exc:
             glfw.terminate()
-            raise RenderError(f"cannot open the preview window: {_glfw_message(exc)}; render without a window: "
-                              f"bsrt render {self.scene_path} -o out.png") from None
+            raise RenderError(
+                f"cannot open the preview window: {_glfw_message(exc)}; render without a window: "
+                f"bsrt render {self.scene_path} -o out.png"
+            ) from None
         if not self.handle:
             glfw.terminate()
-            raise RenderError(f"cannot open the preview window; render without a window: bsrt render {self.scene_path} -o out.png")
+            raise RenderError(
+                f"cannot open the preview window; render without a window: bsrt render {self.scene_path} -o out.png"
+            )
         glfw.make_context_current(self.handle)
         glfw.swap_interval(0)  # frames are paced by the application; a blocking swap would delay input
         try:

@@ -39,7 +39,9 @@ def scene_path(name: str) -> Path:
         return path
     bundled = Path("scenes") / f"{name}.toml"
     if not bundled.exists():
-        raise InputError(f"{name}: no such scene (looked for {bundled}; run bsrt bench from the repository root or give a path)")
+        raise InputError(
+            f"{name}: no such scene (looked for {bundled}; run bsrt bench from the repository root or give a path)"
+        )
     return bundled
 
 
@@ -57,7 +59,12 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
             builds.append(time.perf_counter() - clock)
         setup = statistics.median(builds)
         label = path.stem
-        entry = {"surfaces": len(scene.surfaces), "patches": geometry.patches.size, "setup_seconds": setup, "methods": {}}
+        entry = {
+            "surfaces": len(scene.surfaces),
+            "patches": geometry.patches.size,
+            "setup_seconds": setup,
+            "methods": {},
+        }
         order = sorted(methods, key=lambda m: m != REFERENCE_METHOD)
         options = {m: RenderOptions.resolve(scene, method=m, width=size, height=size) for m in order}
         for method in order:
@@ -70,7 +77,9 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
                 last[method] = render(scene, options[method], geometry=geometry)
                 runs[method].append((last[method].stats["seconds"], time.perf_counter() - clock))
         for method in order:
-            entry["methods"][method] = _row(method, runs[method], last[method], last.get(REFERENCE_METHOD), scene, geometry)
+            entry["methods"][method] = _row(
+                method, runs[method], last[method], last.get(REFERENCE_METHOD), scene, geometry
+            )
             med = entry["methods"][method]["seconds"]
             log(f"{label:12s} {method:9s} map+solve {med['map+solve']:7.3f} s  total {med['total']:7.3f} s")
         results["scenes"][label] = entry
@@ -116,11 +125,15 @@ def format_tables(results: dict) -> str:
     scenes = results["scenes"]
     methods = list(dict.fromkeys(m for e in scenes.values() for m in e["methods"]))
     base = "martin" if "martin" in methods else REFERENCE_METHOD  # the paper's Table 2 is in percent of martin
-    lines = [f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets)"]
+    lines = [
+        f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets)"
+    ]
     lines.append(f"{'scene':12s}" + "".join(f"{m:>20s}" for m in methods) + f"{'paper (grad/fast/martin)':>30s}")
     for name, e in scenes.items():
         cells = "".join(
-            f"{e['methods'][m]['seconds']['map+solve']:>10.3f} ({e['methods'][m]['seconds']['total']:6.3f})" if m in e["methods"] else f"{'-':>20s}"
+            f"{e['methods'][m]['seconds']['map+solve']:>10.3f} ({e['methods'][m]['seconds']['total']:6.3f})"
+            if m in e["methods"]
+            else f"{'-':>20s}"
             for m in methods
         )
         paper = PAPER.get(name)
@@ -133,13 +146,20 @@ def format_tables(results: dict) -> str:
         ref = e["methods"].get(base)
         if not ref:
             continue
-        cells = "".join(f"{_percent(e['methods'][m], ref):>11.0f}%" if m in e["methods"] else f"{'-':>12s}"
-                        for m in methods)
+        cells = "".join(
+            f"{_percent(e['methods'][m], ref):>11.0f}%" if m in e["methods"] else f"{'-':>12s}" for m in methods
+        )
         paper = PAPER.get(name)
-        ptxt = f"{100 * paper['gradient'] / paper['martin']:.0f}% / {100 * paper['fast'] / paper['martin']:.0f}%" if paper else "-"
+        ptxt = (
+            f"{100 * paper['gradient'] / paper['martin']:.0f}% / {100 * paper['fast'] / paper['martin']:.0f}%"
+            if paper
+            else "-"
+        )
         lines.append(f"{name:12s}{cells}{ptxt:>20s}")
     lines.append("")
-    lines.append("Per method: iterations per pixel, hits, map-covered, non-converged, suspect, repaired; disagreements with newton (hit/surface/t)")
+    lines.append(
+        "Per method: iterations per pixel, hits, map-covered, non-converged, suspect, repaired; disagreements with newton (hit/surface/t)"
+    )
     for name, e in scenes.items():
         for m, row in e["methods"].items():
             dis = row.get("disagree")
@@ -163,8 +183,10 @@ def format_full(results: dict) -> str:
     "whole" is what one ``bsrt render`` of a loaded scene costs: the set-up
     (patch table and hierarchy, measured once) plus the median render.
     """
-    lines = [f"Whole renders, {results['size']}x{results['size']}, seconds (median of {results['repeat']}); "
-             "shade includes secondary (shadow and mirror rays)"]
+    lines = [
+        f"Whole renders, {results['size']}x{results['size']}, seconds (median of {results['repeat']}); "
+        "shade includes secondary (shadow and mirror rays)"
+    ]
     head = ("scene", "method", "setup", "map", "solve", "shade", "secondary", "render", "whole", "sec. rays/s")
     lines.append(f"{head[0]:12s}{head[1]:>9s}" + "".join(f"{h:>11s}" for h in head[2:]))
     for name, e in results["scenes"].items():
@@ -172,8 +194,15 @@ def format_full(results: dict) -> str:
             sec = row["seconds"]
             rays = row["shadow_rays"] + row["reflection_rays"]
             rate = rays / sec["secondary"] if sec.get("secondary") else 0.0
-            cells = (e["setup_seconds"], sec["map"], sec["solve"], sec["shade"], sec.get("secondary", 0.0),
-                     sec["total"], e["setup_seconds"] + sec["total"])
+            cells = (
+                e["setup_seconds"],
+                sec["map"],
+                sec["solve"],
+                sec["shade"],
+                sec.get("secondary", 0.0),
+                sec["total"],
+                e["setup_seconds"] + sec["total"],
+            )
             lines.append(f"{name:12s}{m:>9s}" + "".join(f"{c:>11.3f}" for c in cells) + f"{rate:>11.3g}")
     return "\n".join(lines)
 
@@ -192,8 +221,10 @@ def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
     for path in paths:
         model = load_model(path)
         scene = scene_for_model(model, size, size)
-        bare = replace(scene, surfaces=tuple(SceneSurface(replace(s.geometry, trims=()), s.material, s.name)
-                                             for s in scene.surfaces))
+        bare = replace(
+            scene,
+            surfaces=tuple(SceneSurface(replace(s.geometry, trims=()), s.material, s.name) for s in scene.surfaces),
+        )
         row = {"trimmed_surfaces": sum(s.geometry.is_trimmed for s in scene.surfaces)}
         for label, sc in (("trimmed", scene), ("untrimmed", bare)):
             options = RenderOptions.resolve(sc)
@@ -206,6 +237,8 @@ def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
             row[label] = statistics.median(times)
         row["ratio"] = row["trimmed"] / row["untrimmed"]
         out[Path(path).name] = row
-        log(f"{Path(path).name:24s} trimmed {row['trimmed']:6.3f} s  trims ignored {row['untrimmed']:6.3f} s  "
-            f"ratio {row['ratio']:.2f}  ({row['trimmed_surfaces']} trimmed surfaces)")
+        log(
+            f"{Path(path).name:24s} trimmed {row['trimmed']:6.3f} s  trims ignored {row['untrimmed']:6.3f} s  "
+            f"ratio {row['ratio']:.2f}  ({row['trimmed_surfaces']} trimmed surfaces)"
+        )
     return out

@@ -100,13 +100,13 @@ from functools import cached_property
 
 import numpy as np
 
-from bsrt.rendering.hits import Hits
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.flatten import build_tree, count_leaves, flatten_patches, leaf_boxes
 from bsrt.kernels.tables import permute_rows
-from bsrt.kernels.trim import OUTSIDE, rect_states
 from bsrt.kernels.threads import run_chunks
 from bsrt.kernels.traverse import BVHArrays, Exclusion, trace_rays
+from bsrt.kernels.trim import OUTSIDE, rect_states
+from bsrt.rendering.hits import Hits
 from bsrt.rendering.solve import Rays
 
 DEFAULT_FLATNESS = 2e-3
@@ -191,10 +191,17 @@ class BVH:
     def arrays(self) -> BVHArrays:
         return BVHArrays(
             node_bounds=np.ascontiguousarray(np.concatenate([self.node_min, self.node_max], axis=1)),
-            node_left=self.node_left, node_right=self.node_right, node_first=self.node_first,
-            node_count=self.node_count, leaf_surface=self.leaf_surface, leaf_rect=self.leaf_rect,
-            leaf_obb=self.leaf_obb, patch_net=self.patch_net, leaf_net=self.leaf_net,
-            leaf_net_row=self.leaf_net_row, leaf_degree=self.leaf_degree,
+            node_left=self.node_left,
+            node_right=self.node_right,
+            node_first=self.node_first,
+            node_count=self.node_count,
+            leaf_surface=self.leaf_surface,
+            leaf_rect=self.leaf_rect,
+            leaf_obb=self.leaf_obb,
+            patch_net=self.patch_net,
+            leaf_net=self.leaf_net,
+            leaf_net_row=self.leaf_net_row,
+            leaf_degree=self.leaf_degree,
             leaf_planar=self.leaf_planar,
         )
 
@@ -233,8 +240,19 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
     per_leaf = int(np.prod(nets.shape[1:]))
     allowance = max(LEAF_NET_FLOATS, LEAVES_PER_PATCH * per_leaf * n)
     by_depth = np.zeros((n, max_depth + 1), dtype=np.int64)
-    run_chunks(count_leaves, n, nets, degree, patches.bounds, eps, BEND, max_depth, by_depth,
-               min_chunk=PATCH_CHUNK, per_worker=PATCH_SLICES)
+    run_chunks(
+        count_leaves,
+        n,
+        nets,
+        degree,
+        patches.bounds,
+        eps,
+        BEND,
+        max_depth,
+        by_depth,
+        min_chunk=PATCH_CHUNK,
+        per_worker=PATCH_SLICES,
+    )
     copied = np.where(by_depth > 1, by_depth, 0).sum(axis=0)  # (max_depth + 1,): a whole patch keeps its net
     while max_depth > 0 and int(copied[max_depth]) * per_leaf > allowance:
         max_depth -= 1
@@ -248,8 +266,26 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
     patch, rect = np.empty(total, dtype=np.int64), np.empty((total, 4))
     depth, row = np.empty(total, dtype=np.int64), np.empty(total, dtype=np.int64)
     piece_nets = np.zeros((int(net_starts[n]),) + nets.shape[1:])
-    run_chunks(flatten_patches, n, nets, degree, patches.bounds, eps, BEND, max_depth, counts, starts, net_starts,
-               patch, rect, depth, row, piece_nets, min_chunk=PATCH_CHUNK, per_worker=PATCH_SLICES)
+    run_chunks(
+        flatten_patches,
+        n,
+        nets,
+        degree,
+        patches.bounds,
+        eps,
+        BEND,
+        max_depth,
+        counts,
+        starts,
+        net_starts,
+        patch,
+        rect,
+        depth,
+        row,
+        piece_nets,
+        min_chunk=PATCH_CHUNK,
+        per_worker=PATCH_SLICES,
+    )
     return patch, rect, depth, degree[patch], (nets, piece_nets, row)
 
 
@@ -276,7 +312,10 @@ def build_bvh(
         padding = 1e-8 * diag
     patch, rect, depth, degree, (patch_net, piece_net, row) = flatten(patches, flatness, max_depth)
     if patches.trimmed:  # pieces the trims remove entirely hold no hit (their nets stay, unused)
-        keep = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3]) != OUTSIDE
+        keep = (
+            rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3])
+            != OUTSIDE
+        )
         patch, rect, depth, degree, row = patch[keep], rect[keep], depth[keep], degree[keep], row[keep]
     box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
     run_chunks(leaf_boxes, patch.size, patch_net, piece_net, row, degree, float(padding), box_min, box_max, obb)
@@ -354,9 +393,30 @@ def intersect(
     else:
         ex = Exclusion(*(np.require(a, dt, ("C", "W")) for a, dt in zip(exclude, (np.int64,) + (np.float64,) * 4)))
     iterations = np.zeros(n, dtype=np.int64)
-    run_chunks(trace_rays, n, bvh.patches.arrays, bvh.patches.trims, bvh.arrays, rays.origin, rays.direction, t_min, t_max,
-               float(tolerance), int(max_iterations), bool(any_hit), int(retry_depth), bvh.padding + float(tolerance),
-               ex, hits.hit, hits.t, hits.u, hits.v, hits.patch, hits.residual, iterations)
+    run_chunks(
+        trace_rays,
+        n,
+        bvh.patches.arrays,
+        bvh.patches.trims,
+        bvh.arrays,
+        rays.origin,
+        rays.direction,
+        t_min,
+        t_max,
+        float(tolerance),
+        int(max_iterations),
+        bool(any_hit),
+        int(retry_depth),
+        bvh.padding + float(tolerance),
+        ex,
+        hits.hit,
+        hits.t,
+        hits.u,
+        hits.v,
+        hits.patch,
+        hits.residual,
+        iterations,
+    )
     miss = ~hits.hit
     hits.t[miss], hits.u[miss], hits.v[miss], hits.residual[miss], hits.patch[miss] = np.nan, np.nan, np.nan, np.nan, -1
     hits.surface[hits.hit] = bvh.patches.surface[hits.patch[hits.hit]]

@@ -45,7 +45,9 @@ def egl_devices() -> list[str]:
     string_ptr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
     if not query_ptr or not string_ptr:
         return []
-    query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int))(query_ptr)
+    query = ctypes.CFUNCTYPE(
+        ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int)
+    )(query_ptr)
     device_string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(string_ptr)
     count = ctypes.c_int(0)
     if not query(0, None, ctypes.byref(count)) or count.value <= 0:
@@ -117,14 +119,16 @@ def shader_source(name: str) -> str:
         out, at = [], 0
         for match in _INCLUDE.finditer(text):
             filename = match.group(1)
-            out.append(text[at:match.start()])
+            out.append(text[at : match.start()])
             at = match.end()
             if filename in included:
                 continue
             included.append(filename)
             line_after = text.count("\n", 0, match.end()) + 2  # GLSL numbers lines from 1
-            out.append(f"#line 1 {len(included)}\n{expand(_shader_file(filename), len(included))}\n"
-                       f"#line {line_after - 1} {string}")
+            out.append(
+                f"#line 1 {len(included)}\n{expand(_shader_file(filename), len(included))}\n"
+                f"#line {line_after - 1} {string}"
+            )
         out.append(text[at:])
         return "".join(out)
 

@@ -38,11 +38,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.rendering.hits import Hits, keep_nearest
 from bsrt.kernels.prelim import map_suspects
 from bsrt.kernels.threads import run_chunks
-from bsrt.rendering.prelim import PrelimMap
 from bsrt.methods import REFERENCE_METHOD
+from bsrt.rendering.hits import Hits, keep_nearest
+from bsrt.rendering.prelim import PrelimMap
 from bsrt.rendering.solve import Rays, find_roots
 
 # A root farther than this many pixel footprints from the map's rasterised
@@ -57,13 +57,20 @@ FOLD_PIXELS = 4.0
 # when longer by SEAM_QUANTA times the map's resolution of (u, v).
 SEAM_RATIO = 4.0
 SEAM_QUANTA = 4.0
-MAP_QUANTUM = {"float": 2.0 ** -22, "rgba8": 1.0 / 255.0}  # the map's (u, v) step (float32: a few ulps below 1)
+MAP_QUANTUM = {"float": 2.0**-22, "rgba8": 1.0 / 255.0}  # the map's (u, v) step (float32: a few ulps below 1)
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
 REPAIR_ITERATIONS = 16
 
 
-def suspect_pixels(prelim: PrelimMap, hits: Hits, failed: np.ndarray, footprint: float, tolerance: float,
-                   domain: np.ndarray, quantum: float = MAP_QUANTUM["float"]):
+def suspect_pixels(
+    prelim: PrelimMap,
+    hits: Hits,
+    failed: np.ndarray,
+    footprint: float,
+    tolerance: float,
+    domain: np.ndarray,
+    quantum: float = MAP_QUANTUM["float"],
+):
     """The suspect pixels (the module doc) of a solved map.
 
     failed: (N,) bool, covered pixels whose own start gave no valid root.
@@ -74,11 +81,26 @@ def suspect_pixels(prelim: PrelimMap, hits: Hits, failed: np.ndarray, footprint:
     """
     n = len(hits)
     suspect, layer, seam = np.empty(n, dtype=bool), np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-    run_chunks(map_suspects, n, np.ascontiguousarray(prelim.surface), np.ascontiguousarray(prelim.distance),
-               np.ascontiguousarray(prelim.u), np.ascontiguousarray(prelim.v),
-               np.ascontiguousarray(domain, dtype=np.float64), hits.hit, hits.t,
-               np.ascontiguousarray(failed, dtype=bool), FOLD_PIXELS * footprint, LAYER_SLACK_PIXELS * footprint,
-               float(tolerance), SEAM_RATIO, SEAM_QUANTA * float(quantum), suspect, layer, seam)
+    run_chunks(
+        map_suspects,
+        n,
+        np.ascontiguousarray(prelim.surface),
+        np.ascontiguousarray(prelim.distance),
+        np.ascontiguousarray(prelim.u),
+        np.ascontiguousarray(prelim.v),
+        np.ascontiguousarray(domain, dtype=np.float64),
+        hits.hit,
+        hits.t,
+        np.ascontiguousarray(failed, dtype=bool),
+        FOLD_PIXELS * footprint,
+        LAYER_SLACK_PIXELS * footprint,
+        float(tolerance),
+        SEAM_RATIO,
+        SEAM_QUANTA * float(quantum),
+        suspect,
+        layer,
+        seam,
+    )
     return suspect, layer, seam
 
 
@@ -99,8 +121,14 @@ def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfac
         solved = hits.hit[src]
         surf = np.where(solved, hits.surface[src], seed_surface[src])
         keep = surf >= 0
-        parts.append((suspects[inside][keep], surf[keep], np.where(solved, hits.u[src], seed_u[src])[keep],
-                      np.where(solved, hits.v[src], seed_v[src])[keep]))
+        parts.append(
+            (
+                suspects[inside][keep],
+                surf[keep],
+                np.where(solved, hits.u[src], seed_u[src])[keep],
+                np.where(solved, hits.v[src], seed_v[src])[keep],
+            )
+        )
     pixel, surface, u, v = (np.concatenate(x) for x in zip(*parts))
     # the first (nearest) start per (pixel, surface): a second layer of the same
     # surface (a fold) is the hierarchy's job
@@ -108,8 +136,16 @@ def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfac
     return pixel[first], surface[first], u[first], v[first]
 
 
-def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float,
-           max_iterations: int, footprint: float) -> np.ndarray:
+def repair(
+    geometry,
+    rays: Rays,
+    prelim: PrelimMap,
+    hits: Hits,
+    suspects: np.ndarray,
+    tolerance: float,
+    max_iterations: int,
+    footprint: float,
+) -> np.ndarray:
     """Re-solve the suspect pixels (N,) (sorted), then the neighbours of those that had a farther layer.
 
     Each round is _repair_once. A pixel whose repair replaced its hit by one
@@ -132,16 +168,19 @@ def repair(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.nda
         if not layer.size:
             break
         row, col = np.divmod(layer, w)
-        grown = [(r * w + c)[(r >= 0) & (r < h) & (c >= 0) & (c < w)]
-                 for r, c in ((row + di, col + dj) for di, dj in NEIGHBOURS)]
+        grown = [
+            (r * w + c)[(r >= 0) & (r < h) & (c >= 0) & (c < w)]
+            for r, c in ((row + di, col + dj) for di, dj in NEIGHBOURS)
+        ]
         front = np.unique(np.concatenate(grown))
         front = front[~visited[front]]
         visited[front] = True
     return np.flatnonzero(visited)
 
 
-def _repair_once(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float,
-                 max_iterations: int) -> None:
+def _repair_once(
+    geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float, max_iterations: int
+) -> None:
     """Re-solve the suspect pixels (N,) (sorted) from their neighbours' starts, then with the hierarchy.
 
     The nearest valid root of all wins, so a pixel is wrong only if both the
@@ -152,8 +191,18 @@ def _repair_once(geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: 
     patches = geometry.patches
     pixel, surface, u, v = neighbour_starts(prelim, hits, suspects, len(patches.surfaces))
     # Newton from a pixel away converges in a few steps or not at all.
-    res = find_roots(patches, rays, pixel, surface, u, v, method=REFERENCE_METHOD, tolerance=tolerance,
-                     max_iterations=min(max_iterations, REPAIR_ITERATIONS), stop_on_growth=True)
+    res = find_roots(
+        patches,
+        rays,
+        pixel,
+        surface,
+        u,
+        v,
+        method=REFERENCE_METHOD,
+        tolerance=tolerance,
+        max_iterations=min(max_iterations, REPAIR_ITERATIONS),
+        stop_on_growth=True,
+    )
     spent = np.bincount(np.searchsorted(suspects, pixel), weights=res.iterations, minlength=suspects.size)
     hits.iterations[suspects] += spent.astype(np.int32)  # every start's evaluations, on its pixel
     keep_nearest(hits, pixel, res.as_hits(patches))

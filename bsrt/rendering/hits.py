@@ -30,7 +30,7 @@ class Hits:
     residual: np.ndarray
 
     @classmethod
-    def empty(cls, n: int) -> "Hits":
+    def empty(cls, n: int) -> Hits:
         nan = np.full(n, np.nan)
         return cls(
             hit=np.zeros(n, dtype=bool),
@@ -48,17 +48,17 @@ class Hits:
 
     FIELDS = ("hit", "t", "surface", "patch", "u", "v", "iterations", "residual")
 
-    def take(self, index) -> "Hits":
+    def take(self, index) -> Hits:
         """The rays at ``index`` (a slice or an index array)."""
         return Hits(*(getattr(self, name)[index] for name in self.FIELDS))
 
-    def put(self, index, other: "Hits") -> None:
+    def put(self, index, other: Hits) -> None:
         """Store ``other``'s records at ``index`` (a slice or an index array)."""
         for name in self.FIELDS:
             getattr(self, name)[index] = getattr(other, name)
 
     @classmethod
-    def concatenate(cls, parts: list["Hits"]) -> "Hits":
+    def concatenate(cls, parts: list[Hits]) -> Hits:
         return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
 
 

@@ -13,8 +13,12 @@ from bsrt.errors import InputError
 from bsrt.outputs import write_file
 
 #: extension -> (Pillow's format name, its options): what RenderResult.save writes
-IMAGE_FORMATS = {".png": ("PNG", {}), ".jpg": ("JPEG", {"quality": 95}), ".jpeg": ("JPEG", {"quality": 95}),
-                 ".webp": ("WEBP", {"lossless": True})}
+IMAGE_FORMATS = {
+    ".png": ("PNG", {}),
+    ".jpg": ("JPEG", {"quality": 95}),
+    ".jpeg": ("JPEG", {"quality": 95}),
+    ".webp": ("WEBP", {"lossless": True}),
+}
 
 
 def srgb_encode(linear: np.ndarray) -> np.ndarray:
@@ -46,8 +50,10 @@ def write_image(path, pixels: np.ndarray) -> None:
 
     ext = Path(path).suffix.lower()
     if ext not in IMAGE_FORMATS:
-        raise InputError(f"{path}: cannot tell the image format from {ext or 'no extension'!r}; use one of "
-                         f"{', '.join(IMAGE_FORMATS)}")
+        raise InputError(
+            f"{path}: cannot tell the image format from {ext or 'no extension'!r}; use one of "
+            f"{', '.join(IMAGE_FORMATS)}"
+        )
     name, options = IMAGE_FORMATS[ext]
     write_file(path, lambda f: Image.fromarray(pixels, "RGB").save(f, format=name, **options))
 

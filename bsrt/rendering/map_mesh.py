@@ -55,8 +55,9 @@ def tessellate(patches: PatchSet, segments: np.ndarray, eye: np.ndarray):
     return np.concatenate(verts), np.concatenate([t for t, _ in tris]).astype(np.uint32)
 
 
-def _grids(patches: PatchSet, segments: np.ndarray, eye: np.ndarray, camera: Camera | None = None,
-           footprint: float = 0.0):
+def _grids(
+    patches: PatchSet, segments: np.ndarray, eye: np.ndarray, camera: Camera | None = None, footprint: float = 0.0
+):
     """tessellate()'s pieces, surface by surface: (vertex blocks [(V_m, 6) float32],
     [(triangles (T_m, 3) int64 indices into the concatenated blocks, mixed (T_m,)
     bool: the triangle's cell is MIXED, trim curves may cross it)], reach).
@@ -107,8 +108,12 @@ def _grids(patches: PatchSet, segments: np.ndarray, eye: np.ndarray, camera: Cam
             corners = np.unique(quad[mixed])
             chord = _chord_bound(patches.bend[mine], n_u, n_v).max()
             at.append((S.T[corners], Su.T[corners], Sv.T[corners], np.full(corners.size, chord)))
-            cells.append((count + np.flatnonzero(np.concatenate([mixed, mixed])),
-                          len_at + np.searchsorted(corners, np.concatenate([quad[mixed], quad[mixed]]))))
+            cells.append(
+                (
+                    count + np.flatnonzero(np.concatenate([mixed, mixed])),
+                    len_at + np.searchsorted(corners, np.concatenate([quad[mixed], quad[mixed]])),
+                )
+            )
             len_at += corners.size
         count += 2 * quad.shape[0]
         base += u.size
@@ -135,11 +140,12 @@ def _chord_bound(bend: np.ndarray, n_u: int, n_v: int) -> np.ndarray:
     (segments_per_patch's formula: the distance of a triangle point from S at the
     same interpolated (u, v))."""
     m_uu, m_vv, m_uv = bend.T
-    return (m_uu / n_u ** 2 + 2.0 * m_uv / (n_u * n_v) + m_vv / n_v ** 2) / 8.0
+    return (m_uu / n_u**2 + 2.0 * m_uv / (n_u * n_v) + m_vv / n_v**2) / 8.0
 
 
-def _param_per_pixel(camera: Camera, footprint: float, S: np.ndarray, Su: np.ndarray, Sv: np.ndarray,
-                     chord) -> np.ndarray:
+def _param_per_pixel(
+    camera: Camera, footprint: float, S: np.ndarray, Su: np.ndarray, Sv: np.ndarray, chord
+) -> np.ndarray:
     """(N, 2) float64: how far (u, v) may be from the true hit's, along u and v, at a map
     fragment drawn near the surface point S (N, 3) with derivatives Su, Sv (N, 3), on a
     tessellation whose chord error is at most chord (scalar or (N,)); NaN where the
@@ -204,8 +210,17 @@ def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
     bands of one map, and repeated renders of one view, share it): the
     _MapMesh of tessellate()'s triangles, the cells that trim curves cross
     split off (with TRIM_MAP) to be drawn with the trim test."""
-    key = (tuple(camera.eye), tuple(camera.look_at), tuple(camera.up), camera.fov, camera.fov_axis, width, height,
-           TRIM_MAP, SUB_PIXELS)
+    key = (
+        tuple(camera.eye),
+        tuple(camera.look_at),
+        tuple(camera.up),
+        camera.fov,
+        camera.fov_axis,
+        width,
+        height,
+        TRIM_MAP,
+        SUB_PIXELS,
+    )
     cached = patches.derived.get("tessellation")
     if cached is None or cached[0] != key:
         patches.derived["tessellation"] = cached = (key, _MapMesh(patches, camera, width, height, TRIM_MAP))
@@ -238,8 +253,13 @@ class _MapMesh:
 
     def __init__(self, patches: PatchSet, camera: Camera, width: int, height: int, trim_map: bool):
         footprint = pixel_footprint(camera, width, height)
-        verts, tris, reach = _grids(patches, segments_per_patch(patches, camera, width, height), camera.eye,
-                                    camera if trim_map and patches.trimmed else None, footprint)
+        verts, tris, reach = _grids(
+            patches,
+            segments_per_patch(patches, camera, width, height),
+            camera.eye,
+            camera if trim_map and patches.trimmed else None,
+            footprint,
+        )
         vertices = np.concatenate(verts)
         indices = np.concatenate([t for t, _ in tris])
         tested = np.concatenate([mixed for _, mixed in tris])
@@ -248,9 +268,15 @@ class _MapMesh:
         else:
             tested &= np.isfinite(reach).all(axis=1)
         plain = indices[~tested]
-        sub, sub_surface, sub_reach, test = _cut(patches.trims, camera, footprint, vertices, indices[tested],
-                                                 reach[tested] if reach is not None else np.zeros((0, 2)),
-                                                 patches.domain)
+        sub, sub_surface, sub_reach, test = _cut(
+            patches.trims,
+            camera,
+            footprint,
+            vertices,
+            indices[tested],
+            reach[tested] if reach is not None else np.zeros((0, 2)),
+            patches.domain,
+        )
         keep = sub[~test]  # (I, 3, 7) drawn plainly, three vertices each
         extra = np.empty((keep.shape[0] * 3, 6), dtype=np.float32)
         extra[:, :5] = keep[:, :, :5].reshape(-1, 5)
@@ -268,7 +294,8 @@ class _MapMesh:
         self.tested = rows.reshape(3 * k, 10)
         first = np.arange(k, dtype=np.uint32) * 3
         self.tested_edges = np.ascontiguousarray(
-            np.stack([first, first + 1, first + 1, first + 2, first + 2, first], axis=1))
+            np.stack([first, first + 1, first + 1, first + 2, first + 2, first], axis=1)
+        )
 
 
 # The map's triangles that trim curves cross are halved (into 4) until their
@@ -280,8 +307,15 @@ MAX_HALVINGS = 10
 SMALL = 2.0  # a piece near a curve is drawn plainly once its (u, v) box is within SMALL x the reach
 
 
-def _cut(table, camera: Camera, footprint: float, vertices: np.ndarray, tris: np.ndarray, reach: np.ndarray,
-         domain: np.ndarray):
+def _cut(
+    table,
+    camera: Camera,
+    footprint: float,
+    vertices: np.ndarray,
+    tris: np.ndarray,
+    reach: np.ndarray,
+    domain: np.ndarray,
+):
     """The pieces of the map's triangles tris (K, 3) (indices into vertices (V, 6),
     tessellate()'s rows) with reach (K, 2): each triangle is cut into four at its
     edges' midpoints, in its plane (the points, positions and (u, v) the GPU
@@ -301,16 +335,28 @@ def _cut(table, camera: Camera, footprint: float, vertices: np.ndarray, tris: np
     corner = vertices[tris].astype(np.float64)  # (K, 3, 6)
     surface = np.rint(corner[:, 0, 5]).astype(np.int64) - 1
     d = domain[surface]
-    data = np.concatenate([corner[:, :, :5], (d[:, None, 0] + (d[:, None, 1] - d[:, None, 0]) * corner[:, :, 3])[..., None],
-                           (d[:, None, 2] + (d[:, None, 3] - d[:, None, 2]) * corner[:, :, 4])[..., None]], axis=2)
+    data = np.concatenate(
+        [
+            corner[:, :, :5],
+            (d[:, None, 0] + (d[:, None, 1] - d[:, None, 0]) * corner[:, :, 3])[..., None],
+            (d[:, None, 2] + (d[:, None, 3] - d[:, None, 2]) * corner[:, :, 4])[..., None],
+        ],
+        axis=2,
+    )
     r, up, f = camera.basis()
     done = []  # (pieces, surface, reach, test)
     for halving in range(MAX_HALVINGS + 1):
         if not data.shape[0]:
             break
         lo, hi = data[:, :, 5:7].min(axis=1), data[:, :, 5:7].max(axis=1)
-        grown = rect_states(table, surface, lo[:, 0] - reach[:, 0], hi[:, 0] + reach[:, 0],
-                            lo[:, 1] - reach[:, 1], hi[:, 1] + reach[:, 1])
+        grown = rect_states(
+            table,
+            surface,
+            lo[:, 0] - reach[:, 0],
+            hi[:, 0] + reach[:, 0],
+            lo[:, 1] - reach[:, 1],
+            hi[:, 1] + reach[:, 1],
+        )
         plain = (grown == INSIDE) | ((grown == MIXED) & ((hi - lo) <= SMALL * reach).all(axis=1))
         ask = np.flatnonzero((grown == MIXED) & ~plain)  # near a curve and larger than the reach: is the box inside?
         plain[ask] = rect_states(table, surface[ask], lo[ask, 0], hi[ask, 0], lo[ask, 1], hi[ask, 1]) == INSIDE
@@ -326,8 +372,11 @@ def _cut(table, camera: Camera, footprint: float, vertices: np.ndarray, tris: np
         split = undecided & ~final
         data = _quarters(data[split])
         surface, reach = np.repeat(surface[split], 4), np.repeat(reach[split], 4, axis=0)
-    parts = list(zip(*done)) if done else [[np.zeros((0, 3, 7))], [np.zeros(0, dtype=np.int64)], [np.zeros((0, 2))],
-                                           [np.zeros(0, dtype=bool)]]
+    parts = (
+        list(zip(*done))
+        if done
+        else [[np.zeros((0, 3, 7))], [np.zeros(0, dtype=np.int64)], [np.zeros((0, 2))], [np.zeros(0, dtype=bool)]]
+    )
     return tuple(np.concatenate(p) for p in parts)
 
 
@@ -336,5 +385,6 @@ def _quarters(tris: np.ndarray) -> np.ndarray:
     it) cut into four at its edges' midpoints, a triangle's four in a row."""
     a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
     ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
-    return np.stack([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))],
-                    axis=1).reshape(-1, 3, tris.shape[2])
+    return np.stack(
+        [np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))], axis=1
+    ).reshape(-1, 3, tris.shape[2])

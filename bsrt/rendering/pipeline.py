@@ -16,17 +16,17 @@ from functools import cached_property
 
 import numpy as np
 
+from bsrt.geometry.patches import PatchSet
 from bsrt.rendering.bvh import build_bvh, intersect
-from bsrt.scene.camera import pixel_rays
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.image import srgb_encode
-from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.prelim import PrelimMap
-from bsrt.scene import Scene
 from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.prelim import PrelimMap
 from bsrt.rendering.shade import facing_frames, light_directions, shade
 from bsrt.rendering.stats import Stats
 from bsrt.rendering.trace import make_primary_tracer
+from bsrt.scene import Scene
+from bsrt.scene.camera import pixel_rays
 
 MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
 SECONDARY_CHUNK = 1 << 16  # secondary rays per kernel call: progress and cancellation points
@@ -49,7 +49,7 @@ class RenderResult:
     prelim: PrelimMap | None
     stats: dict
     options: RenderOptions
-    geometry: "Geometry"
+    geometry: Geometry
 
     @cached_property
     def _frames(self):
@@ -69,8 +69,10 @@ class RenderResult:
         h, w = self.pixels.shape[:2]
         hit = int(np.count_nonzero(self.hits.hit))
         took = f", {sum(self.stats.get('seconds', {}).values()):.2f} s"
-        return (f"<RenderResult {w}x{h}, {self.options.spp} spp, {self.options.method}, {hit} of {w * h} pixel rays "
-                f"hit{took}>")
+        return (
+            f"<RenderResult {w}x{h}, {self.options.spp} spp, {self.options.method}, {hit} of {w * h} pixel rays "
+            f"hit{took}>"
+        )
 
     def to_pil(self):
         """The image as a ``PIL.Image.Image`` (RGB, 8-bit sRGB)."""
@@ -217,9 +219,12 @@ def render(
     report("done", 1.0)
     hits = primary
     work = hits.iterations[hits.iterations > 0]
-    stats.fields.update(pixels=width * height, hits=int(hits.hit.sum()),
-                        iterations_mean=float(work.mean()) if work.size else 0.0,
-                        iterations_max=int(hits.iterations.max()))
+    stats.fields.update(
+        pixels=width * height,
+        hits=int(hits.hit.sum()),
+        iterations_mean=float(work.mean()) if work.size else 0.0,
+        iterations_max=int(hits.iterations.max()),
+    )
     return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
 
 
@@ -291,9 +296,17 @@ class _Shader:
         with self.stats.timer("secondary"):
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
-                parts.append(self.geometry.intersect(origins[part], directions[part], t_min=0.0, t_max=t_max[part],
-                                                     tolerance=self.tolerance, any_hit=any_hit,
-                                                     exclude=tuple(x[part] for x in exclude)))
+                parts.append(
+                    self.geometry.intersect(
+                        origins[part],
+                        directions[part],
+                        t_min=0.0,
+                        t_max=t_max[part],
+                        tolerance=self.tolerance,
+                        any_hit=any_hit,
+                        exclude=tuple(x[part] for x in exclude),
+                    )
+                )
                 self.traced += part.stop - part.start
                 self.shown = max(self.shown, lo + (hi - lo) * min(0.99, self.traced / self.expected))
                 self.report("shade", self.shown)
@@ -310,7 +323,8 @@ class _Shader:
             if not facing.size:
                 continue
             self.stats.add("shadow_rays", facing.size)
-            blocked = self._trace(position[facing], to_light[facing], tuple(a[facing] for a in exclude),
-                                  t_max=dist[facing], any_hit=True)
+            blocked = self._trace(
+                position[facing], to_light[facing], tuple(a[facing] for a in exclude), t_max=dist[facing], any_hit=True
+            )
             visibility[facing[blocked.hit], index] = 0.0
         return visibility

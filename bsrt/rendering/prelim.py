@@ -22,15 +22,15 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from bsrt.rendering import gl
-from bsrt.scene.camera import Camera, clip_from_eye
 from bsrt.errors import InputError, RenderError
+from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.prelim import decode_tile
 from bsrt.kernels.threads import run_chunks
-from bsrt.geometry.patches import PatchSet
-from bsrt.settings import MAP_MODES
+from bsrt.rendering import gl
 from bsrt.rendering.map_mesh import _tessellation, depth_range, far_distance
 from bsrt.rendering.trim_gl import TrimTextures
+from bsrt.scene.camera import Camera, clip_from_eye
+from bsrt.settings import MAP_MODES
 
 TILE: int | None = None  # largest framebuffer side drawn at once; None: the GL context's limit
 
@@ -52,13 +52,21 @@ class PrelimMap:
     distance: np.ndarray
     picture: np.ndarray
 
-    def rows(self, first: int, stop: int) -> "PrelimMap":
+    def rows(self, first: int, stop: int) -> PrelimMap:
         """The map of film rows first..stop-1 (views, not copies)."""
         return PrelimMap(*(a[first:stop] for a in (self.surface, self.u, self.v, self.distance, self.picture)))
 
 
-def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode: str = "float", ctx=None,
-               rows=None, tile: int | None = None) -> PrelimMap:
+def render_map(
+    patches: PatchSet,
+    camera: Camera,
+    width: int,
+    height: int,
+    mode: str = "float",
+    ctx=None,
+    rows=None,
+    tile: int | None = None,
+) -> PrelimMap:
     """Rasterise the preliminary map for a width x height film.
 
     mode: "float" (32-bit channels) or "rgba8" (the paper's 8-bit map, at
@@ -74,7 +82,7 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
     if mode == "rgba8" and len(patches.surfaces) > 255:
         raise InputError(
             f"map: the 8-bit map (rgba8) holds at most 255 surfaces in its red channel, "
-            f"the scene has {len(patches.surfaces)}; use map = \"float\""
+            f'the scene has {len(patches.surfaces)}; use map = "float"'
         )
     ctx = ctx or gl.headless_context()
     with ctx:  # current on this thread for the duration (another context may be current)
@@ -84,8 +92,11 @@ def render_map(patches: PatchSet, camera: Camera, width: int, height: int, mode:
 def tiles(first: int, stop: int, width: int, side: int):
     """The (rows, columns) ranges, each (start, stop), that cover film rows
     first..stop-1 and all width columns in tiles of at most side x side."""
-    return [((r, min(stop, r + side)), (c, min(width, c + side)))
-            for r in range(first, stop, side) for c in range(0, width, side)]
+    return [
+        ((r, min(stop, r + side)), (c, min(width, c + side)))
+        for r in range(first, stop, side)
+        for c in range(0, width, side)
+    ]
 
 
 def window(matrix: np.ndarray, columns: tuple[int, int], width: int) -> np.ndarray:
@@ -112,8 +123,13 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
         prog["inv_far"].value = 1.0 / far_distance(patches, camera)
     first, stop = rows if rows is not None else (0, height)
     shape = (stop - first, width)
-    out = PrelimMap(np.empty(shape, dtype=np.int64), np.empty(shape), np.empty(shape), np.empty(shape),
-                    np.empty(shape + (3,), dtype=np.uint8))
+    out = PrelimMap(
+        np.empty(shape, dtype=np.int64),
+        np.empty(shape),
+        np.empty(shape),
+        np.empty(shape),
+        np.empty(shape + (3,), dtype=np.uint8),
+    )
     domain = np.ascontiguousarray(patches.domain, dtype=np.float64)
     dtype = "f4" if mode == "float" else "f1"
     resources = []
@@ -123,8 +139,10 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
             vbo = ctx.buffer(mesh.vertices)
             resources.insert(0, vbo)
             layout = [(vbo, "3f 2f 1f", "position", "uv", "surface_id")]
-            for index, primitive, target in ((mesh.indices, moderngl.TRIANGLES, "tri"),
-                                             (mesh.edges, moderngl.LINES, "line")):
+            for index, primitive, target in (
+                (mesh.indices, moderngl.TRIANGLES, "tri"),
+                (mesh.edges, moderngl.LINES, "line"),
+            ):
                 ibo = ctx.buffer(index)
                 resources.insert(0, ibo)
                 resources.insert(0, ctx.vertex_array(program, layout, index_buffer=ibo, index_element_size=4))
@@ -164,8 +182,23 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
             passes.tri.read()
             passes.line.read()
             tri, line = passes.tri, passes.line
-            run_chunks(decode_tile, size[0] * size[1], tri.raw, tri.distance, line.raw, line.distance, mode == "float",
-                       domain, r0 - first, c0, out.surface, out.u, out.v, out.distance, out.picture)
+            run_chunks(
+                decode_tile,
+                size[0] * size[1],
+                tri.raw,
+                tri.distance,
+                line.raw,
+                line.distance,
+                mode == "float",
+                domain,
+                r0 - first,
+                c0,
+                out.surface,
+                out.u,
+                out.v,
+                out.distance,
+                out.picture,
+            )
         error = ctx.error
         if error != "GL_NO_ERROR":
             raise RenderError(f"OpenGL reported {error} while rendering the preliminary map")
@@ -183,7 +216,7 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
 KEEP_PIXELS = 512 * 512
 
 
-def _passes(ctx, size, dtype, resources) -> "_Passes":
+def _passes(ctx, size, dtype, resources) -> _Passes:
     """The two passes' framebuffers for a tile of size (w, h): kept on ctx
     (gl.keep) when small enough, else made here and appended to resources
     (released by the caller)."""
@@ -218,8 +251,11 @@ class _Target:
     def __init__(self, ctx, size, dtype):
         self.size, self.dtype, self.parts = size, dtype, []
         try:
-            for make in (lambda: ctx.texture(size, 4, dtype=dtype), lambda: ctx.texture(size, 1, dtype="f4"),
-                         lambda: ctx.depth_renderbuffer(size)):
+            for make in (
+                lambda: ctx.texture(size, 4, dtype=dtype),
+                lambda: ctx.texture(size, 1, dtype="f4"),
+                lambda: ctx.depth_renderbuffer(size),
+            ):
                 self.parts.append(make())
             color, dist, depth = self.parts
             self.fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)

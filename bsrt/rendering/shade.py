@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.rendering.hits import Hits
+from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.shading import LIGHT_KINDS, blinn_phong, frames_many
 from bsrt.kernels.threads import run_chunks
-from bsrt.geometry.patches import PatchSet
+from bsrt.rendering.hits import Hits
 from bsrt.scene import Scene
 
 
@@ -26,8 +26,18 @@ def facing_frames(patches: PatchSet, hits: Hits, directions: np.ndarray):
     hit = np.flatnonzero(hits.hit)
     if hit.size:
         pos, nrm, spd = np.empty((hit.size, 3)), np.empty((hit.size, 3)), np.empty((hit.size, 2))
-        run_chunks(frames_many, hit.size, patches.arrays, hits.patch[hit], hits.u[hit], hits.v[hit],
-                    np.ascontiguousarray(directions[hit], dtype=np.float64), pos, nrm, spd)
+        run_chunks(
+            frames_many,
+            hit.size,
+            patches.arrays,
+            hits.patch[hit],
+            hits.u[hit],
+            hits.v[hit],
+            np.ascontiguousarray(directions[hit], dtype=np.float64),
+            pos,
+            nrm,
+            spd,
+        )
         position[hit], normal[hit], speed[hit] = pos, nrm, spd
     return position, normal, speed
 
@@ -42,8 +52,14 @@ def light_directions(light, position: np.ndarray):
     return np.broadcast_to(-d / np.linalg.norm(d), position.shape), np.full(position.shape[0], np.inf)
 
 
-def shade(scene: Scene, position: np.ndarray, normal: np.ndarray, view: np.ndarray, material: np.ndarray,
-          visibility: np.ndarray | None = None) -> np.ndarray:
+def shade(
+    scene: Scene,
+    position: np.ndarray,
+    normal: np.ndarray,
+    view: np.ndarray,
+    material: np.ndarray,
+    visibility: np.ndarray | None = None,
+) -> np.ndarray:
     """Blinn-Phong radiance toward the viewer.
 
     position, normal: (K, 3) (normal unit, facing the viewer); view: (K, 3)
@@ -64,9 +80,19 @@ def shade(scene: Scene, position: np.ndarray, normal: np.ndarray, view: np.ndarr
         visibility = np.ones((k, len(lights)))
     out = np.empty((k, 3))
     mats = scene.materials
-    blinn_phong(np.ascontiguousarray(position, dtype=np.float64), np.ascontiguousarray(normal, dtype=np.float64),
-                np.ascontiguousarray(view, dtype=np.float64), np.ascontiguousarray(material, dtype=np.int64),
-                np.array([m.color for m in mats], dtype=np.float64), np.array([m.specular for m in mats], dtype=np.float64),
-                np.array([m.shininess for m in mats], dtype=np.float64), kind, light_pos, light_dir, strength,
-                np.ascontiguousarray(visibility, dtype=np.float64), out)
+    blinn_phong(
+        np.ascontiguousarray(position, dtype=np.float64),
+        np.ascontiguousarray(normal, dtype=np.float64),
+        np.ascontiguousarray(view, dtype=np.float64),
+        np.ascontiguousarray(material, dtype=np.int64),
+        np.array([m.color for m in mats], dtype=np.float64),
+        np.array([m.specular for m in mats], dtype=np.float64),
+        np.array([m.shininess for m in mats], dtype=np.float64),
+        kind,
+        light_pos,
+        light_dir,
+        strength,
+        np.ascontiguousarray(visibility, dtype=np.float64),
+        out,
+    )
     return out

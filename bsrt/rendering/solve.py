@@ -11,13 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.rendering.hits import Hits
+from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.prelim import normalise_rows
 from bsrt.kernels.roots import solve_items
 from bsrt.kernels.threads import run_chunks
 from bsrt.kernels.trim import kept_many
 from bsrt.methods import METHODS, REFERENCE_METHOD
-from bsrt.geometry.patches import PatchSet
+from bsrt.rendering.hits import Hits
 
 
 @dataclass
@@ -28,7 +28,7 @@ class Rays:
     direction: np.ndarray
 
     @classmethod
-    def from_arrays(cls, origins: np.ndarray, directions: np.ndarray) -> "Rays":
+    def from_arrays(cls, origins: np.ndarray, directions: np.ndarray) -> Rays:
         """origins: (N, 3) or (1, 3) (broadcast); directions: (N, 3), normalised here."""
         d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
         unit = np.empty_like(d)
@@ -65,14 +65,20 @@ class RootResult:
     residual: np.ndarray
     iterations: np.ndarray
 
-
     def as_hits(self, patches: PatchSet) -> Hits:
         """The items as hit candidates: a hit where converged (and kept) with t > 0."""
         hit = self.converged & (self.t > 0)
         nan = np.where(hit, 0.0, np.nan)
-        return Hits(hit=hit, t=self.t + nan, surface=np.where(hit, patches.surface[self.patch], -1),
-                    patch=np.where(hit, self.patch, -1), u=self.u + nan, v=self.v + nan,
-                    iterations=self.iterations, residual=self.residual + nan)
+        return Hits(
+            hit=hit,
+            t=self.t + nan,
+            surface=np.where(hit, patches.surface[self.patch], -1),
+            patch=np.where(hit, self.patch, -1),
+            u=self.u + nan,
+            v=self.v + nan,
+            iterations=self.iterations,
+            residual=self.residual + nan,
+        )
 
 
 def find_roots(
@@ -100,16 +106,38 @@ def find_roots(
         raise ValueError(f"not a seeded method: {method!r}")
     m = np.shape(ray)[0]
     out = RootResult(
-        converged=np.zeros(m, dtype=bool), trimmed=np.zeros(m, dtype=bool), u=np.empty(m), v=np.empty(m),
-        patch=np.empty(m, dtype=np.int64), t=np.empty(m), residual=np.empty(m), iterations=np.zeros(m, dtype=np.int32),
+        converged=np.zeros(m, dtype=bool),
+        trimmed=np.zeros(m, dtype=bool),
+        u=np.empty(m),
+        v=np.empty(m),
+        patch=np.empty(m, dtype=np.int64),
+        t=np.empty(m),
+        residual=np.empty(m),
+        iterations=np.zeros(m, dtype=np.int32),
     )
     if m == 0:
         return out
     run_chunks(
-        solve_items, m, patches.arrays, rays.origin, rays.direction, np.ascontiguousarray(ray, dtype=np.int64),
-        np.ascontiguousarray(surface, dtype=np.int64), np.ascontiguousarray(u, dtype=np.float64),
-        np.ascontiguousarray(v, dtype=np.float64), kernel_id, float(tolerance), int(max_iterations),
-        bool(stop_on_growth), out.converged, out.u, out.v, out.patch, out.t, out.residual, out.iterations,
+        solve_items,
+        m,
+        patches.arrays,
+        rays.origin,
+        rays.direction,
+        np.ascontiguousarray(ray, dtype=np.int64),
+        np.ascontiguousarray(surface, dtype=np.int64),
+        np.ascontiguousarray(u, dtype=np.float64),
+        np.ascontiguousarray(v, dtype=np.float64),
+        kernel_id,
+        float(tolerance),
+        int(max_iterations),
+        bool(stop_on_growth),
+        out.converged,
+        out.u,
+        out.v,
+        out.patch,
+        out.t,
+        out.residual,
+        out.iterations,
     )
     if patches.trimmed:
         done = np.flatnonzero(out.converged)

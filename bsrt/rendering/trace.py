@@ -15,16 +15,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.rendering import hard_pixels
-from bsrt.scene.camera import pixel_footprint, pixel_rays
-from bsrt.methods import METHODS
-from bsrt.rendering.hits import Hits
-from bsrt.rendering.prelim import PrelimMap, render_map
-from bsrt.rendering.options import RenderOptions
 from bsrt.kernels.prelim import seeded_hits
 from bsrt.kernels.threads import run_chunks
+from bsrt.methods import METHODS
+from bsrt.rendering import hard_pixels
+from bsrt.rendering.hits import Hits
+from bsrt.rendering.options import RenderOptions
+from bsrt.rendering.prelim import PrelimMap, render_map
 from bsrt.rendering.solve import Rays, RootResult, find_roots
 from bsrt.rendering.stats import Stats
+from bsrt.scene.camera import pixel_footprint, pixel_rays
 
 
 class HierarchyTracer:
@@ -57,8 +57,7 @@ class MapTracer:
         _count_repairs(stats)
         stats.add("covered_by_map", 0)
 
-    def trace(self, width: int, height: int, rows: tuple[int, int], prelim: PrelimMap | None = None,
-              done: float = 0.0):
+    def trace(self, width: int, height: int, rows: tuple[int, int], prelim: PrelimMap | None = None, done: float = 0.0):
         """As HierarchyTracer.trace. The map is rasterised (and solved) with one
         extra row above and below the band, so the neighbour tests of the hard
         pixels see across band borders. prelim: the whole film's map, given."""
@@ -69,15 +68,17 @@ class MapTracer:
         self.report("map", done)
         with self.stats.timer("map"):
             if prelim is None:
-                prelim = render_map(self.geometry.patches, camera, width, height, self.options.map, ctx=self.ctx,
-                                    rows=(lo, hi))
+                prelim = render_map(
+                    self.geometry.patches, camera, width, height, self.options.map, ctx=self.ctx, rows=(lo, hi)
+                )
             else:
                 prelim = prelim.rows(lo, hi)
         self.last_map = prelim
         self.report("solve", done)
         with self.stats.timer("solve"):
-            hits = self._solve(Rays.from_arrays(camera.eye[None, :], directions), prelim,
-                               pixel_footprint(camera, width, height))
+            hits = self._solve(
+                Rays.from_arrays(camera.eye[None, :], directions), prelim, pixel_footprint(camera, width, height)
+            )
         keep = slice((first - lo) * width, (stop - lo) * width)
         return hits.take(keep), directions[keep]
 
@@ -85,22 +86,42 @@ class MapTracer:
         patches, options, stats = self.geometry.patches, self.options, self.stats
         seed = prelim.surface.ravel()
         covered = np.flatnonzero(seed >= 0)
-        res = find_roots(patches, rays, covered, seed[covered], prelim.u.ravel()[covered], prelim.v.ravel()[covered],
-                         method=options.method, tolerance=self.tolerance, max_iterations=options.max_iterations,
-                         stop_on_growth=METHODS[options.method].stops_on_growth)  # a failure is re-solved as a suspect
+        res = find_roots(
+            patches,
+            rays,
+            covered,
+            seed[covered],
+            prelim.u.ravel()[covered],
+            prelim.v.ravel()[covered],
+            method=options.method,
+            tolerance=self.tolerance,
+            max_iterations=options.max_iterations,
+            stop_on_growth=METHODS[options.method].stops_on_growth,
+        )  # a failure is re-solved as a suspect
         hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
-        suspect, layer, seam = hard_pixels.suspect_pixels(prelim, hits, failed, footprint, self.tolerance,
-                                                          patches.domain, hard_pixels.MAP_QUANTUM[options.map])
+        suspect, layer, seam = hard_pixels.suspect_pixels(
+            prelim, hits, failed, footprint, self.tolerance, patches.domain, hard_pixels.MAP_QUANTUM[options.map]
+        )
         suspects = np.flatnonzero(suspect)
         before = (hits.hit.copy(), hits.surface.copy(), np.nan_to_num(hits.t))
-        repaired = hard_pixels.repair(self.geometry, rays, prelim, hits, suspects, self.tolerance,
-                                      options.max_iterations, footprint)
-        changed = (before[0][repaired] != hits.hit[repaired]) | (before[1][repaired] != hits.surface[repaired]) | (
-            np.abs(before[2][repaired] - np.nan_to_num(hits.t[repaired])) > 10 * self.tolerance)
-        for key, value in (("covered_by_map", covered.size), ("non_converged", (~res.converged).sum()),
-                           ("trimmed_roots", res.trimmed.sum()), ("suspect", suspects.size),
-                           ("wrong_layer", layer.sum()), ("seam", seam.sum()), ("repaired", changed.sum()),
-                           ("hierarchy", repaired.size)):
+        repaired = hard_pixels.repair(
+            self.geometry, rays, prelim, hits, suspects, self.tolerance, options.max_iterations, footprint
+        )
+        changed = (
+            (before[0][repaired] != hits.hit[repaired])
+            | (before[1][repaired] != hits.surface[repaired])
+            | (np.abs(before[2][repaired] - np.nan_to_num(hits.t[repaired])) > 10 * self.tolerance)
+        )
+        for key, value in (
+            ("covered_by_map", covered.size),
+            ("non_converged", (~res.converged).sum()),
+            ("trimmed_roots", res.trimmed.sum()),
+            ("suspect", suspects.size),
+            ("wrong_layer", layer.sum()),
+            ("seam", seam.sum()),
+            ("repaired", changed.sum()),
+            ("hierarchy", repaired.size),
+        ):
             stats.add(key, value)
         return hits
 
@@ -109,12 +130,39 @@ def _seeded_hits(n: int, covered: np.ndarray, res: RootResult, patch_surface: np
     """(Hits (n,), failed (n,) bool) of n pixels from the roots res of the covered
     pixels' seeds (covered: (M,) sorted), one item per covered pixel: hits as
     res.as_hits() puts them there, no hit elsewhere; failed: covered, no hit."""
-    hits = Hits(np.empty(n, dtype=bool), np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64),
-                np.empty(n), np.empty(n), np.empty(n, dtype=np.int32), np.empty(n))
+    hits = Hits(
+        np.empty(n, dtype=bool),
+        np.empty(n),
+        np.empty(n, dtype=np.int64),
+        np.empty(n, dtype=np.int64),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n, dtype=np.int32),
+        np.empty(n),
+    )
     failed = np.empty(n, dtype=bool)
-    run_chunks(seeded_hits, n, covered, res.converged, res.t, res.u, res.v, res.patch, res.residual, res.iterations,
-               np.ascontiguousarray(patch_surface, dtype=np.int64), hits.hit, hits.t, hits.surface, hits.patch, hits.u,
-               hits.v, hits.iterations, hits.residual, failed)
+    run_chunks(
+        seeded_hits,
+        n,
+        covered,
+        res.converged,
+        res.t,
+        res.u,
+        res.v,
+        res.patch,
+        res.residual,
+        res.iterations,
+        np.ascontiguousarray(patch_surface, dtype=np.int64),
+        hits.hit,
+        hits.t,
+        hits.surface,
+        hits.patch,
+        hits.u,
+        hits.v,
+        hits.iterations,
+        hits.residual,
+        failed,
+    )
     return hits, failed
 
 

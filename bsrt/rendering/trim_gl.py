@@ -12,9 +12,9 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from bsrt.rendering import gl
 from bsrt.errors import RenderError
 from bsrt.kernels.trim import TrimTable
+from bsrt.rendering import gl
 
 ROW = 4096  # texels per texture row (fewer when the context's textures are narrower)
 
@@ -46,8 +46,12 @@ def texture_arrays(table: TrimTable) -> dict[str, np.ndarray]:
     coef = np.zeros((k * stride, 4), dtype=np.float32)
     coef[:, :3] = table.coef.reshape(k * stride, 3)
     arrays = {
-        "trim_surface": surface, "trim_band": band, "trim_band_start": band_start, "trim_entry": entry,
-        "trim_entry_box": table.entry_box.astype(np.float32), "trim_ends": table.ends.astype(np.float32),
+        "trim_surface": surface,
+        "trim_band": band,
+        "trim_band_start": band_start,
+        "trim_entry": entry,
+        "trim_entry_box": table.entry_box.astype(np.float32),
+        "trim_ends": table.ends.astype(np.float32),
         "trim_coef": coef,
     }
     for name, a in arrays.items():

@@ -13,18 +13,34 @@ from bsrt.scene import parse_scene
 def warm_up() -> float:
     """Compile (or load) every kernel by rendering a tiny trimmed scene with each method and a
     shadow-casting light (GL included); returns the seconds it took."""
-    square = [{"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]} for a, b in
-              (([0.2, 0.2], [0.8, 0.2]), ([0.8, 0.2], [0.8, 0.8]), ([0.8, 0.8], [0.2, 0.8]), ([0.2, 0.8], [0.2, 0.2]))]
-    plate = {"degree": [1, 1], "knots_u": [0, 0, 1, 1], "knots_v": [0, 0, 1, 1],
-             "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]]}
-    scene = parse_scene({
-        "film": {"width": 8, "height": 8},
-        "camera": {"eye": [0.5, -1.0, 2.0], "look_at": [0.5, 0.5, 0.0]},
-        "light": [{"kind": "point", "position": [0.5, 0.5, 3.0], "intensity": 9.0}],
-        "material": [{"name": "mirror", "reflectance": 0.5}],
-        "surface": [{**plate, "material": "mirror"}, {**plate, "trim": [{"curves": square}],
-                                                      "transform": {"translate": [0.0, 0.0, 0.5]}}],
-    }, "<warm-up>")
+    square = [
+        {"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]}
+        for a, b in (
+            ([0.2, 0.2], [0.8, 0.2]),
+            ([0.8, 0.2], [0.8, 0.8]),
+            ([0.8, 0.8], [0.2, 0.8]),
+            ([0.2, 0.8], [0.2, 0.2]),
+        )
+    ]
+    plate = {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]],
+    }
+    scene = parse_scene(
+        {
+            "film": {"width": 8, "height": 8},
+            "camera": {"eye": [0.5, -1.0, 2.0], "look_at": [0.5, 0.5, 0.0]},
+            "light": [{"kind": "point", "position": [0.5, 0.5, 3.0], "intensity": 9.0}],
+            "material": [{"name": "mirror", "reflectance": 0.5}],
+            "surface": [
+                {**plate, "material": "mirror"},
+                {**plate, "trim": [{"curves": square}], "transform": {"translate": [0.0, 0.0, 0.5]}},
+            ],
+        },
+        "<warm-up>",
+    )
     clock = time.perf_counter()
     for method in METHODS:
         render(scene, RenderOptions.resolve(scene, method=method))

@@ -14,16 +14,28 @@
 
 from bsrt.scene.framing import model_box, scene_for_model
 from bsrt.scene.model import (
-                              DEFAULT_MATERIAL,
-                              MODEL_MATERIAL,
-                              Film,
-                              Light,
-                              Material,
-                              RenderSettings,
-                              Scene,
-                              SceneSurface,
+    DEFAULT_MATERIAL,
+    MODEL_MATERIAL,
+    Film,
+    Light,
+    Material,
+    RenderSettings,
+    Scene,
+    SceneSurface,
 )
 from bsrt.scene.parse import load_scene, parse_scene
 
-__all__ = ["DEFAULT_MATERIAL", "MODEL_MATERIAL", "Film", "Light", "Material", "RenderSettings", "Scene",
-           "SceneSurface", "load_scene", "model_box", "parse_scene", "scene_for_model"]
+__all__ = [
+    "DEFAULT_MATERIAL",
+    "MODEL_MATERIAL",
+    "Film",
+    "Light",
+    "Material",
+    "RenderSettings",
+    "Scene",
+    "SceneSurface",
+    "load_scene",
+    "model_box",
+    "parse_scene",
+    "scene_for_model",
+]

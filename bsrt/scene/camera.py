@@ -81,9 +81,7 @@ def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: flo
     camera_from_eye[0, :3], camera_from_eye[1, :3], camera_from_eye[2, :3] = r, u, f
     a = (far + near) / (far - near)
     b = -2.0 * far * near / (far - near)
-    clip_from_camera = np.array(
-        [[1.0 / tx, 0, 0, 0], [0, 1.0 / ty, 0, 0], [0, 0, a, b], [0, 0, 1.0, 0]]
-    )
+    clip_from_camera = np.array([[1.0 / tx, 0, 0, 0], [0, 1.0 / ty, 0, 0], [0, 0, a, b], [0, 0, 1.0, 0]])
     if rows is not None:
         top, bottom = 1.0 - 2.0 * rows[0] / height, 1.0 - 2.0 * rows[1] / height
         centre, half = (top + bottom) / 2.0, (top - bottom) / 2.0

@@ -24,11 +24,15 @@ from bsrt.errors import InputError
 from bsrt.scene.camera import Camera
 from bsrt.scene.model import Light, Material, Scene
 
-_TOML_WORDS = ((re.compile(r"expected a table$"), "expected a mapping (a dict) or the bsrt object"),
-               (re.compile(r"expected an array of tables \[\[\w+\]\]"), "expected a list"),
-               (re.compile(r"missing table \[(\w+)\]"), r"missing (\1= is required)"),
-               (re.compile(r"the scene has no \[\[surface\]\] or \[\[import\]\] \(nothing to render\)"),
-                "no surfaces given (nothing to render)"))
+_TOML_WORDS = (
+    (re.compile(r"expected a table$"), "expected a mapping (a dict) or the bsrt object"),
+    (re.compile(r"expected an array of tables \[\[\w+\]\]"), "expected a list"),
+    (re.compile(r"missing table \[(\w+)\]"), r"missing (\1= is required)"),
+    (
+        re.compile(r"the scene has no \[\[surface\]\] or \[\[import\]\] \(nothing to render\)"),
+        "no surfaces given (nothing to render)",
+    ),
+)
 
 
 @contextlib.contextmanager
@@ -48,8 +52,13 @@ def python_words():
 
 def camera_doc(camera) -> dict:
     if isinstance(camera, Camera):
-        return {"eye": plain(camera.eye), "look_at": plain(camera.look_at), "up": plain(camera.up),
-                "fov": plain(camera.fov), "fov_axis": camera.fov_axis}
+        return {
+            "eye": plain(camera.eye),
+            "look_at": plain(camera.look_at),
+            "up": plain(camera.up),
+            "fov": plain(camera.fov),
+            "fov_axis": camera.fov_axis,
+        }
     return plain(camera)
 
 
@@ -74,8 +83,12 @@ def material_ref(material, mats: list):
 
 
 def surface_doc(s, mats: list) -> dict:
-    doc = {"degree": plain(s.degree), "knots_u": plain(s.knots_u), "knots_v": plain(s.knots_v),
-           "points": plain(s.points)}
+    doc = {
+        "degree": plain(s.degree),
+        "knots_u": plain(s.knots_u),
+        "knots_v": plain(s.knots_v),
+        "points": plain(s.points),
+    }
     if s.weights is not None:
         doc["weights"] = plain(s.weights)
     if s.name is not None:
@@ -138,8 +151,6 @@ def is_array_like(value) -> bool:
     return isinstance(value, (list, tuple, np.ndarray))
 
 
-
-
 # ---------------------------------------------------------------------------
 # A scene -> a scene file
 
@@ -165,8 +176,14 @@ def scene_document(scene: Scene) -> dict:
     }
     for s in scene.surfaces:
         g = s.geometry
-        table = {"name": s.name, "material": names[s.material], "degree": list(g.degree), "knots_u": g.knots_u,
-                 "knots_v": g.knots_v, "points": g.points}
+        table = {
+            "name": s.name,
+            "material": names[s.material],
+            "degree": list(g.degree),
+            "knots_u": g.knots_u,
+            "knots_v": g.knots_v,
+            "points": g.points,
+        }
         if g.weights is not None:
             table["weights"] = g.weights
         if g.trims:
@@ -194,8 +211,11 @@ def dumps_toml(doc: Mapping, header: str = "") -> str:
             out += ["", f"[{_key(key)}]"] + _table_body(value)
         elif isinstance(value, list) and value and all(isinstance(v, Mapping) for v in value):
             for item in value:
-                subtables = {k: v for k, v in item.items() if isinstance(v, list) and v
-                             and all(isinstance(x, Mapping) for x in v)}
+                subtables = {
+                    k: v
+                    for k, v in item.items()
+                    if isinstance(v, list) and v and all(isinstance(x, Mapping) for x in v)
+                }
                 out += ["", f"[[{_key(key)}]]"] + _table_body({k: v for k, v in item.items() if k not in subtables})
                 for sub, loops in subtables.items():
                     for loop in loops:
@@ -247,10 +267,11 @@ _ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f
 
 def _string(text: str) -> str:
     """A TOML basic string: quotes, backslashes and control characters escaped."""
-    return '"' + "".join(
-        _ESCAPES.get(c) or (f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c) for c in text
-    ) + '"'
-
+    return (
+        '"'
+        + "".join(_ESCAPES.get(c) or (f"\\u{ord(c):04x}" if ord(c) < 0x20 or ord(c) == 0x7F else c) for c in text)
+        + '"'
+    )
 
 
 def camera_toml(camera: Camera) -> str:

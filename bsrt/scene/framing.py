@@ -69,7 +69,9 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     eye = np.asarray(eye, dtype=np.float64)
     view = look - eye
     if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view):
-        raise InputError("--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up")
+        raise InputError(
+            "--camera-eye / --camera-look-at / --camera-up: the view direction must not be zero or parallel to up"
+        )
     try:
         validate.camera(Camera(eye, look, up, fov, "y"))
     except InputError as exc:  # the automatic eye of a model near the coordinate limit
@@ -77,7 +79,9 @@ def scene_for_model(model, width=512, height=512, eye=None, look_at=None, fov=No
     key_pos = centre + (eye - look) / np.linalg.norm(eye - look) * 2.5 * radius + up / np.linalg.norm(up) * 2.0 * radius
     lights = (
         Light("ambient", intensity=0.12),
-        Light("point", color=(1.0, 0.97, 0.92), intensity=float(np.sum((key_pos - centre) ** 2)), position=tuple(key_pos)),
+        Light(
+            "point", color=(1.0, 0.97, 0.92), intensity=float(np.sum((key_pos - centre) ** 2)), position=tuple(key_pos)
+        ),
         Light("directional", color=(0.8, 0.85, 1.0), intensity=0.35, direction=(-1.0, 0.8, -0.6)),
     )
     materials = [MODEL_MATERIAL]

@@ -51,15 +51,20 @@ def parse_keyframes(raw, where: str, camera: Camera) -> tuple[Keyframe, ...]:
         frame = t.integer("frame", required=True, lo=1)
         if out and frame <= out[-1].frame:
             t.fail("frame", f"must be greater than the previous keyframe's ({out[-1].frame}), got {frame}")
-        key = Keyframe(frame, t.vector("eye", tuple(camera.eye)), t.vector("look_at", tuple(camera.look_at)),
-                       t.vector("up", tuple(camera.up)),
-                       t.number("fov", camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True))
+        key = Keyframe(
+            frame,
+            t.vector("eye", tuple(camera.eye)),
+            t.vector("look_at", tuple(camera.look_at)),
+            t.vector("up", tuple(camera.up)),
+            t.number("fov", camera.fov, lo=0.0, hi=180.0, lo_open=True, hi_open=True),
+        )
         t.finish()
         view = np.subtract(key.look_at, key.eye)
         if not np.any(view):
             t.fail("look_at", "must differ from eye")
-        if np.linalg.norm(np.cross(view, key.up)) < 1e-9 * np.linalg.norm(view) * np.linalg.norm(key.up) or \
-                not np.any(key.up):
+        if np.linalg.norm(np.cross(view, key.up)) < 1e-9 * np.linalg.norm(view) * np.linalg.norm(key.up) or not np.any(
+            key.up
+        ):
             t.fail("up", "must not be zero or parallel to the view direction (look_at - eye)")
         out.append(key)
     return tuple(out)
@@ -82,6 +87,8 @@ def keyframe_camera(camera: Camera, keys: tuple[Keyframe, ...], frame: int) -> C
     eye, look, up = mix(a.eye, b.eye), mix(a.look_at, b.look_at), mix(a.up, b.up)
     view = look - eye
     if not np.any(view) or np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view) * np.linalg.norm(up):
-        raise InputError(f"camera.keyframe: at frame {frame}, between the keyframes of frames {a.frame} and "
-                         f"{b.frame}, the view direction is zero or parallel to up")
+        raise InputError(
+            f"camera.keyframe: at frame {frame}, between the keyframes of frames {a.frame} and "
+            f"{b.frame}, the view direction is zero or parallel to up"
+        )
     return replace(camera, eye=eye, look_at=look, up=up, fov=float(mix(a.fov, b.fov)))

@@ -33,11 +33,15 @@ class CameraOverrides:
     keywords: bool = False
 
     @classmethod
-    def from_args(cls, args) -> "CameraOverrides":
+    def from_args(cls, args) -> CameraOverrides:
         """From argparse's ``--camera-eye --camera-look-at --camera-up --fov``
         (attributes missing on ``args`` count as not given)."""
-        return cls(getattr(args, "camera_eye", None), getattr(args, "camera_look_at", None),
-                   getattr(args, "camera_up", None), getattr(args, "fov", None))
+        return cls(
+            getattr(args, "camera_eye", None),
+            getattr(args, "camera_look_at", None),
+            getattr(args, "camera_up", None),
+            getattr(args, "fov", None),
+        )
 
     def label(self, name: str) -> str:
         """How the user spelled setting ``name`` (a keyword such as ``camera_eye``)."""
@@ -50,7 +54,7 @@ class CameraOverrides:
                 message = message.replace("--" + option, option.replace("-", "_"))
         return message
 
-    def checked(self) -> "CameraOverrides":
+    def checked(self) -> CameraOverrides:
         """The overrides with every given vector three finite numbers within the
         coordinate limit and the fov a valid angle; else InputError."""
         from bsrt import validate
@@ -77,8 +81,16 @@ def _vector(key: str, value) -> tuple:
     return tuple(float(x) for x in v)
 
 
-def load_input(path, format: str = "auto", *, width: int | None = None, height: int | None = None,
-               camera: CameraOverrides = CameraOverrides(), cache: bool = True, progress=None):
+def load_input(
+    path,
+    format: str = "auto",
+    *,
+    width: int | None = None,
+    height: int | None = None,
+    camera: CameraOverrides = CameraOverrides(),
+    cache: bool = True,
+    progress=None,
+):
     """A Scene from a scene file, or from a model file with an automatic camera.
 
     cache: use the converted-model cache (``bsrt.io.load_model``). progress:
@@ -106,8 +118,9 @@ def load_input(path, format: str = "auto", *, width: int | None = None, height: 
 
     model = load_model(path, format, cache=cache, progress=faces)
     try:
-        return scene_for_model(model, width or 512, height or 512, camera.eye, camera.look_at, camera.fov,
-                               camera.up or (0.0, 0.0, 1.0))
+        return scene_for_model(
+            model, width or 512, height or 512, camera.eye, camera.look_at, camera.fov, camera.up or (0.0, 0.0, 1.0)
+        )
     except InputError as exc:
         raise InputError(camera.respell(str(exc))) from None
 
@@ -115,8 +128,13 @@ def load_input(path, format: str = "auto", *, width: int | None = None, height: 
 def _override_camera(scene, overrides: CameraOverrides):
     cam = scene.camera
     pick = lambda given, own: own if given is None else np.array(given, dtype=np.float64)  # noqa: E731
-    camera = replace(cam, eye=pick(overrides.eye, cam.eye), look_at=pick(overrides.look_at, cam.look_at),
-                     up=pick(overrides.up, cam.up), fov=cam.fov if overrides.fov is None else overrides.fov)
+    camera = replace(
+        cam,
+        eye=pick(overrides.eye, cam.eye),
+        look_at=pick(overrides.look_at, cam.look_at),
+        up=pick(overrides.up, cam.up),
+        fov=cam.fov if overrides.fov is None else overrides.fov,
+    )
     view = camera.look_at - camera.eye
     if np.linalg.norm(view) == 0 or np.linalg.norm(np.cross(view, camera.up)) < 1e-9 * np.linalg.norm(view):
         names = " / ".join(overrides.label(f"camera_{n}") for n in ("eye", "look_at", "up"))

@@ -12,8 +12,7 @@ from bsrt.geometry.bspline import BSplineSurface
 from bsrt.scene.camera import Camera
 from bsrt.settings import Film, RenderSettings
 
-__all__ = ["DEFAULT_MATERIAL", "MODEL_MATERIAL", "Film", "Light", "Material", "RenderSettings", "Scene",
-           "SceneSurface"]
+__all__ = ["DEFAULT_MATERIAL", "MODEL_MATERIAL", "Film", "Light", "Material", "RenderSettings", "Scene", "SceneSurface"]
 
 
 @dataclass(frozen=True)

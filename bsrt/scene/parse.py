@@ -53,8 +53,9 @@ def load_scene(path: str | Path, *, cache: bool = True, progress=None) -> Scene:
     return replace(scene, inputs=(str(path),) + scene.inputs)
 
 
-def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, order=None, *, cache: bool = True,
-                progress=None) -> Scene:
+def parse_scene(
+    data: dict, where: str = "<scene>", folder: Path | None = None, order=None, *, cache: bool = True, progress=None
+) -> Scene:
     """Validate an already-parsed TOML document.
 
     (Long: it walks the tables in the format's order, each a short block, and
@@ -80,7 +81,9 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
     up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
     fov = cam_t.number("fov", 40.0, lo=0.0, hi=validate.MAX_FOV, lo_open=True, hi_open=True)
     if fov < validate.MIN_FOV:
-        cam_t.fail("fov", f"must be at least {validate.MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {fov:g}")
+        cam_t.fail(
+            "fov", f"must be at least {validate.MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {fov:g}"
+        )
     fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
     keyframes = cam_t.raw("keyframe", [])  # parsed below, by bsrt/scene/keyframes.py
     cam_t.finish()
@@ -137,8 +140,11 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
             inputs.append(str(model.path))
             loads.append(model.load)
             material = _material_for(t, materials, by_name)
-            colored = None if t.has("material") or t.has("color") else _colour_materials(
-                model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
+            colored = (
+                None
+                if t.has("material") or t.has("color")
+                else _colour_materials(model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
+            )
             matrix = _transform(t, "transform") if t.has("transform") else None
             t.finish()
             notes += [f"{model.path}: {w}" for w in model.warnings] + _skipped_notes(model)
@@ -164,8 +170,19 @@ def parse_scene(data: dict, where: str = "<scene>", folder: Path | None = None, 
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
-    return Scene(film, camera, render, tuple(materials), tuple(lights), tuple(surfaces), where, tuple(notes),
-                 tuple(inputs), tuple(keyframes), tuple(loads))
+    return Scene(
+        film,
+        camera,
+        render,
+        tuple(materials),
+        tuple(lights),
+        tuple(surfaces),
+        where,
+        tuple(notes),
+        tuple(inputs),
+        tuple(keyframes),
+        tuple(loads),
+    )
 
 
 def _settings_table(where: str, data: dict, table: str) -> dict:
@@ -184,11 +201,16 @@ def _surface_arrays(t: _Table) -> tuple:
     """(degree, knots_u, knots_v, points, weights) of a [[surface]], each checked for type
     (whole numbers for the degrees, numbers elsewhere: no booleans, no strings) and finiteness."""
     degree = t.raw("degree", required=True)
-    if not isinstance(degree, list) or len(degree) != 2 or any(isinstance(d, bool) or not isinstance(d, int)
-                                                               for d in degree):
+    if (
+        not isinstance(degree, list)
+        or len(degree) != 2
+        or any(isinstance(d, bool) or not isinstance(d, int) for d in degree)
+    ):
         raise InputError(f"degree: expected two whole numbers [p, q], got {_show(degree)}")
     if max(degree) > validate.MAX_DEGREE:
-        raise InputError(f"degree: at most {validate.MAX_DEGREE} (see Limits in docs/scene-format.md), got {_show(degree)}")
+        raise InputError(
+            f"degree: at most {validate.MAX_DEGREE} (see Limits in docs/scene-format.md), got {_show(degree)}"
+        )
     arrays = [validate.numbers(key, t.raw(key, required=True), check=False) for key in ("knots_u", "knots_v", "points")]
     weights = t.raw("weights")
     return (degree, *arrays, None if weights is None else validate.numbers("weights", weights, check=False))
@@ -217,8 +239,12 @@ def _trimmed(t: _Table, geometry):
         curves = []
         for j, c_raw in enumerate(curves_raw):
             ct = _Table(t.where, c_raw, f"{lt.name}.curves[{j}]")
-            args = (ct.raw("degree", required=True), ct.raw("knots", required=True), ct.raw("points", required=True),
-                    ct.raw("weights"))
+            args = (
+                ct.raw("degree", required=True),
+                ct.raw("knots", required=True),
+                ct.raw("points", required=True),
+                ct.raw("weights"),
+            )
             try:
                 curves.append(make_trim_curve(*args))
             except InputError as exc:
@@ -327,7 +353,10 @@ def _transform(parent: _Table, key: str) -> np.ndarray:
     if np.any(scale == 0):
         t.fail("scale", "must not be zero")
     if np.any(np.abs(scale) > validate.MAX_COORDINATE) or np.any(np.abs(scale) < 1.0 / validate.MAX_COORDINATE):
-        t.fail("scale", f"each factor's size must lie within 1e-15 .. 1e15 (see Limits in docs/scene-format.md), got {scale_raw}")
+        t.fail(
+            "scale",
+            f"each factor's size must lie within 1e-15 .. 1e15 (see Limits in docs/scene-format.md), got {scale_raw}",
+        )
     rot = t.vector("rotate", (0.0, 0.0, 1.0, 0.0), length=4)
     translate = np.array(t.vector("translate", (0.0, 0.0, 0.0)))
     t.finish()

@@ -30,8 +30,17 @@ class _Table:
             return default
         return self.data[key]
 
-    def number(self, key: str, default=None, lo=None, hi=None, lo_open=False, hi_open=False, required=False,
-               limit=validate.MAX_COORDINATE):
+    def number(
+        self,
+        key: str,
+        default=None,
+        lo=None,
+        hi=None,
+        lo_open=False,
+        hi_open=False,
+        required=False,
+        limit=validate.MAX_COORDINATE,
+    ):
         value = self.raw(key, default, required)
         if value is None:
             return None

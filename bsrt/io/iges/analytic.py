@@ -22,7 +22,16 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.geometry.bspline import BSplineSurface, make_surface
-from bsrt.io.iges.bspline import Curve, ParamMap, clamp, common_breaks, elevate, product_segments, reparametrised, unit_arc
+from bsrt.io.iges.bspline import (
+    Curve,
+    ParamMap,
+    clamp,
+    common_breaks,
+    elevate,
+    product_segments,
+    reparametrised,
+    unit_arc,
+)
 
 
 def _surface(pu: int, pv: int, ku, kv, h: np.ndarray) -> BSplineSurface:

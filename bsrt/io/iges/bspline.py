@@ -46,7 +46,7 @@ class ParamMap:
     kinds: tuple[str, ...]
 
     @staticmethod
-    def identity(a: float, b: float) -> "ParamMap":
+    def identity(a: float, b: float) -> ParamMap:
         return ParamMap(np.array([a, b], float), np.array([a, b], float), ("linear",))
 
     def _piece(self, x):
@@ -126,10 +126,10 @@ class ParamMap:
         scale = (self.s[i + 1] - self.s[i]) / (self.x[i + 1] - self.x[i])
         return scale, self.s[i] - scale * self.x[i]
 
-    def shifted(self, dx: float, ds: float) -> "ParamMap":
+    def shifted(self, dx: float, ds: float) -> ParamMap:
         return ParamMap(self.x + dx, self.s + ds, self.kinds)
 
-    def scaled_x(self, a: float, b: float) -> "ParamMap":
+    def scaled_x(self, a: float, b: float) -> ParamMap:
         """The map of x' where x = a x' + b (a > 0)."""
         return ParamMap((self.x - b) / a, self.s, self.kinds)
 
@@ -323,8 +323,9 @@ def join(curves: list[Curve]) -> Curve:
         xoffset += m.x[-1] - m.x[0]
         offset += b - a
     knots.append([offset] * (p + 1))
-    return from_homogeneous(p, np.concatenate([np.asarray(k, float) for k in knots]), np.concatenate(ctrl),
-                            concat_maps(maps))
+    return from_homogeneous(
+        p, np.concatenate([np.asarray(k, float) for k in knots]), np.concatenate(ctrl), concat_maps(maps)
+    )
 
 
 def affine(c: Curve, matrix: np.ndarray) -> Curve:

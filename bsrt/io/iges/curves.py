@@ -39,7 +39,15 @@ import math
 import numpy as np
 
 from bsrt.io.iges.bspline import (
-    Curve, affine, arc_curve, from_bezier, join, line_curve, polyline_curve, restrict, reverse,
+    Curve,
+    affine,
+    arc_curve,
+    from_bezier,
+    join,
+    line_curve,
+    polyline_curve,
+    restrict,
+    reverse,
 )
 
 CURVE_TYPES = frozenset({100, 102, 104, 106, 110, 112, 126})
@@ -164,8 +172,11 @@ def _conic(f, entity, params) -> Curve:
         s0, s1 = np.dot(start, vy) - yv, np.dot(end, vy) - yv
         if s0 == s1:
             raise params.fail("the parabolic arc starts where it ends")
-        ctrl = [vertex + kk * s0 * s0 * vx + s0 * vy, vertex + kk * s0 * s1 * vx + 0.5 * (s0 + s1) * vy,
-                vertex + kk * s1 * s1 * vx + s1 * vy]
+        ctrl = [
+            vertex + kk * s0 * s0 * vx + s0 * vy,
+            vertex + kk * s0 * s1 * vx + 0.5 * (s0 + s1) * vy,
+            vertex + kk * s1 * s1 * vx + s1 * vy,
+        ]
         return Curve(2, np.array([0, 0, 0, 1, 1, 1], float), np.array([three(p) for p in ctrl]))
     centre = np.linalg.solve(q, -0.5 * np.array([d, e]))
     g0 = g + 0.5 * (d * centre[0] + e * centre[1])

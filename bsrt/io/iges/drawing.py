@@ -88,8 +88,12 @@ class _Drawing:
         instances' placement (4x4); chain: their DEs."""
         f = self.f
         if e.de in chain:
-            raise f.fail(e, "the subfigure instances at DE " + ", ".join(map(str, chain + (e.de,)))
-                         + " contain each other in a loop")
+            raise f.fail(
+                e,
+                "the subfigure instances at DE "
+                + ", ".join(map(str, chain + (e.de,)))
+                + " contain each other in a loop",
+            )
         definition, place = _instance(f, e)
         matrix, members = _subfigure(f, definition)
         place = outer @ place if matrix is None else outer @ place @ matrix
@@ -174,8 +178,10 @@ def draw(f):
         n = sum(unbounded.values())
         kinds = ", ".join(str(t) for t in sorted(unbounded))
         them = "them are" if n != 1 else "it is"
-        warnings.append(f"{n} unbounded surface{'s' if n != 1 else ''} with nothing to bound {them} left out "
-                        f"(entit{'ies' if len(unbounded) > 1 else 'y'} {kinds})")
+        warnings.append(
+            f"{n} unbounded surface{'s' if n != 1 else ''} with nothing to bound {them} left out "
+            f"(entit{'ies' if len(unbounded) > 1 else 'y'} {kinds})"
+        )
     return surfaces, names, warnings, len(untrimmed)
 
 

@@ -26,9 +26,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, basis_functions, evaluate as surface_eval, find_span
-from bsrt.io.invert import invert
+from bsrt.geometry.bspline import BSplineSurface, basis_functions, find_span
+from bsrt.geometry.bspline import evaluate as surface_eval
 from bsrt.io.iges.bspline import Curve, ParamMap, clamp, evaluate, from_bezier, line_curve, polyline_curve
+from bsrt.io.invert import invert
 
 TWO_PI = 2 * np.pi
 _MAX_POINTS = 100_000
@@ -157,8 +158,10 @@ class SurfaceInverse:
         self.grid = grid.reshape(-1, 3)
         # closed directions (the surface's two edges across them coincide): their seam samples
         # are put on the side their neighbours along a curve are on (``invert_curve``)
-        self.closed = tuple(bool(np.abs(np.take(grid, 0, axis=k) - np.take(grid, -1, axis=k)).max()
-                                 <= 1e-9 * self.size) for k in range(2))
+        self.closed = tuple(
+            bool(np.abs(np.take(grid, 0, axis=k) - np.take(grid, -1, axis=k)).max() <= 1e-9 * self.size)
+            for k in range(2)
+        )
         self.grid_t = np.ascontiguousarray(self.grid.T)
         self.grid_sq = 0.5 * np.einsum("gk,gk->g", self.grid, self.grid)
 

@@ -38,8 +38,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from bsrt.geometry.bspline import evaluate as evaluate_surface
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import evaluate as evaluate_surface
 from bsrt.geometry.trim import TrimLoop, make_trim_curve
 from bsrt.io.iges.bspline import Curve, clamp, ends, evaluate, line_curve, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, pieces
@@ -106,8 +106,10 @@ class LoopBuilder:
         target = self.f.get(ref, de, what)
         if target.type not in CURVE_TYPES:
             raise Unsupported(target, "as a parameter-space curve")
-        return [Piece(Curve(c.degree, c.knots, c.points[:, :2].copy(), c.weights), "iges", target.de)
-                for c in pieces(self.f, target)]
+        return [
+            Piece(Curve(c.degree, c.knots, c.points[:, :2].copy(), c.weights), "iges", target.de)
+            for c in pieces(self.f, target)
+        ]
 
     def model_pieces(self, ref, de: int, what: str, backwards: bool = False) -> list[Piece]:
         """A model-space curve carried into the surface's parameters, a composite's members
@@ -168,8 +170,9 @@ class LoopBuilder:
             loops.append(self._chain(items, r.label, s))
         if outer_is_domain:
             corners = [(u0, v0), (u1, v0), (u1, v1), (u0, v1), (u0, v0)]
-            loops.insert(0, TrimLoop(tuple(make_trim_curve(1, [0, 0, 1, 1], [a, b])
-                                           for a, b in zip(corners[:-1], corners[1:]))))
+            loops.insert(
+                0, TrimLoop(tuple(make_trim_curve(1, [0, 0, 1, 1], [a, b]) for a, b in zip(corners[:-1], corners[1:])))
+            )
         try:
             return Face(s.with_trims(loops), len(loops), self.inverted)
         except InputError as e:
@@ -185,8 +188,9 @@ class LoopBuilder:
             file_pieces = [x for x in r.items if isinstance(x, Piece) and not x.inverted]
             if file_pieces:
                 pts = np.concatenate([p.curve.points for p in file_pieces])
-                degrees |= any(np.ptp(pts[:, k]) > 2 * math.pi * (1 + 1e-6) or np.abs(pts[:, k]).max() > 4 * math.pi
-                               for k in axes)
+                degrees |= any(
+                    np.ptp(pts[:, k]) > 2 * math.pi * (1 + 1e-6) or np.abs(pts[:, k]).max() > 4 * math.pi for k in axes
+                )
         if not degrees:
             return
         scale = np.ones(2)
@@ -224,8 +228,12 @@ class LoopBuilder:
             return d_second < d_first
 
         raw_gap = lambda p, q: float(np.hypot(*(p - q)))  # noqa: E731
-        if not bridged[1] and nearer(min(gap(b0, a1), gap(b0, b1)), min(gap(a0, a1), gap(a0, b1)),
-                                     min(raw_gap(b0, a1), raw_gap(b0, b1)), min(raw_gap(a0, a1), raw_gap(a0, b1))):
+        if not bridged[1] and nearer(
+            min(gap(b0, a1), gap(b0, b1)),
+            min(gap(a0, a1), gap(a0, b1)),
+            min(raw_gap(b0, a1), raw_gap(b0, b1)),
+            min(raw_gap(a0, a1), raw_gap(a0, b1)),
+        ):
             curves[0] = reverse(curves[0])
         for k in range(1, len(curves)):
             if bridged[k]:  # a pole or apex lies between: the chain joins them as they are
@@ -249,8 +257,9 @@ class LoopBuilder:
         loops = [[x.curve if isinstance(x, Piece) else x for x in r.items] for r in raw]
         sources = [[x.source for x in r.items if isinstance(x, Piece)] for r in raw]
         try:
-            loops, labels = close_once_round(loops, [r.label for r in raw], self.sd.period, self.sd.natural,
-                                             self.sd.poles)
+            loops, labels = close_once_round(
+                loops, [r.label for r in raw], self.sd.period, self.sd.natural, self.sd.poles
+            )
         except Open as e:
             raise self.open(str(e)) from None
         by_label = {r.label: s for r, s in zip(raw, sources)}
@@ -358,12 +367,18 @@ class LoopBuilder:
             over = max(u0 - pts[:, 0].min(), pts[:, 0].max() - u1, v0 - pts[:, 1].min(), pts[:, 1].max() - v1)
             if over > 0:
                 sampled = evaluate(c, np.linspace(*c.domain, 16 * c.n + 1))
-                far = max(u0 - sampled[:, 0].min(), sampled[:, 0].max() - u1,
-                          v0 - sampled[:, 1].min(), sampled[:, 1].max() - v1)
+                far = max(
+                    u0 - sampled[:, 0].min(),
+                    sampled[:, 0].max() - u1,
+                    v0 - sampled[:, 1].min(),
+                    sampled[:, 1].max() - v1,
+                )
                 if far > OVERSHOOT * size:
                     which = f"DE {src}" if src > 0 else "a vertex"
-                    raise self.fail(f"{label}: the curve from {which} leaves the surface's domain "
-                                    f"[{u0:.9g}, {u1:.9g}] x [{v0:.9g}, {v1:.9g}] by {far:.3g}")
+                    raise self.fail(
+                        f"{label}: the curve from {which} leaves the surface's domain "
+                        f"[{u0:.9g}, {u1:.9g}] x [{v0:.9g}, {v1:.9g}] by {far:.3g}"
+                    )
                 if far > 1e-10 * size:
                     c = replace(c, points=np.clip(pts, [u0, v0], [u1, v1]))
             try:

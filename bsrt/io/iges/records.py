@@ -5,121 +5,68 @@ The package docstring (bsrt/io/iges/__init__.py) describes the format and what i
 
 from __future__ import annotations
 
-import itertools
 import os
 import re
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.ma  # np.unique imports it on its first call: ~20 ms of the first load otherwise
 
-from bsrt import validate
 from bsrt.io import fail, read_text, split_lines
+from bsrt.io.iges.params import _HOLLERITH, _INT, _REAL, _Entity, _parameters, _Params
 
 ENTITY_NAMES = {
-    100: "circular arc", 102: "composite curve", 104: "conic arc", 106: "copious data",
-    108: "plane", 110: "line", 112: "parametric spline curve", 114: "parametric spline surface",
-    116: "point", 118: "ruled surface", 120: "surface of revolution", 122: "tabulated cylinder",
-    123: "direction", 124: "transformation matrix", 125: "flash", 126: "B-spline curve",
-    128: "B-spline surface", 130: "offset curve", 140: "offset surface", 141: "boundary",
-    142: "curve on a parametric surface", 143: "bounded surface", 144: "trimmed surface",
-    186: "manifold solid B-rep object", 190: "plane surface", 192: "cylindrical surface",
-    194: "conical surface", 196: "spherical surface", 198: "toroidal surface",
-    202: "angular dimension", 206: "diameter dimension", 210: "general label", 212: "general note",
-    214: "leader", 216: "linear dimension", 222: "radius dimension", 228: "general symbol",
-    230: "sectioned area", 308: "subfigure definition", 314: "color definition",
-    402: "associativity instance", 404: "drawing", 406: "property", 408: "singular subfigure instance",
-    410: "view", 502: "vertex list", 504: "edge list", 508: "loop", 510: "face", 514: "shell",
+    100: "circular arc",
+    102: "composite curve",
+    104: "conic arc",
+    106: "copious data",
+    108: "plane",
+    110: "line",
+    112: "parametric spline curve",
+    114: "parametric spline surface",
+    116: "point",
+    118: "ruled surface",
+    120: "surface of revolution",
+    122: "tabulated cylinder",
+    123: "direction",
+    124: "transformation matrix",
+    125: "flash",
+    126: "B-spline curve",
+    128: "B-spline surface",
+    130: "offset curve",
+    140: "offset surface",
+    141: "boundary",
+    142: "curve on a parametric surface",
+    143: "bounded surface",
+    144: "trimmed surface",
+    186: "manifold solid B-rep object",
+    190: "plane surface",
+    192: "cylindrical surface",
+    194: "conical surface",
+    196: "spherical surface",
+    198: "toroidal surface",
+    202: "angular dimension",
+    206: "diameter dimension",
+    210: "general label",
+    212: "general note",
+    214: "leader",
+    216: "linear dimension",
+    222: "radius dimension",
+    228: "general symbol",
+    230: "sectioned area",
+    308: "subfigure definition",
+    314: "color definition",
+    402: "associativity instance",
+    404: "drawing",
+    406: "property",
+    408: "singular subfigure instance",
+    410: "view",
+    502: "vertex list",
+    504: "edge list",
+    508: "loop",
+    510: "face",
+    514: "shell",
 }
 _SECTIONS = "SGDPT"
-_HOLLERITH = re.compile(r"\s*([0-9]+)H")
-_REAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?")
-_REALS = re.compile(r"(?:[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\n)*")  # newline-terminated
-_INT = re.compile(r"[+-]?[0-9]+")
-
-
-@dataclass
-class _Entity:
-    """One directory entry."""
-
-    de: int  # its DE number (sequence number of its first D record)
-    line: int  # file line of its first D record
-    type: int
-    pstart: int  # first P line (1-based within the P section)
-    xform: int  # DE of its transformation matrix, 0 for none
-    pcount: int  # number of P lines
-    label: str
-    form: int = 0  # form number (2nd record, columns 33-40)
-    blanked: bool = False  # blank status 01 (status number, columns 65-66): hidden in the sending system
-
-
-class _Params:
-    """The parameters of one entity: tokens with their file lines, read in order."""
-
-    def __init__(self, path: str, entity: _Entity, tokens: list[tuple[str, int]]):
-        self.path, self.entity, self.tokens, self.pos = path, entity, tokens, 1
-
-    def fail(self, message: str, line: int | None = None):
-        """InputError 'path:line: entity T (DE n): message' at the parameter read last."""
-        return fail(self.path, self.line if line is None else line,
-                    f"entity {self.entity.type} (DE {self.entity.de}): {message}")
-
-    def _next(self, what: str) -> tuple[str, int]:
-        if self.pos >= len(self.tokens):
-            raise self.fail(f"its {len(self.tokens) - 1} parameters end before {what}")
-        self.pos += 1
-        return self.tokens[self.pos - 1]
-
-    def real(self, what: str) -> float:
-        token, line = self._next(what)
-        if token == "":
-            return 0.0
-        if _REAL.fullmatch(token) is None:
-            raise self.fail(f"expected {what} (a number), got {token!r}")
-        value = float(token.replace("D", "E").replace("d", "e"))
-        if not abs(value) <= validate.MAX_COORDINATE:
-            raise self.fail(f"{what} {token} is too large (beyond +-{validate.MAX_COORDINATE:g}, see Limits in docs/scene-format.md)")
-        return value
-
-    def reals(self, count: int, what: str) -> np.ndarray:
-        """(count,) float64; one by one (with the first bad one reported) only if the fast path fails."""
-        chunk = self.tokens[self.pos : self.pos + count]
-        text = "".join([t + "\n" for t, _ in chunk])
-        if len(chunk) == count and _REALS.fullmatch(text):  # every token a number (none empty)
-            if "D" in text or "d" in text:
-                text = text.replace("D", "E").replace("d", "e")
-            values = np.array(text.split(), dtype=np.float64)
-            if np.all(np.abs(values) <= validate.MAX_COORDINATE):
-                self.pos += count
-                return values
-        return np.array([self.real(what) for _ in range(count)], dtype=np.float64)
-
-    def int(self, what: str, minimum: int | None = None) -> int:
-        token, line = self._next(what)
-        if token.isdigit() and token.isascii():
-            value = int(token)
-        elif token == "":
-            value = 0
-        elif _INT.fullmatch(token):
-            value = int(token)
-        else:
-            raise self.fail(f"expected {what} (a whole number), got {token!r}")
-        if minimum is not None and value < minimum:
-            raise self.fail(f"{what} must be at least {minimum}, got {value}")
-        return value
-
-    def pointer(self, what: str) -> int:
-        """A DE pointer (0: none). Negative pointers are read as their absolute value."""
-        return abs(self.int(what))
-
-    def skip(self, count: int, what: str) -> None:
-        for _ in range(count):
-            self._next(what)
-
-    @property
-    def line(self) -> int:
-        """File line of the parameter read last (of the first one before any is read)."""
-        return self.tokens[max(1, min(self.pos - 1, len(self.tokens) - 1))][1]
 
 
 def _records(path: str, text: str) -> dict[str, list[tuple[int, str]]]:
@@ -174,12 +121,14 @@ def _records_checked(path: str, lines: list[str]) -> dict[str, list[tuple[int, s
         letter = rec[72]
         if letter == "C" and number == 1:
             raise fail(
-                path, number,
+                path,
+                number,
                 "compressed ASCII IGES is not supported; save the file in the fixed 80-column format",
             )
         if letter not in _SECTIONS:
             raise fail(
-                path, number,
+                path,
+                number,
                 f"column 73 holds {letter!r}, not a section letter S, G, D, P or T (is this an 80-column IGES file?)",
             )
         k = _SECTIONS.index(letter)
@@ -204,13 +153,15 @@ def _terminate(path: str, lines: list[str], sections) -> dict[str, list[tuple[in
         count = field[1:].strip()
         if field[0] != letter or not (count.isascii() and count.isdigit()):
             raise fail(
-                path, tline,
+                path,
+                tline,
                 f"the Terminate record should give the {letter} line "
                 f"count in columns {8 * k + 1}-{8 * k + 8}, got {field!r}",
             )
         if int(count) != len(sections[letter]):
             raise fail(
-                path, tline,
+                path,
+                tline,
                 f"the Terminate record says {int(count)} {letter} lines but the "
                 f"file has {len(sections[letter])} (truncated or edited file?)",
             )
@@ -274,7 +225,8 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
                 return int(s)
             if not _INT.fullmatch(s):
                 raise fail(
-                    path, at,
+                    path,
+                    at,
                     f"directory entry {k + 1}: {what} (columns {8 * i + 1}-{8 * i + 8}) is {s!r}, not a whole number",
                 )
             value = int(s)
@@ -293,70 +245,14 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
         label = b[56:64].strip() + (f"({subscript})" if subscript.lstrip("0") else "")
         if etype != 0 and (pstart < 1 or pcount < 1 or pstart + pcount - 1 > n_params):
             raise fail(
-                path, line,
+                path,
+                line,
                 f"directory entry {k + 1}: its parameter lines "
                 f"{pstart}..{pstart + pcount - 1} are not within the {n_params} P lines",
             )
         blanked = a[64:66] == "01"
         out[k + 1] = _Entity(k + 1, line, etype, pstart, xform, pcount, label, form, blanked)
     return out
-
-
-def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims: tuple[str, str]) -> _Params:
-    """Tokenise an entity's P records up to the record delimiter (Hollerith strings kept whole)."""
-    pdelim, rdelim = delims
-    chunk = precs[entity.pstart - 1 : entity.pstart - 1 + entity.pcount]
-    de8 = f"{entity.de:8d}"
-    for line, rec in chunk:
-        if rec[64:72] == de8:
-            continue
-        back = rec[64:72].strip()
-        if not (back.isascii() and back.isdigit()) or int(back) != entity.de:
-            raise fail(
-                path, line,
-                f"this P line points back to DE {back!r}, but DE {entity.de} says its parameters are here",
-            )
-    lines = [line for line, _ in chunk]
-    text = "".join([rec[:64] for _, rec in chunk])
-    end = text.find(rdelim)
-    if end >= 0 and "H" not in text[:end] and "h" not in text[:end]:  # no Hollerith string: split at once
-        parts = text[:end].split(pdelim)
-        if len(lines) == 1:
-            tokens = [(t.strip(), lines[0]) for t in parts]
-        else:
-            starts = itertools.accumulate([len(t) + 1 for t in parts], initial=0)
-            tokens = [(t.strip(), lines[i // 64]) for t, i in zip(parts, starts)]
-    else:
-        tokens = _hollerith_tokens(path, entity, text, [x for x in lines for _ in range(64)], delims)
-    if tokens[0][0] != str(entity.type):
-        raise fail(
-            path, tokens[0][1],
-            f"the parameters of DE {entity.de} start with "
-            f"{tokens[0][0]!r}, but the directory says entity {entity.type}",
-        )
-    return _Params(path, entity, tokens)
-
-
-def _hollerith_tokens(path, entity, text, where, delims) -> list[tuple[str, int]]:
-    """Tokens of parameters that may hold Hollerith strings nHxxxx (whose characters may be delimiters)."""
-    pdelim, rdelim = delims
-    delimiter = re.compile("[" + re.escape(pdelim + rdelim) + "]")
-    tokens, i = [], 0
-    while True:
-        j = i
-        m = _HOLLERITH.match(text, i)
-        if m:  # a Hollerith string nHxxxx may contain delimiters: skip its n characters
-            j = m.end() + int(m.group(1))
-        d = delimiter.search(text, j)
-        if d is None:
-            raise fail(
-                path, where[-1],
-                f"entity {entity.type} (DE {entity.de}): the parameters have no record delimiter {rdelim!r}",
-            )
-        tokens.append((text[i : d.start()].strip(), where[min(i, len(where) - 1)]))
-        if d.group() == rdelim:
-            return tokens
-        i = d.end()
 
 
 class IgesFile:
@@ -406,8 +302,9 @@ class IgesFile:
         return target
 
     def fail(self, entity: _Entity, message: str, line: int | None = None):
-        return fail(self.path, entity.line if line is None else line,
-                    f"entity {entity.type} (DE {entity.de}): {message}")
+        return fail(
+            self.path, entity.line if line is None else line, f"entity {entity.type} (DE {entity.de}): {message}"
+        )
 
     def matrix(self, entity: _Entity) -> np.ndarray | None:
         """4x4 model-from-definition matrix of the entity's own 124 chain (None if it has none)."""
@@ -425,12 +322,17 @@ class IgesFile:
             entity = self.entities.get(de)
             if entity is None or entity.type != 124:
                 what = "nothing" if entity is None else f"entity {entity.type}"
-                raise fail(self.path, first.line, f"entity {first.type} (DE {first.de}): its "
-                           f"transformation matrix pointer {de} points to {what}, not to an entity 124")
+                raise fail(
+                    self.path,
+                    first.line,
+                    f"entity {first.type} (DE {first.de}): its "
+                    f"transformation matrix pointer {de} points to {what}, not to an entity 124",
+                )
             if de in seen:
                 des = ", ".join(map(str, list(chain[1:]) + [e.de for e in walk]))
-                raise fail(self.path, entity.line,
-                           f"the transformation matrices at DE {des} refer to each other in a loop")
+                raise fail(
+                    self.path, entity.line, f"the transformation matrices at DE {des} refer to each other in a loop"
+                )
             seen.add(de)
             walk.append(entity)
             if not entity.xform:
@@ -446,8 +348,12 @@ class IgesFile:
                 with np.errstate(all="ignore"):
                     m = outer @ m
                 if not np.all(np.isfinite(m)):
-                    raise fail(self.path, entity.line, f"entity 124 (DE {entity.de}): the composed transformation "
-                               "matrix overflows (entries beyond 1e308)")
+                    raise fail(
+                        self.path,
+                        entity.line,
+                        f"entity 124 (DE {entity.de}): the composed transformation "
+                        "matrix overflows (entries beyond 1e308)",
+                    )
             self.used.add(entity.de)
             self._matrices[entity.de] = m
             outer = m

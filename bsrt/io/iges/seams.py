@@ -169,8 +169,10 @@ def close_once_round(loops: list[list[Curve]], labels: list[str], period, natura
                 cands = [v for ax, v in poles if ax == j and (v - along.mean()) * side > 0]
                 bound = min(cands, key=lambda v: abs(v - along.mean())) if cands else None
             if bound is None:
-                raise Open(f"{labels[i]} goes once round the surface and nothing bounds the surface on its "
-                           f"{'upper' if side > 0 else 'lower'} {'uv'[j]} side (no pole or edge to close it along)")
+                raise Open(
+                    f"{labels[i]} goes once round the surface and nothing bounds the surface on its "
+                    f"{'upper' if side > 0 else 'lower'} {'uv'[j]} side (no pole or edge to close it along)"
+                )
             e, s = ends(c[-1])[1], ends(c[0])[0]
             p1, p2 = e.copy(), s.copy()
             p1[j] = p2[j] = bound
@@ -182,8 +184,10 @@ def close_once_round(loops: list[list[Curve]], labels: list[str], period, natura
     for k in range(2):
         if not period[k] or not rest:
             continue
-        boxes = [(min(c.points[:, k].min() for c in _curves(lp)), max(c.points[:, k].max() for c in _curves(lp)))
-                 for lp in rest]
+        boxes = [
+            (min(c.points[:, k].min() for c in _curves(lp)), max(c.points[:, k].max() for c in _curves(lp)))
+            for lp in rest
+        ]
         cands = [windows[k]] if windows[k] is not None else [lo for lo, _ in boxes]
         tol = 1e-9 * period[k]
         for a in cands:

@@ -46,8 +46,8 @@ them, in degrees), they are read as degrees (see ``iges_topology``).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -152,8 +152,16 @@ def _bspline(f, entity, params, m) -> SurfaceDef:
     if m is not None:
         with np.errstate(all="ignore"):  # huge entries give non-finite points, reported by build_surface
             moved = whole.transformed(m).points
-        whole = build_surface(f.path, entity.line, f"{which} after its transformation matrix",
-                              whole.degree, whole.knots_u, whole.knots_v, moved, whole.weights)
+        whole = build_surface(
+            f.path,
+            entity.line,
+            f"{which} after its transformation matrix",
+            whole.degree,
+            whole.knots_u,
+            whole.knots_v,
+            moved,
+            whole.weights,
+        )
     part = cut(f.path, entity.line, which, whole, ((u0, u1), (v0, v1)), ("U0 U1", "V0 V1"))
     natural = (*part.domain_u, *part.domain_v)
     full = (*whole.domain_u, *whole.domain_v)
@@ -165,13 +173,20 @@ def _bspline(f, entity, params, m) -> SurfaceDef:
     def place(box):
         s = part
         if box is not None:
-            if box[0] < natural[0] - tol or box[1] > natural[1] + tol or box[2] < natural[2] - tol \
-                    or box[3] > natural[3] + tol:
+            if (
+                box[0] < natural[0] - tol
+                or box[1] > natural[1] + tol
+                or box[2] < natural[2] - tol
+                or box[3] > natural[3] + tol
+            ):
                 s = whole
                 for k in range(2):  # a loop across the seam of a closed direction: the seam moved
                     lo, hi = full[2 * k], full[2 * k + 1]
-                    if period[k] and (box[2 * k] < lo - tol or box[2 * k + 1] > hi + tol) \
-                            and box[2 * k + 1] - box[2 * k] <= period[k] + tol:
+                    if (
+                        period[k]
+                        and (box[2 * k] < lo - tol or box[2 * k + 1] > hi + tol)
+                        and box[2 * k + 1] - box[2 * k] <= period[k] + tol
+                    ):
                         s = rotated(s, k, box[2 * k])
         return s, ParamMap.identity(*s.domain_u), ParamMap.identity(*s.domain_v)
 
@@ -188,11 +203,10 @@ def _closed(s) -> tuple:
     for k, (knots, p) in enumerate(((s.knots_u, s.degree[0]), (s.knots_v, s.degree[1]))):
         rows = np.moveaxis(h, k, 0)
         first, last = rows[0], rows[-1]
-        clamped = np.all(knots[: p + 1] == knots[0]) and np.all(knots[-(p + 1):] == knots[-1])
+        clamped = np.all(knots[: p + 1] == knots[0]) and np.all(knots[-(p + 1) :] == knots[-1])
         ratio = last[:, 3] / first[:, 3]
         same = np.abs(last[:, :3] / last[:, 3:] - first[:, :3] / first[:, 3:]).max() <= 1e-12 * size
-        out.append(float(knots[-1] - knots[0]) if clamped and same and np.ptp(ratio) <= 1e-12 * ratio.max()
-                   else 0.0)
+        out.append(float(knots[-1] - knots[0]) if clamped and same and np.ptp(ratio) <= 1e-12 * ratio.max() else 0.0)
     return tuple(out)
 
 
@@ -282,8 +296,11 @@ def _revolution(f, entity, params, m) -> SurfaceDef:
     # a full turn: periodic in v; any window of one turn is the same surface, turned
     size = float(np.linalg.norm(np.ptp(s.points.reshape(-1, 3), axis=0)))
     g0, g1 = ends_of(gen)
-    poles = tuple((0, float(x)) for x, q in zip(mu.x[[0, -1]], (g0, g1))
-                  if np.linalg.norm(np.cross(q - ends[0], axis_dir)) <= 1e-12 * size)
+    poles = tuple(
+        (0, float(x))
+        for x, q in zip(mu.x[[0, -1]], (g0, g1))
+        if np.linalg.norm(np.cross(q - ends[0], axis_dir)) <= 1e-12 * size
+    )
 
     def place(box):
         if box is None or box[3] - box[2] > TWO_PI * (1 + 1e-12):
@@ -323,8 +340,14 @@ def _planar(entity, origin, x, y) -> SurfaceDef:
         d = pts - origin
         return (g @ np.stack([d @ x, d @ y])).T
 
-    return SurfaceDef(entity, lambda box: analytic.plane(origin, x, y, box), (None, None, None, None),
-                      plane=(origin, x, y), invert=invert, fixed=False)
+    return SurfaceDef(
+        entity,
+        lambda box: analytic.plane(origin, x, y, box),
+        (None, None, None, None),
+        plane=(origin, x, y),
+        invert=invert,
+        fixed=False,
+    )
 
 
 def _plane(f, entity, params, m) -> SurfaceDef:
@@ -411,13 +434,25 @@ def _axis_surface(f, entity, params, m, kind: str) -> SurfaceDef:
 
     angular = (True, kind in ("sphere", "torus"))
     poles = ((1, -radius / tan),) if kind == "cone" else ()
-    return SurfaceDef(entity, lambda box: build(box if box is not None else natural), natural,
-                      angular=angular, period=(TWO_PI, TWO_PI if kind == "torus" else 0.0), poles=poles,
-                      invert=invert, fixed=False)
+    return SurfaceDef(
+        entity,
+        lambda box: build(box if box is not None else natural),
+        natural,
+        angular=angular,
+        period=(TWO_PI, TWO_PI if kind == "torus" else 0.0),
+        poles=poles,
+        invert=invert,
+        fixed=False,
+    )
 
 
 _READERS = {
-    108: _plane, 114: _spline_surface, 118: _ruled, 120: _revolution, 122: _tabulated, 128: _bspline,
+    108: _plane,
+    114: _spline_surface,
+    118: _ruled,
+    120: _revolution,
+    122: _tabulated,
+    128: _bspline,
     190: _plane_surface,
     192: lambda f, e, p, m: _axis_surface(f, e, p, m, "cylinder"),
     194: lambda f, e, p, m: _axis_surface(f, e, p, m, "cone"),

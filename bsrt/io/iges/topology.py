@@ -64,8 +64,10 @@ def _curve_on_surface(b: LoopBuilder, params, de: int, what: str, model: bool = 
     p.int("CRTN")
     sptr = p.pointer("the surface pointer SPTR")
     if sptr != b.sd.entity.de:
-        raise p.fail(f"the curve lies on surface DE {sptr}, but the trimmed surface DE {b.entity.de} "
-                     f"trims surface DE {b.sd.entity.de}")
+        raise p.fail(
+            f"the curve lies on surface DE {sptr}, but the trimmed surface DE {b.entity.de} "
+            f"trims surface DE {b.sd.entity.de}"
+        )
     bptr, cptr = p.pointer("the parameter-space curve BPTR"), p.pointer("the model-space curve CPTR")
     f.used.add(e142.de)
     if model and cptr:
@@ -119,9 +121,13 @@ def _trimmed_surface(f, entity, model: bool = False) -> Face:
             face = _trimmed_surface(f, entity, model=True)
         except (OpenLoop, Unsupported):
             raise first from None  # the parameter-space loop's own message
-        return replace(face, note=(
-            f"entity 144 (DE {entity.de}): its parameter-space boundary does not close on the surface, "
-            f"its model-space boundary does: the surface is trimmed by the model-space curves"))
+        return replace(
+            face,
+            note=(
+                f"entity 144 (DE {entity.de}): its parameter-space boundary does not close on the surface, "
+                f"its model-space boundary does: the surface is trimmed by the model-space curves"
+            ),
+        )
 
 
 def _has_both(f, de: int) -> bool:
@@ -154,8 +160,11 @@ def _bounded_surface(f, entity) -> Face:
             model = p.pointer("a model-space curve CRVPT")
             sense = p.int("SENSE")
             k = p.int("the parameter-space curve count K", 0)
-            group = [x for _ in range(k) for x in b.param_pieces(p, p.pointer("a parameter-space curve"),
-                                                                  "parameter-space curve pointer")]
+            group = [
+                x
+                for _ in range(k)
+                for x in b.param_pieces(p, p.pointer("a parameter-space curve"), "parameter-space curve pointer")
+            ]
             if sense == 2:
                 group = [replace(x, curve=reverse(x.curve)) for x in group[::-1]]
             if group and model:
@@ -294,7 +303,9 @@ def _subfigure(f, entity):
     p = f.params(entity)
     p.int("DEPTH")
     p.skip(1, "NAME")
-    members = [f.get(p, p.pointer("a member pointer"), "member pointer").de for _ in range(p.int("the member count N", 0))]
+    members = [
+        f.get(p, p.pointer("a member pointer"), "member pointer").de for _ in range(p.int("the member count N", 0))
+    ]
     return f.matrix(entity), members
 
 

@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface
 from bsrt.errors import InputError
 from bsrt.files import check_input_file
+from bsrt.geometry.bspline import BSplineSurface
 from bsrt.io.formats import READERS
 from bsrt.io.occt.curves import TrimError
 from bsrt.io.occt.reading import ShapeKey, cast, count_free_edges, diagonal, faces, read_leaves
@@ -56,7 +56,7 @@ def needs_message(path: str, kind: str) -> str:
 
 
 def kind_of(path: str, format: str) -> str:
-    """"step", "brep" or "iges": which OpenCASCADE reader ``format`` ("step", "brep" or "occt") uses."""
+    """ "step", "brep" or "iges": which OpenCASCADE reader ``format`` ("step", "brep" or "occt") uses."""
     if format in ("step", "brep"):
         return format
     ext = os.path.splitext(path)[1].lower()
@@ -65,8 +65,7 @@ def kind_of(path: str, format: str) -> str:
             return kind
     known = ", ".join(e for exts in EXTENSIONS.values() for e in exts)
     raise InputError(
-        f"{path}: format 'occt' reads STEP, BREP and IGES files by their extension ({known}), "
-        f"not {ext or '(none)'!r}"
+        f"{path}: format 'occt' reads STEP, BREP and IGES files by their extension ({known}), not {ext or '(none)'!r}"
     )
 
 
@@ -91,7 +90,6 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_FORWARD
     from OCP.TopLoc import TopLoc_Location
-
 
     face = cast("Face", face.Oriented(TopAbs_FORWARD))
     location = TopLoc_Location()
@@ -130,7 +128,6 @@ def matrix(trsf) -> np.ndarray:
 def _face_bounds(face, surface) -> tuple[float, float, float, float]:
     """The face's (u, v) bounds, clipped to the surface's own bounds (and to one period in a periodic direction)."""
     from OCP.BRepTools import BRepTools
-
 
     umin, umax, vmin, vmax = BRepTools.UVBounds_s(face)
     su0, su1, sv0, sv1 = surface.Bounds()
@@ -222,24 +219,29 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
             names.append(f"{base}:{name}")
             colors.append(leaf.face_colors.get(key, leaf.color))
     if not surfaces:
-        raise InputError(f"{path}: OpenCASCADE read the file but found no faces to draw"
-                         + (f" ({not_converted[0]})" if not_converted else ""))
+        raise InputError(
+            f"{path}: OpenCASCADE read the file but found no faces to draw"
+            + (f" ({not_converted[0]})" if not_converted else "")
+        )
     if approximated:
         warnings.append(
             f"{approximated} face{'s have' if approximated != 1 else ' has'} an offset of a free-form surface, "
             f"approximated to within {max(worst_approx / size, EXACT_TOLERANCE):.2g} of the model's size"
         )
-    for what, items in (("drawn over its (u, v) bounds, untrimmed", untrimmed),
-                        ("left out: OpenCASCADE cannot convert it", not_converted)):
+    for what, items in (
+        ("drawn over its (u, v) bounds, untrimmed", untrimmed),
+        ("left out: OpenCASCADE cannot convert it", not_converted),
+    ):
         if items:
             n = len(items)
-            warnings.append(f"{n} face{'s are' if n != 1 else ' is'} {what.replace('its', 'their') if n != 1 else what}"
-                            f": {items[0]}" + (f" (and {n - 1} more)" if n > 1 else ""))
+            warnings.append(
+                f"{n} face{'s are' if n != 1 else ' is'} {what.replace('its', 'their') if n != 1 else what}"
+                f": {items[0]}" + (f" (and {n - 1} more)" if n > 1 else "")
+            )
     if not_converted:
         skipped["faces OpenCASCADE could not convert"] = len(not_converted)
     if free_edges:
         skipped["edges not on any face (wireframe)"] = free_edges
     if all(c is None for c in colors):
         colors = []
-    return Model(path, surfaces, names, skipped=skipped, warnings=warnings, untrimmed=len(untrimmed),
-                 colors=colors)
+    return Model(path, surfaces, names, skipped=skipped, warnings=warnings, untrimmed=len(untrimmed), colors=colors)

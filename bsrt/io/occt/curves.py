@@ -24,10 +24,10 @@ from math import comb
 
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface
 from bsrt.errors import InputError
-from bsrt.geometry.trim import TrimCurve, make_trim_curve
 from bsrt.geometry.basis import basis_values
+from bsrt.geometry.bspline import BSplineSurface
+from bsrt.geometry.trim import TrimCurve, make_trim_curve
 from bsrt.io.occt.param_map import ParamMap
 from bsrt.io.occt.surfaces import flat_knots
 
@@ -90,7 +90,7 @@ def pcurve(edge, face) -> TrimCurve | None:
 
 
 def _invalid(p: int, knots: np.ndarray, points: np.ndarray, weights: np.ndarray) -> str:
-    """"" when the pcurve passes make_trim_curve's checks (done here in a few NumPy calls), else
+    """ "" when the pcurve passes make_trim_curve's checks (done here in a few NumPy calls), else
     roughly why not (make_trim_curve then decides, and says why)."""
     n = points.shape[0]
     if p < 1 or n < p + 1 or knots.size != n + p + 1:
@@ -119,9 +119,14 @@ def _occ():
         from OCP.Geom2dConvert import Geom2dConvert
         from OCP.TopAbs import TopAbs_REVERSED
 
-        _OCC = SimpleNamespace(CurveOnSurface=BRep_Tool.CurveOnSurface_s, Range=BRep_Tool.Range_s,
-                               Line=Geom2d_Line, TrimmedCurve=Geom2d_TrimmedCurve, Geom2dConvert=Geom2dConvert,
-                               REVERSED=TopAbs_REVERSED)
+        _OCC = SimpleNamespace(
+            CurveOnSurface=BRep_Tool.CurveOnSurface_s,
+            Range=BRep_Tool.Range_s,
+            Line=Geom2d_Line,
+            TrimmedCurve=Geom2d_TrimmedCurve,
+            Geom2dConvert=Geom2dConvert,
+            REVERSED=TopAbs_REVERSED,
+        )
     return _OCC
 
 
@@ -158,7 +163,7 @@ def evaluator(curve: TrimCurve):
         s = np.atleast_1d(np.asarray(s, dtype=np.float64))
         k = np.minimum(np.maximum(np.searchsorted(starts, s, side="right") - 1, 0), starts.size - 1)
         u = ((s - starts[k]) / (ends[k] - starts[k]))[:, None]
-        basis = binomials * u ** powers * (1.0 - u) ** (p - powers)
+        basis = binomials * u**powers * (1.0 - u) ** (p - powers)
         h = np.einsum("nk,nkc->nc", basis, bezier[k])
         return h[:, :2] / h[:, 2:3]
 
@@ -181,8 +186,12 @@ def segment(a, b) -> TrimCurve:
 
 
 def reversed_curve(c: TrimCurve) -> TrimCurve:
-    return TrimCurve(c.degree, (c.knots[0] + c.knots[-1]) - c.knots[::-1], c.points[::-1].copy(),
-                     None if c.weights is None else c.weights[::-1].copy())
+    return TrimCurve(
+        c.degree,
+        (c.knots[0] + c.knots[-1]) - c.knots[::-1],
+        c.points[::-1].copy(),
+        None if c.weights is None else c.weights[::-1].copy(),
+    )
 
 
 def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
@@ -193,7 +202,7 @@ def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
         knots = surface.knots_u if axis == 0 else surface.knots_v
         pts = np.moveaxis(surface.points, axis, 0)
         n = pts.shape[0]
-        steps = knots[p + 1: n + p] - knots[1:n]  # the support lengths of the derivative's control points / p
+        steps = knots[p + 1 : n + p] - knots[1:n]  # the support lengths of the derivative's control points / p
         diff = np.linalg.norm(np.diff(pts, axis=0), axis=-1).max(axis=-1)
         with np.errstate(divide="ignore", invalid="ignore"):
             rate = np.where(steps > 0, p * diff / np.where(steps > 0, steps, 1.0), 0.0)

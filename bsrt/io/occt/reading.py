@@ -24,7 +24,7 @@ import numpy as np
 from bsrt.errors import InputError
 
 
-def read_leaves(path: str, kind: str) -> list["Leaf"]:
+def read_leaves(path: str, kind: str) -> list[Leaf]:
     """Every leaf part of the file (kind "step", "iges" or "brep"), placed, with its colours."""
     if kind == "brep":
         return _read_brep(path)
@@ -216,8 +216,16 @@ def _leaves(doc, shape_tool) -> list[Leaf]:
                     else:
                         for face in faces(sub):
                             face_colors[ShapeKey(face)] = rgb
-                leaves.append(Leaf(shape, node.Location, "/".join(path), _rgb(node.Style), face_colors,
-                                    bool(node.Style.IsVisible())))
+                leaves.append(
+                    Leaf(
+                        shape,
+                        node.Location,
+                        "/".join(path),
+                        _rgb(node.Style),
+                        face_colors,
+                        bool(node.Style.IsVisible()),
+                    )
+                )
         explorer.Next()
     return _unique_names(leaves)
 

@@ -43,11 +43,10 @@ outside the face's bounds.
 
 from __future__ import annotations
 
-
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, grid_points, insert_knot, make_surface
 from bsrt.errors import InputError
+from bsrt.geometry.bspline import BSplineSurface, grid_points, insert_knot, make_surface
 from bsrt.io.invert import invert
 from bsrt.io.occt.param_map import _TABLE_NODES, AxisMap, ParamMap, _chebyshev_lobatto
 
@@ -66,19 +65,29 @@ class FaceError(Exception):
 def _points(original, u, v) -> np.ndarray:
     """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
     value = original.Value
-    coords = [c for p in map(value, np.asarray(u, float).tolist(), np.asarray(v, float).tolist())
-              for c in (p.X(), p.Y(), p.Z())]
+    coords = [
+        c
+        for p in map(value, np.asarray(u, float).tolist(), np.asarray(v, float).tolist())
+        for c in (p.X(), p.Y(), p.Z())
+    ]
     return np.array(coords, dtype=np.float64).reshape(-1, 3)
 
 
 def _breaks(knots: np.ndarray, degree: int, n: int) -> np.ndarray:
-    k = knots[degree: n + 1]  # sorted: the distinct values are where it steps
+    k = knots[degree : n + 1]  # sorted: the distinct values are where it steps
     return k[np.concatenate([[True], k[1:] != k[:-1]])]
 
 
-def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others: np.ndarray, size: float,
-          arc_first: bool = False) -> str:
-    """"identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
+def _kind(
+    original,
+    whole: BSplineSurface,
+    axis: int,
+    breaks: np.ndarray,
+    others: np.ndarray,
+    size: float,
+    arc_first: bool = False,
+) -> str:
+    """ "identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
 
     Tested on the iso-lines of the other direction's knots (where its own
     parameter is unchanged), all of them: one may be degenerate (a pole),
@@ -94,7 +103,7 @@ def _kind(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, others
         candidates = {"arc": candidates["arc"], "identity": x}
     y = np.repeat(others, x.size)
     # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
-    got = (grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x))
+    got = grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x)
     got = got.reshape(-1, 3)
     tol = EXACT_TOLERANCE * size
     for kind, t in candidates.items():
@@ -123,8 +132,9 @@ def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other
     flat_t = t_nodes.ravel()
     other_t = np.full_like(flat_t, other)
     targets = _points(original, flat_t, other_t) if axis == 0 else _points(original, other_t, flat_t)
-    start = (x_start.ravel(), np.full_like(flat_t, other)) if axis == 0 else (np.full_like(flat_t, other),
-                                                                            x_start.ravel())
+    start = (
+        (x_start.ravel(), np.full_like(flat_t, other)) if axis == 0 else (np.full_like(flat_t, other), x_start.ravel())
+    )
     xs, ys = invert(whole, targets, *start, size)
     x_nodes = (xs if axis == 0 else ys).reshape(t_nodes.shape)
     x_nodes[:, 0], x_nodes[:, -1] = breaks[:-1], breaks[1:]
@@ -176,17 +186,24 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
     approximated = approx_error is not None
     periodic = (bool(bs.IsUPeriodic()), bool(bs.IsVPeriodic()))
     whole = _extract(bs)
-    periods = (original.UPeriod() if original.IsUPeriodic() else 0.0,
-               original.VPeriod() if original.IsVPeriodic() else 0.0)
+    periods = (
+        original.UPeriod() if original.IsUPeriodic() else 0.0,
+        original.VPeriod() if original.IsVPeriodic() else 0.0,
+    )
     maps = []
     doms = (whole.domain_u, whole.domain_v)
-    all_breaks = (_breaks(whole.knots_u, whole.degree[0], whole.shape[0]),
-                  _breaks(whole.knots_v, whole.degree[1], whole.shape[1]))
+    all_breaks = (
+        _breaks(whole.knots_u, whole.degree[0], whole.shape[0]),
+        _breaks(whole.knots_v, whole.degree[1], whole.shape[1]),
+    )
     for axis in (0, 1):
         breaks, other_breaks = all_breaks[axis], all_breaks[1 - axis]
         other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: a middle one (poles are at ends)
-        kind = "identity" if approximated or identity else _kind(original, whole, axis, breaks, other_breaks, size,
-                                                                 periods[axis] > 0)
+        kind = (
+            "identity"
+            if approximated or identity
+            else _kind(original, whole, axis, breaks, other_breaks, size, periods[axis] > 0)
+        )
         fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
         if kind == "table":
             fmap.table = _table(original, whole, axis, breaks, other, size)
@@ -204,8 +221,10 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
     pmap = ParamMap(fu, fv, (umin, umax, vmin, vmax), *periods, approximated=approximated)
     pmap.deviation = max(_deviation(original, local, pmap), approx_error or 0.0)
     if pmap.deviation > EXACT_TOLERANCE * size and not approximated:
-        raise FaceError(f"the conversion of a {type(original).__name__} does not match it "
-                        f"({pmap.deviation / size:.2g} of the model's size off)")
+        raise FaceError(
+            f"the conversion of a {type(original).__name__} does not match it "
+            f"({pmap.deviation / size:.2g} of the model's size off)"
+        )
     return local, pmap
 
 
@@ -229,8 +248,10 @@ def _to_bspline(original, bounds, size: float):
     # converts the natural one and cuts it in the B-spline's parameter, which is not the angle.
     window = []
     su0, _, sv0, _ = surface.Bounds()
-    for lo, hi, start, periodic, period in ((umin, umax, su0, surface.IsUPeriodic(), surface.UPeriod),
-                                            (vmin, vmax, sv0, surface.IsVPeriodic(), surface.VPeriod)):
+    for lo, hi, start, periodic, period in (
+        (umin, umax, su0, surface.IsUPeriodic(), surface.UPeriod),
+        (vmin, vmax, sv0, surface.IsVPeriodic(), surface.VPeriod),
+    ):
         full = periodic and hi - lo >= period() * (1 - 1e-12)
         window += [start, start + period()] if full else [lo, hi]
     try:
@@ -286,18 +307,19 @@ def _rotated(surface: BSplineSurface, axis: int, start: float) -> BSplineSurface
         knots, ctrl = insert_knot(knots, ctrl, p, start)
     first = int(np.searchsorted(knots, start, side="left"))  # index of the first knot equal to start
     # head: [x0, start] uses points [: first], tail: [start, x1] points [first - 1:] (the split point shared)
-    tail_knots = np.concatenate([[start], knots[first: ]])
-    tail = ctrl[first - 1:]
-    head = ctrl[: first]
+    tail_knots = np.concatenate([[start], knots[first:]])
+    tail = ctrl[first - 1 :]
+    head = ctrl[:first]
     head_knots = knots[: first + p]  # ends with p copies of start
     # joined: tail over [start, x1], then head moved by one period over [x1, start + period]
-    new_knots = np.concatenate([tail_knots[:-1], head_knots[p + 1:] + period, [start + period]])
+    new_knots = np.concatenate([tail_knots[:-1], head_knots[p + 1 :] + period, [start + period]])
     new_ctrl = np.concatenate([tail, head[1:]], axis=0)
     new_ctrl = np.moveaxis(new_ctrl, 0, axis)
     ku, kv = (new_knots, surface.knots_v) if axis == 0 else (surface.knots_u, new_knots)
     w = new_ctrl[..., 3]
-    return make_surface(surface.degree, ku, kv, new_ctrl[..., :3] / w[..., None],
-                        None if surface.weights is None else w)
+    return make_surface(
+        surface.degree, ku, kv, new_ctrl[..., :3] / w[..., None], None if surface.weights is None else w
+    )
 
 
 def _restricted(surface: BSplineSurface, axis: int, a: float, b: float) -> BSplineSurface:
@@ -341,8 +363,9 @@ def _extract(bs) -> BSplineSurface:
     nu, nv = bs.NbUPoles(), bs.NbVPoles()
     pole, weight = bs.Pole, bs.Weight
     rows, cols = range(1, nu + 1), range(1, nv + 1)
-    points = np.array([c for i in rows for j in cols for p in (pole(i, j),) for c in (p.X(), p.Y(), p.Z())],
-                      dtype=np.float64).reshape(nu, nv, 3)
+    points = np.array(
+        [c for i in rows for j in cols for p in (pole(i, j),) for c in (p.X(), p.Y(), p.Z())], dtype=np.float64
+    ).reshape(nu, nv, 3)
     if bs.IsURational() or bs.IsVRational():
         weights = np.array([weight(i, j) for i in rows for j in cols], dtype=np.float64).reshape(nu, nv)
     else:
@@ -350,13 +373,13 @@ def _extract(bs) -> BSplineSurface:
     knots_u = flat_knots(bs.UKnot, bs.UMultiplicity, bs.NbUKnots())
     knots_v = flat_knots(bs.VKnot, bs.VMultiplicity, bs.NbVKnots())
     try:
-        return make_surface((bs.UDegree(), bs.VDegree()), knots_u, knots_v, points,
-                            None if np.all(weights == 1.0) else weights)
+        return make_surface(
+            (bs.UDegree(), bs.VDegree()), knots_u, knots_v, points, None if np.all(weights == 1.0) else weights
+        )
     except InputError as e:
         raise FaceError(f"the converted surface is invalid ({e})") from None
 
 
 def flat_knots(knot, multiplicity, n) -> np.ndarray:
     """(K,) float64: the knots of an OpenCASCADE curve or surface direction, each repeated by its multiplicity."""
-    return np.repeat([knot(i) for i in range(1, n + 1)], [multiplicity(i) for i in range(1, n + 1)]).astype(
-        np.float64)
+    return np.repeat([knot(i) for i in range(1, n + 1)], [multiplicity(i) for i in range(1, n + 1)]).astype(np.float64)

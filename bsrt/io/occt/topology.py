@@ -47,8 +47,8 @@ from bsrt.io.occt.curves import (
     segment,
     shifted,
 )
-from bsrt.io.occt.reading import cast
 from bsrt.io.occt.param_map import ParamMap
+from bsrt.io.occt.reading import cast
 
 _MEET = 1e-7  # ends closer than this (a fraction of the model's size) meet, in space
 
@@ -170,8 +170,9 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
             start = c.ends()[0]
         if _hypot(start - end) > snap:
             if _space_gap(original, start, end) > meet:
-                raise TrimError(f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} "
-                                f"apart")
+                raise TrimError(
+                    f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} apart"
+                )
             out.append(segment(end, start))  # a degenerate edge left out (a pole, an apex)
         out.append(c)
     first, last = out[0].ends()[0], out[-1].ends()[1]
@@ -267,7 +268,9 @@ def _closed_around(around, pmap: ParamMap) -> list[list[TrimCurve]]:
         corner_a[other] = top
         closing = [segment(b, corner_b), segment(corner_b, corner_a), segment(corner_a, a)]
         loop = chain + closing
-        directions.append((float(np.mean([c.points[:, other].mean() for c in chain])), float(np.sign(b[axis] - a[axis]))))
+        directions.append(
+            (float(np.mean([c.points[:, other].mean() for c in chain])), float(np.sign(b[axis] - a[axis])))
+        )
         offset = np.zeros(2)
         offset[axis] = a[axis] - b[axis]  # the copy one period back along the chain covers the rest
         loops.append(loop)
@@ -293,8 +296,7 @@ def _close(curves: list[TrimCurve], surface: BSplineSurface, size: float) -> lis
         mid = 0.5 * (ends[i][1] + ends[j][0])
         pts[i][-1] = mid
         pts[j][0] = mid
-    inside = [_inside_domain(TrimCurve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1))
-              for c, p in zip(curves, pts)]
+    inside = [_inside_domain(TrimCurve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1)) for c, p in zip(curves, pts)]
     return _off_the_edges(inside, (a0, a1, b0, b1))
 
 
@@ -368,8 +370,9 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     if x_lo >= a0 - eps and x_hi <= a1 + eps and y_lo >= b0 - eps and y_hi <= b1 + eps:
         return curve  # the control points are inside: so is the curve (convex hull)
     near = 1e-9 * np.hypot(a1 - a0, b1 - b0)
-    if (x_lo >= a0 - near and x_hi <= a1 + near and y_lo >= b0 - near
-            and y_hi <= b1 + near):  # out by rounding of the bounds: onto the edge, moved <= that
+    if (
+        x_lo >= a0 - near and x_hi <= a1 + near and y_lo >= b0 - near and y_hi <= b1 + near
+    ):  # out by rounding of the bounds: onto the edge, moved <= that
         return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
@@ -385,8 +388,9 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     # each crossing is of one edge line, the one the outside sample is past: solve coordinate = line there
     outer = np.where(state[k], k + 1, k)
     lines = np.array([a0 - eps, a1 + eps, b0 - eps, b1 + eps])
-    past = np.stack([uv[outer, 0] < lines[0], uv[outer, 0] > lines[1], uv[outer, 1] < lines[2],
-                     uv[outer, 1] > lines[3]], axis=1)
+    past = np.stack(
+        [uv[outer, 0] < lines[0], uv[outer, 0] > lines[1], uv[outer, 1] < lines[2], uv[outer, 1] > lines[3]], axis=1
+    )
     which = np.argmax(past, axis=1)
     axis, line = which // 2, lines[which]
     a, b = t[k], t[k + 1]
@@ -405,8 +409,12 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         better = np.abs(fm) < best_f
         best, best_f = np.where(better, m, best), np.where(better, np.abs(fm), best_f)
         right = np.sign(fm) == np.sign(fa)  # the crossing is in [m, b]: b kept, its value halved
-        a, b, fa, fb = (np.where(right, m, a), np.where(right, b, m), np.where(right, fm, 0.5 * fa),
-                        np.where(right, 0.5 * fb, fm))
+        a, b, fa, fb = (
+            np.where(right, m, a),
+            np.where(right, b, m),
+            np.where(right, fm, 0.5 * fa),
+            np.where(right, 0.5 * fb, fm),
+        )
     cuts = best
 
     p = curve.degree
@@ -421,7 +429,7 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         if not inside(0.5 * (a + b))[0]:  # an excursion: its control points onto the edge
             first = int(np.searchsorted(knots, a, side="right")) - 1 - p
             last = int(np.searchsorted(knots, b, side="left"))
-            piece = points[max(first, 0): last]
+            piece = points[max(first, 0) : last]
             piece[:, 0] = np.clip(piece[:, 0], a0, a1)
             piece[:, 1] = np.clip(piece[:, 1], b0, b1)
     out = TrimCurve(p, knots, points, None if curve.weights is None else weights)
@@ -432,4 +440,3 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
         points[:, 1] = np.clip(points[:, 1], b0, b1)
         out = TrimCurve(p, knots, points, None if curve.weights is None else weights)
     return out
-

@@ -1,0 +1,311 @@
+"""The commands: each a thin adapter from parsed arguments to the package (``COMMANDS``)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from bsrt import interrupts
+from bsrt.errors import InputError, RenderError
+from bsrt.methods import METHODS
+from bsrt.settings import flag_values
+
+
+def _load_input(args, progress=None):
+    """The Scene for ``args.scene`` (bsrt/scene/loading.py), its import warnings on stderr once.
+    progress: the render's progress, shown the "load" stage."""
+    from bsrt.scene.loading import CameraOverrides, load_input
+
+    scene = load_input(
+        args.scene,
+        args.format,
+        width=getattr(args, "width", None),
+        height=getattr(args, "height", None),
+        camera=CameraOverrides.from_args(args),
+        cache=args.cache,
+        progress=progress,
+    )
+    if progress:
+        progress.clear()  # the warnings below get clean lines
+    for note in scene.notes:
+        print(f"bsrt: warning: {note}", file=sys.stderr)
+    return scene
+
+
+def _check_output(path: str, suffix: str) -> Path:
+    """An output path the run can write (checked before any work): the right
+    suffix, an existing folder, not a folder itself."""
+    out = Path(path)
+    if out.suffix.lower() != suffix:
+        raise InputError(f"{path}: the output file name must end in {suffix}")
+    if not out.parent.is_dir():
+        raise InputError(f"{path}: the folder {str(out.parent)!r} does not exist")
+    if out.is_dir():
+        raise InputError(f"{path}: is a folder, not an output file")
+    return out
+
+
+def _refuse_overwriting(outputs: list[Path], scene) -> None:
+    """No output may be one of the files the scene was read from (its imports
+    included), nor two outputs the same file."""
+
+    def same(a, b) -> bool:
+        return os.path.realpath(a) == os.path.realpath(b) or (
+            os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b)
+        )
+
+    for i, out in enumerate(outputs):
+        for source in scene.inputs:
+            if same(out, source):
+                raise InputError(f"{out}: is an input of this render ({source}); choose another output name")
+        for other in outputs[:i]:
+            if same(out, other):
+                raise InputError(f"{out}: given as two outputs ({other})")
+
+
+def _print_stdout(text: str) -> None:
+    """Print to stdout now; a failing stdout (full disk, closed pipe) is an OutputError."""
+    from bsrt.outputs import OutputError
+
+    try:
+        print(text, flush=True)
+    except OSError as exc:
+        # What is still buffered would fail again at exit with a second message: send it nowhere.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise OutputError(f"<stdout>: {exc.strerror or exc}") from None
+
+
+def _progress(args):
+    """`bsrt render`'s progress (bsrt/progress.py): a bar on a terminal (not with
+    --no-progress, nor in CI), plain lines elsewhere only with --progress."""
+    from bsrt.progress import wanted
+
+    return wanted(sys.stderr, args.progress)
+
+
+def _cmd_render(args) -> int:
+    """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
+    from bsrt.outputs import Outputs
+    from bsrt.rendering.image import npz_writer, png_writer
+    from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import render
+
+    out = _check_output(args.output, ".png")
+    aov = _check_output(args.aov, ".npz") if args.aov else None
+    progress = _progress(args)
+    try:
+        scene = _load_input(args, progress)
+    except BaseException:
+        if progress:
+            progress.clear()
+        raise
+    _refuse_overwriting([out] + ([aov] if aov else []), scene)
+    options = RenderOptions.resolve(scene, **flag_values(args, "render"))
+    _say_if_compiling()
+    try:
+        with interrupts.at_safe_points(), Outputs() as outputs:
+            if progress:
+                progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
+            result = render(scene, options, progress=progress)
+            clock = time.perf_counter()
+            outputs.write(out, png_writer(result.pixels))
+            if aov:
+                outputs.write(aov, npz_writer(result.aovs()))
+            result.stats["seconds"]["write"] = time.perf_counter() - clock
+            if args.stats:
+                _print_stdout(json.dumps(result.stats, indent=2))
+            outputs.commit()
+    except BaseException:
+        if progress:
+            progress.clear()  # the error message gets a clean line
+        raise
+    if progress:
+        progress.finish(
+            f"rendered {out}{f' (AOVs: {aov})' if aov else ''} {options.width}x{options.height}, "
+            f"{options.spp} spp, {options.method}, {progress.elapsed():.1f} s"
+        )
+    return 0
+
+
+def _cmd_map(args) -> int:
+    from bsrt.outputs import Outputs
+    from bsrt.rendering.image import png_writer
+    from bsrt.rendering.pipeline import Geometry
+    from bsrt.rendering.prelim import render_map
+    from bsrt.settings import with_settings
+
+    out = _check_output(args.output, ".png")
+    scene = _load_input(args)
+    _refuse_overwriting([out], scene)
+    scene = with_settings(scene, flag_values(args, "map"))
+    with interrupts.at_safe_points(), Outputs() as outputs:  # as render: signals wait for a safe point
+        prelim = render_map(
+            Geometry(scene).patches, scene.camera, scene.film.width, scene.film.height, scene.render.map
+        )
+        outputs.write(out, png_writer(prelim.picture))
+        outputs.commit()
+    return 0
+
+
+def _cmd_info(args) -> int:
+    path = Path(args.file)
+    if path.suffix.lower() == ".toml":
+        from bsrt.scene import load_scene
+
+        if args.format != "auto":
+            raise InputError(f"{path}: --format: only for model files; a .toml file is a scene")
+
+        scene = load_scene(path, cache=args.cache)
+        degrees = sorted({s.geometry.degree for s in scene.surfaces})
+        rational = sum(s.geometry.is_rational for s in scene.surfaces)
+        trimmed = sum(s.geometry.is_trimmed for s in scene.surfaces)
+        loops = sum(len(s.geometry.trims) for s in scene.surfaces)
+        print(
+            f"{path}: scene, {len(scene.surfaces)} surfaces ({trimmed} trimmed, {loops} loops), degrees {degrees}, "
+            f"{rational} rational, "
+            f"{len(scene.lights)} lights, {len(scene.materials)} materials, film {scene.film.width}x{scene.film.height}"
+        )
+        if scene.loads:
+            from bsrt.io.info import load_line
+
+            print(load_line(scene.loads))
+        for note in scene.notes:
+            print(f"  {note}")
+        return 0
+    from bsrt.io import load_model
+    from bsrt.io.info import describe
+
+    print(describe(load_model(path, args.format, cache=args.cache)))
+    return 0
+
+
+def _cmd_doctor(args) -> int:
+    from bsrt.rendering import gl
+
+    devices = gl.egl_devices()
+    print(f"EGL devices: {len(devices)}")
+    for i, name in enumerate(devices):
+        print(f"  [{i}] {name}")
+    if not devices:
+        print("  none found: " + gl.FIX_HINT)
+    try:
+        ctx = gl.headless_context()
+    except RenderError as exc:
+        print(f"OpenGL: FAILED: {exc}")
+        return 1
+    print(f"OpenGL renderer: {ctx.info['GL_RENDERER']}")
+    print(f"OpenGL version:  {ctx.info['GL_VERSION']}")
+    print(f"OpenGL vendor:   {ctx.info['GL_VENDOR']}")
+    chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
+    print(
+        f"device chosen:   {chosen if chosen is not None else 'first that works'} (set GLCONTEXT_DEVICE_INDEX=N to pick)"
+    )
+    from bsrt.kernels import compile as kernels
+
+    cached = kernels.is_cached()
+    from bsrt.rendering.warm_up import warm_up
+
+    seconds = warm_up()
+    print(
+        f"kernels:         {'loaded from the cache' if cached else 'compiled'} in {seconds:.1f} s "
+        f"(cache: {kernels.cache_folder() or 'none'})"
+    )
+    from bsrt.io.formats import READERS
+
+    for reader in READERS.values():
+        state = "ready" if reader.available() else f"needs pip install 'bsrt[{reader.extra}]'"
+        print(f"reader {reader.name + ':':7} {' '.join(reader.extensions):38} {state}")
+    print("OK: bsrt can render headless")
+    return 0
+
+
+def _say_if_compiling() -> None:
+    """On a terminal, say that the first render on this machine compiles the kernels (once)."""
+    from bsrt.kernels import compile as kernels
+
+    if sys.stderr.isatty() and not kernels.is_cached():
+        print(
+            "bsrt: compiling the ray-tracing kernels for this machine (once; about a minute)...",
+            file=sys.stderr,
+            flush=True,
+        )
+
+
+def _cmd_bench(args) -> int:
+    from bsrt.rendering import bench
+
+    named = [m.strip() for m in args.methods.split(",") if m.strip()]
+    unknown = [m for m in named if m not in METHODS]
+    if unknown:
+        raise InputError(f"--methods: unknown method {unknown[0]!r} (expected {', '.join(METHODS)})")
+    if not named:
+        raise InputError(f"--methods: names no method (expected a comma-separated list of {', '.join(METHODS)})")
+    if args.json:
+        _check_output(args.json, ".json")
+    log = lambda text: print(text, flush=True)  # noqa: E731
+    if args.models:
+        results = bench.trim_cost(args.models, args.size, args.repeat, log=log)
+    else:
+        results = bench.run(args.scenes or bench.DEFAULT_SCENES, named, args.size, args.repeat, log=log)
+        print()
+        print(bench.format_tables(results))
+        if args.full:
+            print()
+            print(bench.format_full(results))
+    if args.json:
+        from bsrt.rendering.image import write_text
+
+        write_text(args.json, json.dumps(results, indent=2))
+    return 0
+
+
+def _cmd_preview(args) -> int:
+    from bsrt import preview
+    from bsrt.scene.loading import CameraOverrides, load_input
+    from bsrt.settings import with_settings
+
+    options = preview.WindowOptions(
+        args.width,
+        args.height,
+        args.frames,
+        args.screenshot,
+        args.max_fps,
+        args.frame_log,
+        preview.script_commands(args.events, args.script),
+    ).checked()
+    scene = load_input(
+        args.scene,
+        args.format,
+        width=args.width,
+        height=args.height,
+        camera=CameraOverrides.from_args(args),
+        cache=args.cache,
+    )
+    return preview.run(with_settings(scene, flag_values(args, "preview")), Path(args.scene), options)
+
+
+def _cmd_batch(args) -> int:
+    from bsrt.cli.batch import cmd_batch
+
+    return cmd_batch(args)
+
+
+def _cmd_animate(args) -> int:
+    from bsrt.cli.batch import cmd_animate
+
+    return cmd_animate(args)
+
+
+COMMANDS = {
+    "render": _cmd_render,
+    "map": _cmd_map,
+    "info": _cmd_info,
+    "doctor": _cmd_doctor,
+    "bench": _cmd_bench,
+    "preview": _cmd_preview,
+    "batch": _cmd_batch,
+    "animate": _cmd_animate,
+}
