@@ -20,7 +20,7 @@ scene's tables or re-checks a name.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, make_dataclass, replace
 from typing import Any
 
@@ -182,16 +182,16 @@ Film = _table_class("Film", "film", "The scene's ``[film]``: the picture's size 
 RenderSettings = _table_class("RenderSettings", "render", "The scene's ``[render]``: how rays are traced.")
 
 
-def checked_overrides(values: Mapping[str, Any], label: Callable[[Setting], str] | None = None) -> dict:
-    """The given (not None) settings, checked: name -> value. Unknown names are a TypeError
-    (a programming error). label: how a message names the setting (default: its name)."""
+def checked_overrides(values: Mapping[str, Any]) -> dict:
+    """The given (not None) settings, checked: name -> value (a message names the setting as the
+    keyword it is). Unknown names are a TypeError (a programming error)."""
     out = {}
     for name, value in values.items():
         if name not in BY_NAME:
             raise TypeError(f"unknown render setting {name!r} (known: {', '.join(BY_NAME)})")
         if value is not None:
             setting = BY_NAME[name]
-            out[name] = setting.check(value, None if label is None else label(setting))
+            out[name] = setting.check(value)
     return out
 
 
