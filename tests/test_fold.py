@@ -66,6 +66,7 @@ def layers(eye, d):
     return out
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("method", ["newton", "fast", "gradient"])
 def test_a_map_showing_the_far_layer_of_a_thin_fold_still_gives_the_near_layer(method):
     scene = fold_scene(method)
@@ -94,6 +95,8 @@ def test_a_map_showing_the_far_layer_of_a_thin_fold_still_gives_the_near_layer(m
     assert result.stats["seam"] > 0 and result.stats["hierarchy"] > result.stats["suspect"]  # repaired inwards
 
 
+@pytest.mark.gl
+@pytest.mark.cad
 def test_128_004_agrees_with_opencascade_away_from_edges():
     """128-004.igs (IGES5x.org, tests/data/models/SOURCES.md): one degree 5 x 5 patch that crosses
     itself, its layers 1e-3 of the diagonal apart. The map seeded the farther layer at 57 pixels at
