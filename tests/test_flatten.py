@@ -151,3 +151,36 @@ def test_rational_sphere_hits_through_the_hierarchy_match_the_closed_form():
     assert np.all(err * cosine <= 1.01 * tolerance)  # t is off by at most the distance / |cos|
     assert err.max() <= 1e-8 * size  # grazing roots polished (the older code: 2.6e-8 here)
     assert (cosine < 0.3).sum() > 50  # grazing rays were tried
+
+
+@pytest.mark.parametrize("degrees", [2.0, 4.0, 6.0])
+def test_a_ray_leaving_a_concave_leaf_meets_the_same_leaf_again(degrees):
+    """A shadow ray from inside a cylinder (radius 2, one rational quadratic arc of 60 degrees, so
+    its leaves are the 8-degree-cone pieces, with a far plane in the scene) toward another point of the same arc, `degrees` away,
+    leaves its start (excluded, as the pipeline's secondary rays do) and meets the surface again at
+    the chord, t = 2 r sin(degrees / 2): a cupped surface shadows itself. The start and the target
+    share a leaf (normals within 16 degrees), where a flat leaf could only be re-crossed at grazing."""
+    r, span = 2.0, math.radians(60.0)
+    a = 0.5 * span
+    pts = np.zeros((3, 2, 3))
+    w = np.array([1.0, math.cos(a), 1.0])
+    xy = r * np.array([[math.cos(-a), math.sin(-a)], [1.0 / math.cos(a), 0.0], [math.cos(a), math.sin(a)]])
+    for i in range(3):
+        for j in range(2):
+            pts[i, j] = [xy[i, 0], xy[i, 1], 3.0 * j]
+    surface = make_surface((2, 1), [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], pts, np.repeat(w[:, None], 2, axis=1))
+    # a far plane makes the scene 100 times larger: the absolute flatness (2e-3 of the diagonal) then
+    # leaves the arc's leaves to the relative bound, as a small cupped part of a large model has them
+    far = [[[100.0, 100.0, 0.0], [100.0, 101.0, 0.0]], [[101.0, 100.0, 0.0], [101.0, 101.0, 0.0]]]
+    patches = PatchSet([surface, make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], far)])
+    tree = build_bvh(patches)
+    start = -0.4 * span  # angles on the arc (0 = its middle): start and target in one leaf of 15 degrees
+    end = start + math.radians(degrees)
+    origin = np.array([[r * math.cos(start), r * math.sin(start), 1.5]])
+    target = np.array([[r * math.cos(end), r * math.sin(end), 1.5]])
+    # the start's parameter: the arc's u at that angle (tan-half-angle map of a rational quadratic arc)
+    u0 = 0.5 * (1.0 + math.tan(0.5 * start) / math.tan(0.5 * a))
+    exclude = (np.array([0]), np.array([u0]), np.array([0.5]), np.array([1e-6]), np.array([1e-6]))
+    hits = intersect(tree, origin, target - origin, tolerance=1e-9 * patches.scene_diagonal(), exclude=exclude)
+    assert hits.hit[0], "the ray passes through the surface it starts on"
+    assert hits.t[0] == pytest.approx(2 * r * math.sin(0.5 * math.radians(degrees)), rel=1e-9)

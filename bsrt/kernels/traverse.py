@@ -38,7 +38,7 @@ from numba import njit
 
 from bsrt.kernels.flatten import copy_net, leaf_net, split_half
 from bsrt.kernels.method_ids import NEWTON
-from bsrt.kernels.patches import frame
+from bsrt.kernels.patches import frame, locate
 from bsrt.kernels.roots import ray_frame, solve_one
 from bsrt.kernels.trim import point_kept
 
@@ -143,9 +143,9 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
     """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either).
 
     A root that is the secondary ray's own start counts as 2 even when Newton
-    reached it from a neighbouring piece: a ray leaving the surface there
-    meets a piece that flat again only at grazing angles (see bvh.py), so
-    that piece is not retried either."""
+    reached it from a neighbouring piece; the piece is then retried (quarters)
+    only when the ray leaves the start grazing: a leaf's normals lie within its
+    cone (bvh.py), so only a grazing ray meets it again."""
     if m == ex_m and abs(u - ex_u) <= ex_ru and abs(v - ex_v) <= ex_rv:
         return 2
     su = RECT_SLACK * (rect[1] - rect[0])
@@ -215,7 +215,10 @@ def _solve_piece(
     state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
     found = state == 1
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
-    if retry_depth == 0 or state == 2 or (found and not _grazing(P, k, u, v, dx, dy, dz)):
+    # No retry after a root that is not grazing. The start root of a secondary ray is retried too when
+    # the ray leaves it grazing: the leaf's normals lie within its cone, so a ray that meets the leaf
+    # again (a cupped surface shadowing itself) leaves it at |cos| below GRAZING_COSINE.
+    if retry_depth == 0 or ((found or state == 2) and not _grazing(P, k, u, v, dx, dy, dz)):
         return found, best_t, best_u, best_v, best_k, best_res, iterations
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
@@ -329,6 +332,9 @@ def trace_one(
     iz = 1.0 / dz if abs(dz) > 1e-300 else np.copysign(1e300, dz)
     best_t, best_u, best_v, best_k, best_res = np.inf, np.nan, np.nan, -1, np.nan
     iterations = 0
+    # The leaf holding the ray's start is skipped unless the ray leaves it grazing: a leaf's normals
+    # lie within its cone (bvh.py), so only a grazing ray meets it again (a cupped surface's shadow).
+    skip_start = ex_m >= 0 and not _grazing(P, locate(P, ex_m, ex_u, ex_v), ex_u, ex_v, dx, dy, dz)
     near, far = _slab(B.node_bounds[0], ox, oy, oz, ix, iy, iz)
     if not (near <= far and far >= t_min and near <= t_max):
         return False, best_t, best_u, best_v, best_k, best_res, iterations
@@ -342,9 +348,7 @@ def trace_one(
         left = B.node_left[node]
         if left < 0:
             for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
-                if B.leaf_surface[leaf] == ex_m:
-                    # The piece holding the ray's start: a ray leaving a plane never meets it again,
-                    # and a piece this flat only at grazing angles (bvh.py), so it is not solved.
+                if skip_start and B.leaf_surface[leaf] == ex_m:
                     r = B.leaf_rect[leaf]
                     if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
                         continue

@@ -81,7 +81,10 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    two crossings may be in the same quarter). A grazing root then takes one
    more Newton step (kept if it is still a valid root of the piece, that
    near): its t is off by up to its residual / |cos|, and the step takes the
-   residual from the tolerance down to rounding.
+   residual from the tolerance down to rounding. The piece holding a
+   secondary ray's start is skipped unless the ray leaves the start grazing;
+   then it is solved and retried like any other, its start root excluded
+   (a cupped surface shadowing itself within one leaf: water-lily's petals).
    Measured against an exhaustive search (Newton from 10 x 10 starts on
    every Bezier patch whose box the ray enters): 30,000 random rays at
    three non-uniform surfaces (degrees 3, 2 and a rational bowl, a third of
