@@ -105,6 +105,7 @@ def intersect(
     arrays (naming the argument and the first bad row), a bad mode or
     tolerance, or a scene without surfaces; N = 0 gives an empty result.
     """
+    from bsrt.rendering.raycast import MIN_TOLERANCE
     from bsrt.validate import real
 
     if mode not in MODES:
@@ -112,11 +113,13 @@ def intersect(
     if tolerance is None:
         tolerance = DEFAULT_TOLERANCE
     tolerance = real("tolerance", tolerance, 0.0, 1.0, lo_open=True, expected="a number in (0, 1]")
-    if tolerance < 1e-13:
-        raise InputError(f"tolerance: {tolerance:g} of the diagonal is below what float64 can give; the least is 1e-13")
+    if tolerance < MIN_TOLERANCE:
+        raise InputError(
+            f"tolerance: {tolerance:g} of the diagonal is below what float64 can give; the least is {MIN_TOLERANCE:g}"
+        )
     d = _rays("directions", directions)
     n = d.shape[0]
-    o = _rays("origins", origins, allow_single=True)
+    o = given = _rays("origins", origins, allow_single=True)
     if o.shape[0] == 1 and n != 1:
         o = np.broadcast_to(o, (n, 3))
     elif o.shape[0] != n:
@@ -131,6 +134,14 @@ def intersect(
     if wrong.size:
         raise InputError(f"t_min, t_max: row {wrong[0]} has t_min {lo[wrong[0]]:g} >= t_max {hi[wrong[0]]:g}")
     scene, caster = prepared(scene)
+    least = caster.least_tolerance(given)
+    if tolerance < least:
+        worst = caster.high_degree
+        where = f" (surface {worst[1]!r} of degree {worst[2]})" if worst and worst[0] >= least else ""
+        raise InputError(
+            f"tolerance: {tolerance:g} of the diagonal is below what float64 can give for this scene and these "
+            f"origins{where}; the least is {least:.2g}"
+        )
     names = tuple(s.name for s in scene.surfaces)
     found = caster.cast(np.ascontiguousarray(o), unit, lo, hi, tolerance, mode)
     offsets = np.searchsorted(found.ray, np.arange(n + 1)).astype(np.int64)

@@ -167,6 +167,17 @@ def test_tolerance_down_to_1e_13_by_the_polish():
         bsrt.intersect(scene, origins, np.tile(-X, (200, 1)), tolerance=1e-14)
 
 
+def test_a_tolerance_float64_cannot_resolve_from_far_origins_is_refused():
+    """From x = 1e4 (the sphere's diagonal is about 6.9): 64 float64 steps of 1e4 are 2e-11 of the
+    diagonal, so 1e-12 is refused there (and accepted from nearby); 1e-9 finds t = 1e4 - R."""
+    far, near = A([[1e4, 0.0, 0.0]]), A([[5.0, 0.0, 0.0]])
+    with pytest.raises(InputError, match="for this scene and these origins; the least is 2"):
+        bsrt.intersect(ball(), far, [[-1.0, 0, 0]], tolerance=1e-12)
+    assert bsrt.intersect(ball(), near, [[-1.0, 0, 0]], tolerance=1e-12).hit.all()
+    result = bsrt.intersect(ball(), far, [[-1.0, 0, 0]])
+    assert abs(result.t[0] - (1e4 - R)) < 1e-8 * 1e4
+
+
 def test_the_geometry_is_prepared_once_per_scene():
     scene = ball()
     first = prepared(scene)[1]

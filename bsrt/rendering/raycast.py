@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bsrt import validate
 from bsrt.kernels.shading import frames_many
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.hits import Hits
@@ -76,6 +77,20 @@ class RayCaster:
         _ = self.geometry.bvh  # built now, not in the first query
         self.reversed = np.array([bool(getattr(s, "reversed", False)) for s in scene.surfaces], dtype=bool)
         self.diagonal = self.geometry.diagonal
+        lo, hi = self.geometry.patches.scene_box()
+        self._reach = max(float(np.abs(lo).max()), float(np.abs(hi).max()))
+        worst = validate.smallest_tolerance_of_high_degrees(
+            [s.geometry for s in scene.surfaces], [s.name for s in scene.surfaces], self.diagonal
+        )
+        self.high_degree = worst  # (tolerance, name, degree) of the least exact high-degree surface, or None
+
+    def least_tolerance(self, origins: np.ndarray) -> float:
+        """The smallest tolerance (fraction of the diagonal) float64 resolves for rays from origins
+        (K, 3): MIN_TOLERANCE, FLOAT_STEPS steps of the largest coordinate, and what the power-basis
+        evaluation of a surface above degree 9 allows (bsrt.validate, as a render checks)."""
+        reach = max(self._reach, float(np.abs(origins).max()) if origins.size else 0.0)
+        least = max(MIN_TOLERANCE, validate.FLOAT_STEPS * np.finfo(np.float64).eps * reach / self.diagonal)
+        return max(least, self.high_degree[0]) if self.high_degree else least
 
     def cast(self, origins, directions, t_min, t_max, tolerance: float, mode: str) -> RayHits:
         """origins, directions: (N, 3) float64, unit directions; t_min, t_max: (N,) float64;
