@@ -93,7 +93,8 @@ def cmd_scan(args) -> int:
             elevations=args.elevations,
         )
     clock = time.perf_counter()
-    result = intersect(scene, rays.origins[:1], rays.directions, tolerance=getattr(args, "tolerance", None))
+    tolerance = args.tolerance if args.tolerance is not None else scene.render.tolerance  # the flag, else the scene's
+    result = intersect(scene, rays.origins[:1], rays.directions, tolerance=tolerance)
     took = time.perf_counter() - clock
     if suffix == ".ply":
         write_file(out, lambda f: sensors.write_ply(f, result))
