@@ -40,7 +40,7 @@ class Setting:
     "color" (three numbers >= 0, linear RGB). lo, hi: bounds (lo_open: lo
     itself excluded). choices: for "choice". unit: shown in help and docs.
     commands: the CLI commands that take it as a flag ("render" also means
-    batch and animate; "map"; "preview").
+    batch and animate; "map"; "preview"; "scan").
     """
 
     name: str
@@ -158,6 +158,7 @@ SETTINGS: tuple[Setting, ...] = (
         1.0,
         lo_open=True,
         unit="of the scene's diagonal",
+        commands=("render", "preview", "scan"),
     ),
     Setting("max_iterations", "render", "int", 64, "root-finder steps per pixel and start", 1, validate.MAX_ITERATIONS),
     Setting(

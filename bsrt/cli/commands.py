@@ -299,6 +299,12 @@ def _cmd_animate(args) -> int:
     return cmd_animate(args)
 
 
+def _cmd_scan(args) -> int:
+    from bsrt.cli.scan import cmd_scan
+
+    return cmd_scan(args)
+
+
 COMMANDS = {
     "render": _cmd_render,
     "map": _cmd_map,
@@ -308,4 +314,5 @@ COMMANDS = {
     "preview": _cmd_preview,
     "batch": _cmd_batch,
     "animate": _cmd_animate,
+    "scan": _cmd_scan,
 }

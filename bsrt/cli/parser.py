@@ -94,7 +94,10 @@ def _parser() -> argparse.ArgumentParser:
     from bsrt.cli.batch import add_commands as _batch_commands
 
     _batch_commands(sub, _positive_int)
-    for command in ("render", "map", "info", "preview", "batch", "animate"):  # every command that loads models
+    from bsrt.cli.scan import add_command as _scan_command
+
+    _scan_command(sub, _positive_int, INPUT_HELP, _camera_options)
+    for command in ("render", "map", "info", "preview", "batch", "animate", "scan"):  # every command that loads models
         _cache_option(sub.choices[command])
     return parser
 
