@@ -167,6 +167,8 @@ SLOW: dict[str, float] = {
     "tests/test_animate.py::test_orbit_of_8_frames_with_animated_webp": 88.1,
     "tests/test_api.py::test_to_toml_reads_back_to_the_same_scene[iges-trimmed]": 1.6,
     "tests/test_batch.py::test_a_killed_worker_does_not_lose_the_batch": 6.4,
+    "tests/test_edges.py::test_the_box_edges_fall_on_the_pixels_its_visible_edges_cross_and_nowhere_else": 4.7,  # 2 cases
+    "tests/test_edges.py::test_a_wider_edge_in_a_colour_covers_as_its_width_says": 1.1,
     "tests/test_fold.py::test_128_004_agrees_with_opencascade_away_from_edges": 1.5,
     "tests/test_batch.py::test_bad_usage_exits_2": 5.6,
     "tests/test_batch.py::test_files_travel_with_the_task_to_a_scheduler": 7.1,

@@ -70,7 +70,7 @@ def top_view(surfaces, size=64, centre=(0.5, 0.5), height=10.0, half=0.55, light
                 "up": [0.0, 1.0, 0.0],
                 "fov": fov,
             },
-            "render": render_keys,
+            "render": {"adaptive_spp": 0, **render_keys},  # one sample per pixel: the closed forms are per centre ray
             "light": lights or [{"kind": "ambient", "intensity": 1.0}],
             "surface": surfaces,
         }

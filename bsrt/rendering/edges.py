@@ -193,15 +193,36 @@ def curve_segments(curve, xy, depth, seen, hidden: bool, width_px: float):
     ]
     weights = [np.ones(s.shape[0]) for s in segs]
     if hidden:
-        length = np.linalg.norm(pb - pa, axis=1)
-        along = np.cumsum(np.concatenate([[0.0], length]))[:-1]  # film arc length at each segment's start
-        period = max(6.0, 4.0 * width_px)
-        dash = np.mod(along + 0.5 * length, period) < 0.6 * period
+        along = _dash_phase(curve[a], np.linalg.norm(pb - pa, axis=1), xy, curve)
+        period = max(8.0, 6.0 * width_px)  # a gap of half of it, less the round caps (w / 2 + 1/2 each)
+        dash = np.mod(along, period) < 0.5 * period
         for keep, p0, p1 in ((~va & ~vb, pa, pb), (va & ~vb, mid, pb), (~va & vb, pa, mid)):
             keep = keep & dash
             segs.append(np.concatenate([p0[keep], p1[keep]], axis=1))
             weights.append(np.full(int(keep.sum()), HIDDEN_WEIGHT))
     return np.concatenate(segs), np.concatenate(weights)
+
+
+def _dash_phase(owner: np.ndarray, length: np.ndarray, xy: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    """Film arc length (K,) at the middle of each segment along its curve, measured from the curve's end
+    that comes first (by rounded film x, then y), so the two faces' copies of an edge dash alike.
+    owner: (K,) the curve of each segment (non-decreasing); length: (K,) the segments' film lengths;
+    xy, curve: the samples' film positions (N, 2) and curves (N,)."""
+    if not owner.size:
+        return np.zeros(0)
+    total = np.cumsum(length)
+    first = np.concatenate([[True], owner[1:] != owner[:-1]])
+    start = np.flatnonzero(first)
+    base = np.repeat(total[start] - length[start], np.diff(np.concatenate([start, [owner.size]])))
+    mid = total - base - 0.5 * length
+    ids, at = np.unique(curve, return_index=True)
+    end = np.concatenate([at[1:], [curve.size]]) - 1
+    p0, p1 = np.round(xy[at], 3), np.round(xy[end], 3)
+    flip = (p0[:, 0] > p1[:, 0]) | ((p0[:, 0] == p1[:, 0]) & (p0[:, 1] > p1[:, 1]))
+    curve_length = np.zeros(ids.size)
+    np.add.at(curve_length, np.searchsorted(ids, owner), length)
+    k = np.searchsorted(ids, owner)
+    return np.where(flip[k], curve_length[k] - mid, mid)
 
 
 def contour_segments(geometry, camera, width: int, height: int, hits: Hits, footprint: float, tolerance: float):
@@ -217,7 +238,8 @@ def contour_segments(geometry, camera, width: int, height: int, hits: Hits, foot
         b = (slice(None), slice(1, n)) if axis == 1 else (slice(1, n), slice(None))
         ta, tb = t[a], t[b]
         near_t = np.minimum(ta, tb)
-        jump = (hit[a] != hit[b]) | (hit[a] & hit[b] & (np.abs(ta - tb) > JUMP * footprint * near_t))
+        with np.errstate(invalid="ignore"):  # inf - inf where both miss
+            jump = (hit[a] != hit[b]) | (hit[a] & hit[b] & (np.abs(ta - tb) > JUMP * footprint * near_t))
         i, j = np.nonzero(jump)
         centre_a = np.stack([j + 0.5, i + 0.5], axis=1)
         centre_b = centre_a + (np.array([1.0, 0.0]) if axis == 1 else np.array([0.0, 1.0]))
@@ -229,7 +251,8 @@ def contour_segments(geometry, camera, width: int, height: int, hits: Hits, foot
             mid = 0.5 * (lo + hi)
             seen = geometry.intersect(camera.eye[None, :], film_rays(camera, width, height, mid), tolerance=tolerance)
             ts = np.where(seen.hit, seen.t, np.inf)
-            near = seen.hit & (~np.isfinite(t_far) | (np.abs(ts - t_near) < np.abs(ts - t_far)))
+            with np.errstate(invalid="ignore"):
+                near = seen.hit & (~np.isfinite(t_far) | (np.abs(ts - t_near) < np.abs(ts - t_far)))
             lo = np.where(near[:, None], mid, lo)
             hi = np.where(near[:, None], hi, mid)
         grid = np.full((height, width, 2), np.nan)
