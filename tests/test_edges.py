@@ -15,6 +15,8 @@ import math
 import numpy as np
 import pytest
 
+from bsrt.cli import _parser
+from bsrt.errors import InputError
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import parse_scene
@@ -159,6 +161,23 @@ def test_a_wider_edge_in_a_colour_covers_as_its_width_says():
     red = render(scene, RenderOptions.resolve(scene, edges=True, edge_width=4.0, edge_color=(1.0, 0.0, 0.0)))
     core = d < 1.0
     np.testing.assert_allclose(red.linear[core], [[1.0, 0.0, 0.0]] * int(core.sum()), atol=1e-12)
+
+
+def test_the_edge_flags_and_keys_are_checked_as_settings(capsys):
+    args = _parser().parse_args(["render", "in.toml", "-o", "x.png", "--edges", "--edge-color", "0.2,0,1"])
+    assert (args.edges, args.edge_color, args.hidden_edges) == (True, (0.2, 0.0, 1.0), None)
+    assert _parser().parse_args(["render", "in.toml", "-o", "x.png", "--no-edges"]).edges is False
+    for bad, message in (
+        (["--edge-width", "0"], "argument --edge-width: expected a number in (0, 64], got 0"),
+        (["--edge-color", "1,2"], "argument --edge-color: expected three numbers (linear RGB)"),
+        (["--adaptive-spp", "-1"], "argument --adaptive-spp: expected a whole number >= 0, got -1"),
+    ):
+        with pytest.raises(SystemExit) as exit_:
+            _parser().parse_args(["render", "in.toml", "-o", "x.png", *bad])
+        assert exit_.value.code == 2
+        assert message in capsys.readouterr().err
+    with pytest.raises(InputError, match="render.edges: expected true or false, got 'yes'"):
+        _box_scene(16, edges="yes")
 
 
 # ---------------------------------------------------------------- adaptive anti-aliasing
