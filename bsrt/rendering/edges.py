@@ -11,9 +11,10 @@ Two sources, both independent of the film's resolution:
   the surface closes onto itself (a periodic seam: S at the opposite border
   is the same point) is not an edge and is left out. Each sample is tested
   for visibility exactly: a ray from the eye to the sample through the
-  hierarchy (any hit before the sample, less 1e-6 of the scene's diagonal,
-  hides it). Consecutive samples make segments; a segment with one end
-  hidden is cut at its middle.
+  hierarchy (any hit before the sample, by more than 1e-6 of the scene's
+  diagonal plus 0.02 of a pixel's footprint at its distance, hides it: a
+  ray grazing the edge's own face near a silhouette does not). Consecutive
+  samples make segments; a segment with one end hidden is cut at its middle.
 - Contours (silhouettes against the background or against a surface further
   back, folds of a surface behind itself): pairs of neighbouring pixels
   whose centre rays hit and miss, or hit at depths differing by more than
@@ -44,6 +45,7 @@ BISECTIONS = 6
 HIDDEN_WEIGHT = 0.45  # coverage of a hidden edge, relative to a visible one
 SEAM_TOLERANCE = 1e-7  # of the scene's diagonal: a border meeting its opposite border this closely is a seam
 SEGMENT_CHUNK = 1 << 14
+VISIBILITY_MARGIN = 0.02  # pixels: a surface less than this in front of an edge (a grazing ray) does not hide it
 
 
 class _Curve:
@@ -163,13 +165,15 @@ def sample_curves(patches, camera, width: int, height: int, diagonal: float):
     return curve, m, points, xy, depth
 
 
-def visible(geometry, eye: np.ndarray, points: np.ndarray, tolerance: float) -> np.ndarray:
-    """(N,) bool: whether each world point (N, 3) is seen from the eye (nothing hit before it)."""
+def visible(geometry, eye: np.ndarray, points: np.ndarray, tolerance: float, footprint: float) -> np.ndarray:
+    """(N,) bool: whether each world point (N, 3) is seen from the eye: nothing is hit before it by
+    more than 1e-6 of the scene's diagonal plus VISIBILITY_MARGIN pixels (footprint: a pixel's size at
+    unit distance) of its distance."""
     if not points.shape[0]:
         return np.zeros(0, dtype=bool)
     to = points - eye
     dist = np.linalg.norm(to, axis=1)
-    margin = 1e-6 * geometry.diagonal
+    margin = 1e-6 * geometry.diagonal + VISIBILITY_MARGIN * footprint * dist
     blocked = geometry.intersect(
         eye[None, :], to, t_min=0.0, t_max=np.maximum(dist - margin, 0.0), tolerance=tolerance, any_hit=True
     )
@@ -325,11 +329,10 @@ def edge_coverage(geometry, options, hits: Hits, stats=None) -> np.ndarray:
     camera, width, height = options.camera, options.width, options.height
     tolerance = options.tolerance * geometry.diagonal
     curve, _, points, xy, depth = sample_curves(geometry.patches, camera, width, height, geometry.diagonal)
-    seen = visible(geometry, camera.eye, points, tolerance) & (depth > 0)
+    footprint = pixel_footprint(camera, width, height)
+    seen = visible(geometry, camera.eye, points, tolerance, footprint) & (depth > 0)
     segments, weights = curve_segments(curve, xy, depth, seen, options.hidden_edges, options.edge_width)
-    contours = contour_segments(
-        geometry, camera, width, height, hits, pixel_footprint(camera, width, height), tolerance
-    )
+    contours = contour_segments(geometry, camera, width, height, hits, footprint, tolerance)
     if stats is not None:
         stats.add("edge_samples", points.shape[0])
         stats.add("edge_segments", segments.shape[0])
