@@ -45,6 +45,7 @@ BISECTIONS = 6
 HIDDEN_WEIGHT = 0.45  # coverage of a hidden edge, relative to a visible one
 SEAM_TOLERANCE = 1e-7  # of the scene's diagonal: a border meeting its opposite border this closely is a seam
 SEGMENT_CHUNK = 1 << 14
+MAX_PIECE = 8.0  # pixels: segments are rasterised in pieces at most this long
 VISIBILITY_MARGIN = 0.02  # pixels: a surface less than this in front of an edge (a grazing ray) does not hide it
 
 
@@ -285,12 +286,38 @@ def contour_segments(geometry, camera, width: int, height: int, hits: Hits, foot
     return np.concatenate(out)
 
 
+def _clipped(segments: np.ndarray, weights: np.ndarray, width: int, height: int, reach: float):
+    """The parts of segments (K, 4) within the film grown by reach, cut into pieces at most MAX_PIECE
+    pixels long (so each piece's box of pixels is small), with their weights; non-finite ones dropped."""
+    keep = np.all(np.isfinite(segments), axis=1)
+    segments, weights = segments[keep], weights[keep]
+    a, d = segments[:, :2], segments[:, 2:] - segments[:, :2]
+    t0, t1 = np.zeros(len(segments)), np.ones(len(segments))
+    for axis, size in ((0, width), (1, height)):  # Liang-Barsky, one slab per axis
+        lo, hi = -reach - a[:, axis], size + reach - a[:, axis]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = lo / d[:, axis], hi / d[:, axis]
+        flat = d[:, axis] == 0
+        t0 = np.where(flat, np.where((lo <= 0) & (hi >= 0), t0, 2.0), np.maximum(t0, np.minimum(ta, tb)))
+        t1 = np.where(flat, t1, np.minimum(t1, np.maximum(ta, tb)))
+    keep = t0 <= t1
+    a, d, t0, t1, weights = a[keep], d[keep], t0[keep], t1[keep], weights[keep]
+    start, stop = a + t0[:, None] * d, a + t1[:, None] * d
+    pieces = np.maximum(1, np.ceil(np.linalg.norm(stop - start, axis=1) / MAX_PIECE)).astype(np.int64)
+    k = np.repeat(np.arange(pieces.size), pieces)
+    i = np.arange(k.size) - np.repeat(np.cumsum(pieces) - pieces, pieces)
+    f0, f1 = (i / pieces[k])[:, None], ((i + 1) / pieces[k])[:, None]
+    step = stop[k] - start[k]
+    return np.concatenate([start[k] + f0 * step, start[k] + f1 * step], axis=1), weights[k]
+
+
 def rasterize(segments: np.ndarray, weights: np.ndarray, width_px: float, width: int, height: int) -> np.ndarray:
     """Coverage (H, W) float64 in [0, 1] of lines of width_px pixels along segments (K, 4)
     (x0, y0, x1, y1 film pixels), each scaled by its weight (K,): the maximum over the segments."""
     cover = np.zeros(height * width)
     reach = 0.5 * width_px + 0.5
     top = min(width_px, 1.0)
+    segments, weights = _clipped(segments, weights, width, height, reach)
     for c in range(0, segments.shape[0], SEGMENT_CHUNK):
         seg, wt = segments[c : c + SEGMENT_CHUNK], weights[c : c + SEGMENT_CHUNK]
         x0 = np.floor(np.minimum(seg[:, 0], seg[:, 2]) - reach - 0.5).astype(np.int64)
