@@ -245,3 +245,42 @@ def test_adaptive_anti_aliasing_matches_spp16_at_a_fraction_of_its_samples():
     samples = stats["pixels"] + stats["adaptive_samples"]
     assert samples < 0.15 * 16 * size * size  # the cost in camera samples, against spp 16's
     assert "adaptive_pixels" not in one.stats
+
+
+def test_a_periodic_seam_is_no_edge():
+    """A whole cylinder x^2 + y^2 = 1, |z| <= 1, as one untrimmed surface whose u = 0 and u = 1 borders
+    are the same line (1, 0, z): seen from (5, 0, 0), that seam runs down the middle of the film. Its
+    top and bottom borders (circles) and its silhouettes (y = +-1) are edges; the seam is not."""
+    r = math.sqrt(0.5)
+    circle = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1), (1, 0)]
+    weights = [1, r, 1, r, 1, r, 1, r, 1]
+    size = 64
+    scene = parse_scene(
+        {
+            "film": {"width": size, "height": size, "background": [1.0, 1.0, 1.0]},
+            "camera": {"eye": [5.0, 0.0, 0.0], "look_at": [0.0, 0.0, 0.0], "up": [0.0, 0.0, 1.0], "fov": 40.0},
+            "render": {"adaptive_spp": 0},
+            "material": [{"name": "white", "color": [0.5, 0.5, 0.5], "specular": 0.0}],
+            "light": [{"kind": "ambient", "intensity": 1.0}],
+            "surface": [
+                {
+                    "degree": [2, 1],
+                    "knots_u": [0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1],
+                    "knots_v": [0, 0, 1, 1],
+                    "points": [[[x, y, -1.0], [x, y, 1.0]] for x, y in circle],
+                    "weights": [[w, w] for w in weights],
+                    "material": "white",
+                }
+            ],
+        }
+    )
+    geometry = Geometry(scene)
+    plain = render(scene, RenderOptions.resolve(scene), geometry=geometry).linear[..., 0]
+    cover = 1.0 - render(scene, RenderOptions.resolve(scene, edges=True), geometry=geometry).linear[..., 0] / plain
+    # the seam (1, 0, z) projects to x = 32 (between columns 31 and 32); z = +-0.6 to rows 32 -+ 32 * 0.6 / (4 tan 20)
+    half = 0.6 / (4.0 * math.tan(math.radians(20.0))) * size / 2
+    rows = slice(int(np.ceil(size / 2 - half)), int(size / 2 + half))
+    assert np.abs(cover[rows, 28:36]).max() < 1e-12
+    # the top border z = 1 at the seam: the point (1, 0, 1) at row 32 - 32 / (4 tan 20) is drawn
+    top = int(size / 2 - 1.0 / (4.0 * math.tan(math.radians(20.0))) * size / 2)
+    assert cover[top - 1 : top + 2, 31:33].max() > 0.5
