@@ -182,6 +182,11 @@ def load(
     max_iterations: int | None = None,
     spp: int | None = None,
     max_depth: int | None = None,
+    adaptive_spp: int | None = None,
+    edges: bool | None = None,
+    edge_width: float | None = None,
+    edge_color: Vector3 | None = None,
+    hidden_edges: bool | None = None,
     camera_eye: Vector3 | None = None,
     camera_look_at: Vector3 | None = None,
     camera_up: Vector3 | None = None,
@@ -196,8 +201,8 @@ def load(
     framing it from a three-quarter view above (+z up unless camera_up says
     otherwise), key, fill and ambient lights, one neutral material.
     Overrides, as the command line's options: width, height (the film),
-    method, spp, map, tolerance, max_iterations, max_depth (``[render]``),
-    camera_eye, camera_look_at, camera_up ((3,) each), fov (degrees) and
+    method, spp, map, tolerance, max_iterations, max_depth, adaptive_spp,
+    edges, edge_width, edge_color, hidden_edges (``[render]``), camera_eye, camera_look_at, camera_up ((3,) each), fov (degrees) and
     format (model files: "auto", by extension, or a format name). The
     overrides become part of the scene (``to_toml`` writes them).
     cache: False reads model files (a scene's imports too) without the
@@ -221,6 +226,11 @@ def load(
             max_iterations=max_iterations,
             max_depth=max_depth,
             background=background,
+            adaptive_spp=adaptive_spp,
+            edges=edges,
+            edge_width=edge_width,
+            edge_color=edge_color,
+            hidden_edges=hidden_edges,
         )
     )
     camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True)
@@ -252,6 +262,11 @@ def render(
     max_iterations: int | None = None,
     spp: int | None = None,
     max_depth: int | None = None,
+    adaptive_spp: int | None = None,
+    edges: bool | None = None,
+    edge_width: float | None = None,
+    edge_color: Vector3 | None = None,
+    hidden_edges: bool | None = None,
     camera: Camera | Mapping | None = None,
     progress: ProgressArg = None,
     cache: bool = True,
@@ -263,7 +278,8 @@ def render(
     The keywords override the scene's own settings for this render only
     (None: the scene's value): width, height, method ("newton", "gradient",
     "fast", "martin"), spp, map ("float", "rgba8"), tolerance,
-    max_iterations, max_depth, camera (a :class:`Camera`). progress: a
+    max_iterations, max_depth, adaptive_spp, edges, edge_width, edge_color,
+    hidden_edges, camera (a :class:`Camera`). progress: a
     function called as ``progress(stage, fraction)`` (stage "map", "solve",
     "shade", "aov" or "done"; fraction 0..1 of the whole render; it may
     raise to abandon the render; given a file, first "load" with the
@@ -307,6 +323,11 @@ def render(
                 max_iterations=max_iterations,
                 max_depth=max_depth,
                 background=background,
+                adaptive_spp=adaptive_spp,
+                edges=edges,
+                edge_width=edge_width,
+                edge_color=edge_color,
+                hidden_edges=hidden_edges,
             )
         )
         if camera is not None:

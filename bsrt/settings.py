@@ -24,6 +24,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, make_dataclass, replace
 from typing import Any
 
+import numpy as np
+
 from bsrt import validate
 from bsrt.errors import InputError
 from bsrt.methods import DEFAULT_METHOD, METHODS
@@ -67,7 +69,7 @@ class Setting:
 
     @property
     def python_type(self) -> type:
-        return {"int": int, "float": float, "choice": str, "color": tuple}[self.kind]
+        return {"int": int, "float": float, "choice": str, "color": tuple, "bool": bool}[self.kind]
 
     def check(self, value, label: str | None = None):
         """``value`` checked and normalised (int, float, str or a 3-tuple of floats);
@@ -78,6 +80,10 @@ class Setting:
         if self.kind == "float":
             low = f"{'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}]"
             return validate.real(label, value, self.lo, self.hi, lo_open=self.lo_open, expected=f"a number in {low}")
+        if self.kind == "bool":
+            if not isinstance(value, (bool, np.bool_)):
+                raise InputError(f"{label}: expected true or false, got {validate.show(value)}")
+            return bool(value)
         if self.kind == "choice":
             if value not in self.choices:
                 raise InputError(f"{label}: expected one of {', '.join(self.choices)}, got {validate.show(value)}")
@@ -97,6 +103,8 @@ class Setting:
         """The help line: text, range or choices, default."""
         if self.kind == "choice":
             span = "one of " + ", ".join(self.choices)
+        elif self.kind == "bool":
+            span = "true or false"
         elif self.kind == "color":
             span = "R,G,B >= 0"
         else:
@@ -106,6 +114,8 @@ class Setting:
 
 
 def _shown(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
     return (
         ",".join(f"{x:g}" for x in value)
         if isinstance(value, tuple)
@@ -165,6 +175,20 @@ SETTINGS: tuple[Setting, ...] = (
         "spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP, commands=("render",)
     ),  # the preview traces one sample per pixel
     Setting("max_depth", "render", "int", 3, "mirror-reflection bounces", 0, validate.MAX_DEPTH),
+    Setting(
+        "adaptive_spp",
+        "render",
+        "int",
+        16,
+        "adaptive anti-aliasing: samples per pixel where neighbouring pixels disagree, when spp = 1 (0 or 1: off)",
+        0,
+        validate.MAX_SPP,
+        commands=("render",),
+    ),
+    Setting("edges", "render", "bool", False, "draw the model's visible edges, creases and silhouettes"),
+    Setting("edge_width", "render", "float", 1.5, "width of the drawn edges", 0.0, 64.0, lo_open=True, unit="pixels"),
+    Setting("edge_color", "render", "color", (0.0, 0.0, 0.0), "colour of the drawn edges, linear RGB"),
+    Setting("hidden_edges", "render", "bool", False, "also draw the hidden edges, faint and dashed (with edges)"),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
 
@@ -210,11 +234,16 @@ def with_settings(scene, values: Mapping[str, Any]):
 def add_flags(parser, command: str) -> None:
     """Add a flag for each setting that ``command`` ("render", "map" or "preview") takes;
     each value is checked by the setting itself (argparse's one-line error on a bad one)."""
+    import argparse
+
     for s in SETTINGS:
         if command in s.commands:
             kwargs: dict[str, Any] = {"dest": s.name, "help": s.describe()}
             if s.kind == "choice":
                 kwargs["choices"] = s.choices
+            elif s.kind == "bool":
+                kwargs["action"] = argparse.BooleanOptionalAction
+                kwargs["default"] = None
             else:
                 kwargs["type"] = _parse_flag(s)
                 kwargs["metavar"] = "R,G,B" if s.kind == "color" else s.name.upper()
@@ -267,6 +296,8 @@ def markdown_table() -> str:
     for s in SETTINGS:
         if s.kind == "choice":
             span = ", ".join(f"`{c}`" for c in s.choices)
+        elif s.kind == "bool":
+            span = "`true`, `false`"
         elif s.kind == "color":
             span = "3 numbers >= 0"
         else:

@@ -167,6 +167,8 @@ SLOW: dict[str, float] = {
     "tests/test_animate.py::test_orbit_of_8_frames_with_animated_webp": 88.1,
     "tests/test_api.py::test_to_toml_reads_back_to_the_same_scene[iges-trimmed]": 1.6,
     "tests/test_batch.py::test_a_killed_worker_does_not_lose_the_batch": 6.4,
+    "tests/test_edges.py::test_the_box_edges_fall_on_the_pixels_its_visible_edges_cross_and_nowhere_else": 1.7,  # 2 cases
+    "tests/test_edges.py::test_a_wider_edge_in_a_colour_covers_as_its_width_says": 1.1,
     "tests/test_fold.py::test_128_004_agrees_with_opencascade_away_from_edges": 1.5,
     "tests/test_batch.py::test_bad_usage_exits_2": 5.6,
     "tests/test_batch.py::test_files_travel_with_the_task_to_a_scheduler": 7.1,
@@ -193,6 +195,8 @@ SLOW: dict[str, float] = {
     "tests/test_fuzz.py::test_each_model_reader_gives_a_valid_model_or_an_input_error_naming_the_file[.obj]": 1.1,
     "tests/test_fuzz.py::test_scene_documents_are_valid_or_refused_naming_the_file": 8.3,
     "tests/test_fuzz.py::test_short_cli_fuzz_pass_keeps_every_promise": 126.7,
+    "tests/test_golden.py::test_golden_image[column-96-spp1-edges]": 2.6,
+    "tests/test_golden.py::test_golden_image[water-lily-128-spp1-adaptive]": 2.2,
     "tests/test_iges_occt_hits.py::test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape": 11.7,  # 2 cases
     "tests/test_intersect.py::test_sphere_nearest_hit_point_normal_and_parameters": 2.1,  # the first: loads the kernels
     "tests/test_intersect_cad.py::test_against_opencascade_on_a_trimmed_step_part": 4.0,

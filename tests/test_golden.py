@@ -27,14 +27,23 @@ pytestmark = pytest.mark.gl  # every test here needs it (tests/conftest.py check
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).resolve().parent / "golden"
-CASES = [("column", 96, 1), ("water-lily", 128, 1), ("water-lily", 96, 4), ("quad", 64, 1)]
+# (scene, size, spp, extra settings, file suffix): the first four without adaptive anti-aliasing (the
+# pictures from before it), then the defaults (adaptive anti-aliasing) and edges
+CASES = [
+    ("column", 96, 1, {"adaptive_spp": 0}, ""),
+    ("water-lily", 128, 1, {"adaptive_spp": 0}, ""),
+    ("water-lily", 96, 4, {"adaptive_spp": 0}, ""),
+    ("quad", 64, 1, {"adaptive_spp": 0}, ""),
+    ("water-lily", 128, 1, {}, "-adaptive"),
+    ("column", 96, 1, {"edges": True, "hidden_edges": True}, "-edges"),
+]
 
 
-@pytest.mark.parametrize("name,size,spp", CASES, ids=[f"{n}-{s}-spp{p}" for n, s, p in CASES])
-def test_golden_image(tmp_path, name, size, spp):
+@pytest.mark.parametrize("name,size,spp,keys,suffix", CASES, ids=[f"{n}-{s}-spp{p}{x}" for n, s, p, _, x in CASES])
+def test_golden_image(tmp_path, name, size, spp, keys, suffix):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
-    got = render(scene, RenderOptions.resolve(scene, width=size, height=size, spp=spp)).pixels
-    path = GOLDEN / f"{name}-{size}-spp{spp}.png"
+    got = render(scene, RenderOptions.resolve(scene, width=size, height=size, spp=spp, **keys)).pixels
+    path = GOLDEN / f"{name}-{size}-spp{spp}{suffix}.png"
     if os.environ.get("BSRT_UPDATE_GOLDEN"):
         write_png(path, got)
     want = np.asarray(Image.open(path).convert("RGB"))

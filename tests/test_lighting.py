@@ -32,7 +32,7 @@ def _scene(surfaces, lights, materials, size=96, eye=(0.0, -3.0, 6.0), look_at=(
         {
             "film": {"width": size, "height": size, "background": [0.0, 0.0, 0.0]},  # the sky the mirrors show
             "camera": {"eye": list(eye), "look_at": list(look_at), "fov": 50.0},
-            "render": render_keys,
+            "render": {"adaptive_spp": 0, **render_keys},  # one sample per pixel: the closed forms are per centre ray
             "material": materials,
             "light": lights,
             "surface": surfaces,
@@ -148,6 +148,7 @@ def test_spp4_blends_a_high_contrast_edge_only():
     base = {
         "film": {"width": 48, "height": 48, "background": [0.0, 0.0, 0.0]},
         "camera": {"eye": [0.0, -4.0, 0.0], "look_at": [0.0, 0.0, 0.0], "fov": 30.0},
+        "render": {"adaptive_spp": 0},  # uniform sampling only
         "material": [{"name": "white", "color": [1.0, 1.0, 1.0], "specular": 0.0}],
         "light": [{"kind": "ambient", "intensity": 1.0}],
         "surface": [white],

@@ -171,7 +171,9 @@ def test_refined_image_equals_render(session):
     geometry = Geometry(scene)
     for name, camera in zip(("a.png", "b.png"), cameras):
         want = render(
-            scene, RenderOptions.resolve(scene, camera=camera, width=200, height=150, spp=1), geometry=geometry
+            scene,
+            RenderOptions.resolve(scene, camera=camera, width=200, height=150, spp=1, adaptive_spp=0),
+            geometry=geometry,
         ).pixels
         assert_same_image(read_png(tmp / name), want, name)
     # what the window showed is the exact image, pixel for pixel
@@ -205,7 +207,9 @@ def test_method_switch_and_map(session):
     tmp, scene_path, result = session
     scene = load_scene(scene_path)
     camera = cameras_printed(result.stdout)[1]
-    want = render(scene, RenderOptions.resolve(scene, method="fast", camera=camera, width=200, height=150, spp=1))
+    want = render(
+        scene, RenderOptions.resolve(scene, method="fast", camera=camera, width=200, height=150, spp=1, adaptive_spp=0)
+    )
     assert_same_image(read_png(tmp / "fast.png"), want.pixels, "fast.png")
     # key M shows the preliminary map's picture (paper's Figure 1)
     assert np.array_equal(read_png(tmp / "map.png"), want.prelim.picture)
@@ -296,7 +300,7 @@ def test_resize_renders_at_the_new_framebuffer_size(display, tmp_path):
     (camera,) = cameras_printed(result.stdout)
     assert_same_image(
         image,
-        render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1)).pixels,
+        render(scene, RenderOptions.resolve(scene, camera=camera, width=160, height=100, spp=1, adaptive_spp=0)).pixels,
         "resized",
     )
 
@@ -319,7 +323,10 @@ def test_martin_method_then_back_to_newton(display, tmp_path):
     scene = load_scene(SCENES / "quad.toml")
     (camera,) = cameras_printed(result.stdout)
     for name, method in (("m.png", "martin"), ("n.png", "newton")):
-        want = render(scene, RenderOptions.resolve(scene, method=method, camera=camera, width=80, height=60, spp=1))
+        want = render(
+            scene,
+            RenderOptions.resolve(scene, method=method, camera=camera, width=80, height=60, spp=1, adaptive_spp=0),
+        )
         assert_same_image(read_png(tmp_path / name), want.pixels, name)
     # the window showed the martin image itself, pixel for pixel
     assert np.array_equal(read_png(tmp_path / "m-screen.png"), read_png(tmp_path / "m.png"))
@@ -468,7 +475,9 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
             assert time.monotonic() < deadline
             time.sleep(0.01)
         assert [o.job.generation for o in got] == [2] and got[0].error is None
-        want = render(scene, RenderOptions.resolve(scene, camera=moved, width=40, height=30, spp=1)).pixels
+        want = render(
+            scene, RenderOptions.resolve(scene, camera=moved, width=40, height=30, spp=1, adaptive_spp=0)
+        ).pixels
         assert np.array_equal(got[0].pixels, want)
     finally:
         solver.stop()

@@ -95,10 +95,11 @@ def test_each_setting_is_read_from_its_scene_key_and_checked_the_same_everywhere
         "float": lambda: 1e-6,
         "color": lambda: [0.5, 0.25, 0.125],
         "choice": lambda: setting.choices[-1],
+        "bool": lambda: not setting.default,
     }[setting.kind]()
     scene = parse_scene({"camera": CAMERA, setting.table: {setting.name: value}, "surface": [SQUARE]}, "s.toml")
     assert getattr(getattr(scene, setting.table), setting.name) == setting.check(value)
-    bad = {"int": -1, "float": 2.0, "color": [1, 2], "choice": "nonsense"}[setting.kind]
+    bad = {"int": -1, "float": -1.0, "color": [1, 2], "choice": "nonsense", "bool": "yes"}[setting.kind]
     with pytest.raises(InputError) as from_file:
         parse_scene({"camera": CAMERA, setting.table: {setting.name: bad}, "surface": [SQUARE]}, "s.toml")
     with pytest.raises(InputError) as from_python:

@@ -78,8 +78,15 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     outcome = Outcome(replace(job, prelim=None))
     try:
         options = RenderOptions.resolve(
-            scene, method=job.method, map=map_mode, width=job.width, height=job.height, spp=1, camera=job.camera
-        )
+            scene,
+            method=job.method,
+            map=map_mode,
+            width=job.width,
+            height=job.height,
+            spp=1,
+            adaptive_spp=0,
+            camera=job.camera,
+        )  # one sample per pixel: the interactive picture
         result = render(scene, options, geometry=geometry, ctx=_NoGLHere(), prelim=job.prelim, progress=progress)
         outcome.pixels = result.pixels
     except _Cancelled:

@@ -66,7 +66,9 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
             "methods": {},
         }
         order = sorted(methods, key=lambda m: m != REFERENCE_METHOD)
-        options = {m: RenderOptions.resolve(scene, method=m, width=size, height=size) for m in order}
+        options = {  # the tracers compared: one sample per pixel, no adaptive anti-aliasing
+            m: RenderOptions.resolve(scene, method=m, width=size, height=size, adaptive_spp=0) for m in order
+        }
         for method in order:
             render(scene, options[method], geometry=geometry)  # warm-up
         runs = {m: [] for m in order}
@@ -227,7 +229,7 @@ def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
         )
         row = {"trimmed_surfaces": sum(s.geometry.is_trimmed for s in scene.surfaces)}
         for label, sc in (("trimmed", scene), ("untrimmed", bare)):
-            options = RenderOptions.resolve(sc)
+            options = RenderOptions.resolve(sc, adaptive_spp=0)
             render(sc, options)  # warm-up
             times = []
             for _ in range(repeat):

@@ -216,6 +216,10 @@ def render(
             stop = min(height, first + band)
             hits, _ = tracer.trace(width, height, (first, stop), None)
             primary.put(slice(first * width, stop * width), hits)
+    if spp == 1 and opts.adaptive_spp > 1:
+        _adaptive(linear, pixels, tracer, shader, opts, geometry, stats)
+    if opts.edges:
+        linear, pixels = _edges(linear, primary, opts, geometry, stats)
     report("done", 1.0)
     hits = primary
     work = hits.iterations[hits.iterations > 0]
@@ -226,6 +230,30 @@ def render(
         iterations_max=int(hits.iterations.max()),
     )
     return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
+
+
+def _adaptive(linear, pixels, tracer, shader, opts: RenderOptions, geometry: Geometry, stats: Stats) -> None:
+    """Adaptive anti-aliasing of a one-sample render (rendering/antialias.py), in place."""
+    from bsrt.rendering.antialias import refine
+
+    def trace(directions):
+        return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance)
+
+    def shade(hits, directions):
+        shader.begin_band(hits, (1.0, 1.0))
+        with stats.timer("shade"):
+            return shader.shade(hits, directions)
+
+    refine(linear, pixels, sample_grid(opts.adaptive_spp), shade, trace, opts, stats, MAX_BAND_SAMPLES)
+
+
+def _edges(linear, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
+    """The edges drawn over the image (rendering/edges.py): (linear (H, W, 3), pixels (H, W, 3) uint8)."""
+    from bsrt.rendering.edges import draw, edge_coverage
+
+    with stats.timer("edges"):
+        linear = draw(linear, edge_coverage(geometry, opts, hits, stats), opts.edge_color)
+    return linear, srgb_encode(linear)
 
 
 class _Shader:

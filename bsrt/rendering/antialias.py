@@ -1,0 +1,99 @@
+"""Adaptive anti-aliasing: more samples only where neighbouring pixels disagree.
+
+After a render of one sample per pixel (the pixel-centre rays), a pixel is
+*marked* when its 8-bit sRGB colour is not the mean of its two neighbours
+along a row or a column within CONTRAST levels in some channel (the second
+difference p[j - 1] - 2 p[j] + p[j + 1]; at the film's border, the first
+difference): a step between two pixels marks both of them (silhouettes, face
+borders, shadow borders, a thin line), a smooth gradient of shading marks
+none. Each marked pixel is traced again with the samples of ``--spp n``
+(``adaptive_spp``: the same stratified columns x rows grid,
+pipeline.sample_grid), through the hierarchy, shaded as every camera ray is,
+in two rounds: first the grid's four corner samples; a pixel whose corner
+samples and centre all agree within CONTRAST levels takes the corners' mean
+and stops, the others get the rest of the grid and take the mean of all n
+(the box filter of ``--spp n``). Every other sample of the grid lies on a
+segment between two of those five points, so a straight edge (a half-plane)
+that leaves the five on one side leaves all n there too: such a pixel's
+value is exactly ``--spp n``'s where the picture is flat on each side, and a
+pixel an edge separates gets exactly the samples of ``--spp n``. An
+unmarked pixel keeps its centre sample. ``--stats`` reports ``adaptive_pixels`` (marked),
+``adaptive_full`` (given all n samples) and ``adaptive_samples`` (the camera
+samples added); the render's camera samples in all are
+``pixels + adaptive_samples``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bsrt.rendering.image import srgb_encode
+from bsrt.rendering.screen import film_rays
+
+CONTRAST = 6  # 8-bit sRGB levels
+
+
+def disagreeing(pixels: np.ndarray) -> np.ndarray:
+    """pixels: (H, W, 3) uint8 -> (H, W) bool, True where the second difference along the row or the
+    column (the first difference at the film's border) exceeds CONTRAST levels in some channel."""
+    p = pixels.astype(np.int32)
+    marked = np.zeros(p.shape[:2], dtype=bool)
+    for axis in (0, 1):
+        q = np.moveaxis(p, axis, 0)  # (n, m, 3): differences along the first axis
+        m = np.moveaxis(marked, axis, 0)  # a view: writes go to marked
+        if q.shape[0] < 2:
+            continue
+        m[1:-1] |= np.abs(q[:-2] - 2 * q[1:-1] + q[2:]).max(axis=2) > CONTRAST
+        m[0] |= np.abs(q[1] - q[0]).max(axis=1) > CONTRAST
+        m[-1] |= np.abs(q[-1] - q[-2]).max(axis=1) > CONTRAST
+    return marked
+
+
+def refine(linear, pixels, grid, shade, trace, options, stats, chunk_samples: int) -> None:
+    """Re-render the marked pixels with the samples of ``--spp columns * rows``, in place.
+
+    linear: (H, W, 3) float64 and pixels: (H, W, 3) uint8, the one-sample render, updated where
+    marked. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
+    camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
+    most samples traced at once."""
+    cols, rows = grid
+    a, b = np.meshgrid(np.arange(cols), np.arange(rows))  # sample (b, a) of a pixel: row b, column a
+    a, b = a.ravel(), b.ravel()
+    offset = np.stack([(a + 0.5) / cols, (b + 0.5) / rows], axis=1)  # (n, 2)
+    first = ((a == 0) | (a == cols - 1)) & ((b == 0) | (b == rows - 1))  # the grid's corners
+    marked = np.flatnonzero(disagreeing(pixels).ravel())
+    flat = linear.reshape(-1, 3)
+    centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
+    early = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
+    levels = srgb_encode(early).astype(np.int32)
+    spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
+    full = spread.max(axis=1) > CONTRAST
+    flat[marked[~full]] = early[~full].mean(axis=1)
+    if first.all():
+        flat[marked[full]] = early[full].mean(axis=1)
+    else:
+        rest = _samples(marked[full], offset[~first], shade, trace, options, stats, chunk_samples)
+        flat[marked[full]] = (early[full].sum(axis=1) + rest.sum(axis=1)) / offset.shape[0]
+    stats.add("adaptive_pixels", marked.size)
+    stats.add("adaptive_full", int(full.sum()))
+    stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int((~first).sum()))
+    if marked.size:
+        pixels.reshape(-1, 3)[marked] = srgb_encode(flat[marked])
+
+
+def _samples(which, offset, shade, trace, options, stats, chunk_samples: int) -> np.ndarray:
+    """(K, n, 3) linear RGB of the samples at offset (n, 2) (fractions of a pixel from its top-left
+    corner) in each pixel which (K,) (flat indices, row-major)."""
+    width, height = options.width, options.height
+    n = offset.shape[0]
+    out = np.empty((which.size, n, 3))
+    step = max(1, chunk_samples // n)
+    for start in range(0, which.size, step):
+        part = which[start : start + step]
+        corner = np.stack([part % width, part // width], axis=1).astype(np.float64)
+        xy = (corner[:, None, :] + offset[None, :, :]).reshape(-1, 2)
+        directions = film_rays(options.camera, width, height, xy)
+        with stats.timer("solve"):
+            hits = trace(directions)
+        out[start : start + part.size] = shade(hits, directions).reshape(-1, n, 3)
+    return out
