@@ -51,7 +51,7 @@ from bsrt.scene.document import (
     scene_document,
     surface_doc,
 )
-from bsrt.settings import Film, RenderSettings, checked_overrides, with_settings
+from bsrt.settings import Film, RenderSettings, checked_overrides, setting_keywords, with_settings
 
 if TYPE_CHECKING:
     from bsrt.rendering.pipeline import RenderResult
@@ -170,35 +170,30 @@ def _wrap(scene: _scene.Scene) -> Scene:
 # Loading
 
 
+@setting_keywords
 def load(
     path: str | os.PathLike,
     *,
-    width: int | None = None,
-    height: int | None = None,
-    background: Vector3 | None = None,
-    method: str | None = None,
-    map: str | None = None,
-    tolerance: float | None = None,
-    max_iterations: int | None = None,
-    spp: int | None = None,
-    max_depth: int | None = None,
     camera_eye: Vector3 | None = None,
     camera_look_at: Vector3 | None = None,
     camera_up: Vector3 | None = None,
     fov: float | None = None,
+    view: str | None = None,
     format: str = "auto",
     cache: bool = True,
     progress: Callable[[str, float], None] | None = None,
+    **settings,
 ) -> Scene:
     """Read a scene file (.toml) or a model file (.igs, .bez, .g2, ...).
 
     A model file gets the automatic scene of ``bsrt render MODEL``: a camera
     framing it from a three-quarter view above (+z up unless camera_up says
     otherwise), key, fill and ambient lights, one neutral material.
-    Overrides, as the command line's options: width, height (the film),
-    method, spp, map, tolerance, max_iterations, max_depth (``[render]``),
-    camera_eye, camera_look_at, camera_up ((3,) each), fov (degrees) and
-    format (model files: "auto", by extension, or a format name). The
+    Overrides, as the command line's options: every render setting of the
+    registry (bsrt.settings.SETTINGS: width, height, background, spp, ...; the
+    signature lists them), camera_eye, camera_look_at, camera_up ((3,) each),
+    fov (degrees), view (a named view of the automatic camera: "iso", "front",
+    "back", "left", "right", "top", "bottom") and format (model files: "auto", by extension, or a format name). The
     overrides become part of the scene (``to_toml`` writes them).
     cache: False reads model files (a scene's imports too) without the
     converted-model cache, writing nothing to it; by default a second load
@@ -210,20 +205,8 @@ def load(
     """
     from bsrt.scene.loading import CameraOverrides, load_input
 
-    settings = checked_overrides(
-        dict(
-            width=width,
-            height=height,
-            method=method,
-            spp=spp,
-            map=map,
-            tolerance=tolerance,
-            max_iterations=max_iterations,
-            max_depth=max_depth,
-            background=background,
-        )
-    )
-    camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True)
+    settings = checked_overrides(settings)
+    camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True, view=view)
     scene = load_input(
         path,
         format,
@@ -240,30 +223,23 @@ def load(
 # Rendering
 
 
+@setting_keywords
 def render(
     scene: Scene | _scene.Scene | str | os.PathLike | Surface | Import | Iterable | Any,
     *,
-    width: int | None = None,
-    height: int | None = None,
-    background: Vector3 | None = None,
-    method: str | None = None,
-    map: str | None = None,
-    tolerance: float | None = None,
-    max_iterations: int | None = None,
-    spp: int | None = None,
-    max_depth: int | None = None,
     camera: Camera | Mapping | None = None,
     progress: ProgressArg = None,
     cache: bool = True,
+    **settings,
 ) -> RenderResult:
     """Render a scene: a :class:`Scene`, a scene or model file (loaded with :func:`load`), or
     what :meth:`Scene.build` takes (surfaces: bsrt, Splipy or geomdl objects, :class:`Import`,
     or a list of them; framed and lit automatically).
 
     The keywords override the scene's own settings for this render only
-    (None: the scene's value): width, height, method ("newton", "gradient",
-    "fast", "martin"), spp, map ("float", "rgba8"), tolerance,
-    max_iterations, max_depth, camera (a :class:`Camera`). progress: a
+    (None: the scene's value): every render setting of the registry
+    (bsrt.settings.SETTINGS: width, height, background, transparent, method,
+    spp, ...; the signature lists them), camera (a :class:`Camera`). progress: a
     function called as ``progress(stage, fraction)`` (stage "map", "solve",
     "shade", "aov" or "done"; fraction 0..1 of the whole render; it may
     raise to abandon the render; given a file, first "load" with the
@@ -296,19 +272,7 @@ def render(
             scene = load(scene, cache=cache, progress=report)
         elif not isinstance(scene, _scene.Scene):  # what Scene.build takes: surfaces, imports, lists of them
             scene = Scene.build(scene if isinstance(scene, (list, tuple)) else [scene], cache=cache)
-        settings = checked_overrides(
-            dict(
-                width=width,
-                height=height,
-                method=method,
-                spp=spp,
-                map=map,
-                tolerance=tolerance,
-                max_iterations=max_iterations,
-                max_depth=max_depth,
-                background=background,
-            )
-        )
+        settings = checked_overrides(settings)
         if camera is not None:
             settings["camera"] = _checked_camera(camera)
         options = RenderOptions.resolve(scene, **settings)

@@ -30,15 +30,29 @@ from bsrt.methods import DEFAULT_METHOD, METHODS
 
 MAP_MODES = ("float", "rgba8")
 
+#: name -> (direction from the model to the eye, the camera's up), in the frame (X, Y, Z = up) of
+#: :func:`bsrt.scene.auto.view_frame`; "default" is bsrt's three-quarter view from above
+VIEWS = {
+    "default": ((-0.75, 0.55, 0.42), (0.0, 0.0, 1.0)),
+    "iso": ((1.0, -1.0, 1.0), (0.0, 0.0, 1.0)),
+    "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
+    "back": ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    "left": ((-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "right": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "top": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+    "bottom": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
+}
+VIEW_NAMES = tuple(v for v in VIEWS if v != "default")
+
 
 @dataclass(frozen=True)
 class Setting:
     """One render setting.
 
     name: the Python keyword, the RenderOptions field and the key in its
-    table. table: "film" or "render". kind: "int", "float", "choice" or
-    "color" (three numbers >= 0, linear RGB). lo, hi: bounds (lo_open: lo
-    itself excluded). choices: for "choice". unit: shown in help and docs.
+    table. table: "film" or "render". kind: "int", "float", "choice", "bool" or
+    "color" (three numbers >= 0, linear RGB; <= hi when hi is given). lo, hi: bounds (lo_open: lo
+    itself excluded). choices: for "choice", and the allowed values of an "int" when given. unit: shown in help and docs.
     commands: the CLI commands that take it as a flag ("render" also means
     batch and animate; "map"; "preview").
     """
@@ -67,14 +81,21 @@ class Setting:
 
     @property
     def python_type(self) -> type:
-        return {"int": int, "float": float, "choice": str, "color": tuple}[self.kind]
+        return {"int": int, "float": float, "choice": str, "color": tuple, "bool": bool}[self.kind]
 
     def check(self, value, label: str | None = None):
         """``value`` checked and normalised (int, float, str or a 3-tuple of floats);
         else an InputError ``<label>: <what is wrong>`` (label: the name by default)."""
         label = self.name if label is None else label
         if self.kind == "int":
-            return validate.whole(label, value, int(self.lo), int(self.hi))
+            number = validate.whole(label, value, int(self.lo), int(self.hi))
+            if self.choices and number not in self.choices:
+                raise InputError(f"{label}: expected one of {', '.join(map(str, self.choices))}, got {number}")
+            return number
+        if self.kind == "bool":
+            if not isinstance(value, bool):
+                raise InputError(f"{label}: expected true or false, got {validate.show(value)}")
+            return value
         if self.kind == "float":
             low = f"{'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}]"
             return validate.real(label, value, self.lo, self.hi, lo_open=self.lo_open, expected=f"a number in {low}")
@@ -91,14 +112,20 @@ class Setting:
             raise InputError(f"{label}: expected three numbers (linear RGB), got {validate.show(value)}")
         if not all(math.isfinite(x) and x >= 0 for x in value):
             raise InputError(f"{label}: expected three finite numbers >= 0 (linear RGB), got {validate.show(value)}")
+        if self.hi is not None and any(x > self.hi for x in value):
+            raise InputError(
+                f"{label}: expected three numbers in [0, {self.hi:g}] (linear RGB), got {validate.show(value)}"
+            )
         return tuple(float(x) for x in value)
 
     def describe(self) -> str:
         """The help line: text, range or choices, default."""
-        if self.kind == "choice":
-            span = "one of " + ", ".join(self.choices)
+        if self.kind == "choice" or self.choices:
+            span = "one of " + ", ".join(map(str, self.choices))
+        elif self.kind == "bool":
+            span = "true or false"
         elif self.kind == "color":
-            span = "R,G,B >= 0"
+            span = "R,G,B >= 0" if self.hi is None else f"R,G,B in [0, {self.hi:g}]"
         else:
             span = f"{'>' if self.lo_open else '>='} {self.lo:g}, <= {self.hi:g}"
         unit = f" {self.unit}" if self.unit else ""
@@ -130,7 +157,25 @@ SETTINGS: tuple[Setting, ...] = (
         unit="pixels",
         commands=("render", "map"),
     ),
-    Setting("background", "film", "color", (0.03, 0.03, 0.04), "colour where no surface is hit, linear RGB"),
+    Setting("background", "film", "color", (0.03, 0.03, 0.04), "colour where no surface is hit, linear RGB", hi=1.0),
+    Setting(
+        "transparent",
+        "film",
+        "bool",
+        False,
+        "write the background as transparent: RGBA with the surfaces' coverage as alpha (PNG, WebP)",
+    ),
+    Setting(
+        "bit_depth",
+        "film",
+        "int",
+        8,
+        "bits per channel of a PNG (16: PNG only)",
+        8,
+        16,
+        choices=(8, 16),
+        commands=("render",),
+    ),
     Setting(
         "method",
         "render",
@@ -195,6 +240,28 @@ def checked_overrides(values: Mapping[str, Any]) -> dict:
     return out
 
 
+def setting_keywords(function):
+    """``function`` (whose ``**settings`` take the render settings) with a signature that names
+    every setting as a keyword-only parameter (default None), in registry order, after its
+    positional parameters: what ``help()``, notebooks and ``inspect.signature`` show. The
+    function itself checks ``settings`` with :func:`checked_overrides` (an unknown name is a
+    TypeError)."""
+    import inspect
+
+    signature = inspect.signature(function)
+    params = list(signature.parameters.values())
+    positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    keywords = [p for p in params if p.kind is p.KEYWORD_ONLY]
+    named = [
+        inspect.Parameter(
+            s.name, inspect.Parameter.KEYWORD_ONLY, default=None, annotation=f"{s.python_type.__name__} | None"
+        )
+        for s in SETTINGS
+    ]
+    function.__signature__ = signature.replace(parameters=positional + named + keywords)
+    return function
+
+
 def with_settings(scene, values: Mapping[str, Any]):
     """The scene with checked settings (name -> value) written into its [film] and [render]."""
     film = {k: v for k, v in values.items() if BY_NAME[k].table == "film"}
@@ -209,10 +276,14 @@ def with_settings(scene, values: Mapping[str, Any]):
 def add_flags(parser, command: str) -> None:
     """Add a flag for each setting that ``command`` ("render", "map" or "preview") takes;
     each value is checked by the setting itself (argparse's one-line error on a bad one)."""
+    import argparse
+
     for s in SETTINGS:
         if command in s.commands:
             kwargs: dict[str, Any] = {"dest": s.name, "help": s.describe()}
-            if s.kind == "choice":
+            if s.kind == "bool":
+                kwargs["action"] = argparse.BooleanOptionalAction
+            elif s.kind == "choice":
                 kwargs["choices"] = s.choices
             else:
                 kwargs["type"] = _parse_flag(s)
@@ -264,10 +335,12 @@ def markdown_table() -> str:
     """The settings as a Markdown table (docs/scene-format.md carries it; a test keeps it current)."""
     rows = ["| scene key | Python keyword | flag | type | default | range | meaning |", "|---|---|---|---|---|---|---|"]
     for s in SETTINGS:
-        if s.kind == "choice":
+        if s.kind == "choice" or s.choices:
             span = ", ".join(f"`{c}`" for c in s.choices)
+        elif s.kind == "bool":
+            span = "`true`, `false`"
         elif s.kind == "color":
-            span = "3 numbers >= 0"
+            span = "3 numbers >= 0" if s.hi is None else f"3 numbers in [0, {s.hi:g}]"
         else:
             span = f"{'(' if s.lo_open else '['}{s.lo:g}, {s.hi:g}]"
         flag = f"`{s.flag}`"

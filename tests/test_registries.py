@@ -91,14 +91,15 @@ def test_the_api_keywords_and_dataclasses_are_the_settings():
 @pytest.mark.parametrize("setting", SETTINGS, ids=lambda s: s.name)
 def test_each_setting_is_read_from_its_scene_key_and_checked_the_same_everywhere(setting):
     value = {
-        "int": lambda: setting.lo + 1,
+        "int": lambda: setting.choices[-1] if setting.choices else setting.lo + 1,
         "float": lambda: 1e-6,
         "color": lambda: [0.5, 0.25, 0.125],
         "choice": lambda: setting.choices[-1],
+        "bool": lambda: True,
     }[setting.kind]()
     scene = parse_scene({"camera": CAMERA, setting.table: {setting.name: value}, "surface": [SQUARE]}, "s.toml")
     assert getattr(getattr(scene, setting.table), setting.name) == setting.check(value)
-    bad = {"int": -1, "float": 2.0, "color": [1, 2], "choice": "nonsense"}[setting.kind]
+    bad = {"int": -1, "float": 2.0, "color": [1, 2], "choice": "nonsense", "bool": "yes"}[setting.kind]
     with pytest.raises(InputError) as from_file:
         parse_scene({"camera": CAMERA, setting.table: {setting.name: bad}, "surface": [SQUARE]}, "s.toml")
     with pytest.raises(InputError) as from_python:

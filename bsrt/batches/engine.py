@@ -268,7 +268,7 @@ def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
 
     options = RenderOptions.resolve(scene)  # the job's settings are in the scene (load_job)
     result = render(scene, options)
-    return _encoded(png_writer(result.pixels)), _encoded(npz_writer(result.aovs())) if job.aov else None
+    return _encoded(png_writer(result.image)), _encoded(npz_writer(result.aovs())) if job.aov else None
 
 
 def _encoded(write) -> bytes:

@@ -35,11 +35,17 @@ def _load_input(args, progress=None):
     return scene
 
 
-def _check_output(path: str, suffix: str) -> Path:
+def default_output(source: str) -> str:
+    """The output of ``bsrt render MODEL`` without ``-o``: MODEL's stem with ``.png``, in the
+    current folder (``bearing.step`` -> ``./bearing.png``; never the input itself)."""
+    return str(Path.cwd() / (Path(source).stem + ".png"))
+
+
+def _check_output(path: str, suffix: str | None) -> Path:
     """An output path the run can write (checked before any work): the right
-    suffix, an existing folder, not a folder itself."""
+    suffix (any when None), an existing folder, not a folder itself."""
     out = Path(path)
-    if out.suffix.lower() != suffix:
+    if suffix is not None and out.suffix.lower() != suffix:
         raise InputError(f"{path}: the output file name must end in {suffix}")
     if not out.parent.is_dir():
         raise InputError(f"{path}: the folder {str(out.parent)!r} does not exist")
@@ -89,11 +95,13 @@ def _progress(args):
 def _cmd_render(args) -> int:
     """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
     from bsrt.outputs import Outputs
-    from bsrt.rendering.image import npz_writer, png_writer
+    from bsrt.rendering.image import check_image_path, image_writer, npz_writer
     from bsrt.rendering.options import RenderOptions
     from bsrt.rendering.pipeline import render
 
-    out = _check_output(args.output, ".png")
+    out = _check_output(args.output or default_output(args.scene), None)
+    given = flag_values(args, "render")
+    check_image_path(out, bool(given.get("transparent")), given.get("bit_depth", 8), "--")
     aov = _check_output(args.aov, ".npz") if args.aov else None
     progress = _progress(args)
     try:
@@ -103,7 +111,8 @@ def _cmd_render(args) -> int:
             progress.clear()
         raise
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
-    options = RenderOptions.resolve(scene, **flag_values(args, "render"))
+    options = RenderOptions.resolve(scene, **given)
+    check_image_path(out, options.transparent, options.bit_depth, f"{scene.path}: film.")  # the scene's own
     _say_if_compiling()
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
@@ -111,7 +120,7 @@ def _cmd_render(args) -> int:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
             result = render(scene, options, progress=progress)
             clock = time.perf_counter()
-            outputs.write(out, png_writer(result.pixels))
+            outputs.write(out, image_writer(out, result.image))
             if aov:
                 outputs.write(aov, npz_writer(result.aovs()))
             result.stats["seconds"]["write"] = time.perf_counter() - clock

@@ -10,7 +10,7 @@ import re
 from bsrt import __version__
 from bsrt.io.formats import extensions_text, format_choices
 from bsrt.methods import MAP_METHODS, METHODS
-from bsrt.settings import add_flags
+from bsrt.settings import VIEW_NAMES, add_flags
 
 
 def _positive_int(text: str) -> int:
@@ -43,7 +43,12 @@ def _parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     r.add_argument("scene", help=INPUT_HELP)
-    r.add_argument("-o", "--output", required=True, help="output image (.png)")
+    r.add_argument(
+        "-o",
+        "--output",
+        help="output image: .png (8 or 16 bits, RGB or RGBA), .jpg/.jpeg or .webp, by its extension "
+        "(default: the input's name with .png, in the current folder)",
+    )
     add_flags(r, "render")
     _camera_options(r)
     r.add_argument("--aov", metavar="FILE.npz", help="also write per-pixel arrays (hit, t, surface, u, v, ...)")
@@ -160,6 +165,12 @@ def _camera_options(parser) -> None:
     parser.add_argument("--camera-look-at", type=_vector, metavar="X,Y,Z", help="point the camera looks at")
     parser.add_argument("--camera-up", type=_vector, metavar="X,Y,Z", help="up direction (models default to +z)")
     parser.add_argument("--fov", type=float, help="vertical field of view in degrees, 0 < fov < 180")
+    parser.add_argument(
+        "--view",
+        choices=VIEW_NAMES,
+        help="a named view of the automatic camera, fitted to the model (or the scene's surfaces): "
+        "the model fills 90%% of the frame, centred (default: a three-quarter view from above)",
+    )
 
 
 # Values that start with '-': `--camera-eye -1,-2,3`, `--camera-look-at

@@ -41,7 +41,9 @@ class RenderResult:
     prelim: the preliminary map of the last band traced, the whole film's
       when it fits in one band (None for method "martin").
     stats: timings (seconds) and counters, JSON-serialisable.
-    options: the settings it was rendered with; geometry: the scene's Geometry."""
+    options: the settings it was rendered with; geometry: the scene's Geometry.
+    coverage: (H, W) float64, the fraction of each pixel's samples that hit a surface
+      (the alpha of a transparent picture)."""
 
     pixels: np.ndarray
     linear: np.ndarray
@@ -50,6 +52,18 @@ class RenderResult:
     stats: dict
     options: RenderOptions
     geometry: Geometry
+    coverage: np.ndarray | None = None
+
+    @property
+    def image(self) -> np.ndarray:
+        """What ``save`` writes: (H, W, 3) RGB, or (H, W, 4) RGBA with the coverage as alpha when
+        options.transparent; uint8, or uint16 when options.bit_depth is 16 (sRGB)."""
+        from bsrt.rendering.image import encode_picture
+
+        coverage = np.ones(self.linear.shape[:2]) if self.coverage is None else self.coverage
+        return encode_picture(
+            self.linear, coverage, self.options.background, self.options.transparent, self.options.bit_depth
+        )
 
     @cached_property
     def _frames(self):
@@ -75,18 +89,21 @@ class RenderResult:
         )
 
     def to_pil(self):
-        """The image as a ``PIL.Image.Image`` (RGB, 8-bit sRGB)."""
+        """The image as a ``PIL.Image.Image`` (8-bit sRGB: RGB, or RGBA when transparent)."""
         from PIL import Image
 
+        if self.options.transparent:
+            return Image.fromarray(encode_picture_8(self), "RGBA")
         return Image.fromarray(self.pixels, "RGB")
 
     def save(self, path) -> None:
         """Write the image in the format its extension names (``.png``, ``.jpg``/``.jpeg``,
         ``.webp``: bsrt.rendering.image.IMAGE_FORMATS), atomically: a failure leaves no file. Another
-        extension is an InputError, before anything is written."""
+        extension, or one that cannot hold the picture (JPEG with transparency, 16 bits but PNG),
+        is an InputError, before anything is written."""
         from bsrt.rendering.image import write_image
 
-        write_image(path, self.pixels)
+        write_image(path, self.image)
 
     def png_bytes(self) -> bytes:
         """The image encoded as PNG."""
@@ -114,6 +131,14 @@ class RenderResult:
             "iterations": hits.iterations.astype(np.int32).reshape(h, w),
             "residual": hits.residual.reshape(h, w),
         }
+
+
+def encode_picture_8(result: RenderResult) -> np.ndarray:
+    """The result's picture as 8-bit (H, W, 3|4) uint8, whatever its bit depth."""
+    from bsrt.rendering.image import encode_picture
+
+    coverage = np.ones(result.linear.shape[:2]) if result.coverage is None else result.coverage
+    return encode_picture(result.linear, coverage, result.options.background, result.options.transparent, 8)
 
 
 class Geometry:
@@ -189,6 +214,7 @@ def render(
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     linear = np.zeros((height, width, 3))  # sums of the samples until a pixel row is complete
+    coverage = np.zeros((height, width))  # samples that hit a surface, then their fraction
     pixels = np.zeros((height, width, 3), dtype=np.uint8)
     primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
@@ -201,10 +227,12 @@ def render(
             colour = shader.shade(hits, directions)
         sums = colour.reshape(stop - first, width, cols, 3).sum(axis=2)  # (band rows, width, 3)
         np.add.at(linear, np.arange(first, stop) // rows, sums)
+        np.add.at(coverage, np.arange(first, stop) // rows, hits.hit.reshape(stop - first, width, cols).sum(axis=2))
         done = stop // rows
         if done > complete:
             final = slice(complete, done)
             linear[final] /= spp
+            coverage[final] /= spp
             pixels[final] = srgb_encode(linear[final])  # per band: no film-sized temporaries
             complete = done
         if spp == 1:
@@ -225,7 +253,7 @@ def render(
         iterations_mean=float(work.mean()) if work.size else 0.0,
         iterations_max=int(hits.iterations.max()),
     )
-    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
+    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
 
 
 class _Shader:
