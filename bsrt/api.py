@@ -109,8 +109,8 @@ class Scene(_scene.Scene):
         :meth:`Surface.from_object` takes (Splipy, geomdl, bsrt surfaces),
         numbered in this order. camera: None frames the surfaces
         automatically, as for a model file (a three-quarter view from
-        above, +z up). lights: None gives the model files' key, fill and
-        ambient light; ``[]`` none. materials: the named materials that
+        above, +z up). lights: None gives the model files' studio rig (key,
+        fill, rim and ambient light); ``[]`` none. materials: the named materials that
         surfaces refer to (Materials given on surfaces are added after
         them). film, render: the ``[film]`` and ``[render]`` values
         (defaults: 512x512, black; the scene format's defaults). name: the
@@ -123,7 +123,9 @@ class Scene(_scene.Scene):
         """
         data, order = _document(list(surfaces), camera, lights, materials, film, render)
         with python_words():
-            scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order, cache=cache)
+            scene = _scene.parse_scene(
+                data, name, None if folder is None else Path(folder), order, cache=cache, studio=False
+            )
         if camera is None or lights is None:
             scene = _automatic(scene, camera is None, lights is None)
         return _wrap(scene)

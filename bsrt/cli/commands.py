@@ -159,6 +159,32 @@ def _cmd_map(args) -> int:
     return 0
 
 
+def _cmd_scene(args) -> int:
+    """``bsrt scene MODEL -o part.toml``: the model's automatic scene as a small scene file that imports it."""
+    from bsrt.rendering.image import write_text
+    from bsrt.scene.document import dumps_toml, import_scene_document
+    from bsrt.settings import with_settings
+
+    if Path(args.model).suffix.lower() == ".toml":
+        raise InputError(f"{args.model}: is a scene file already; give a model file")
+    out = _check_output(args.output or str(Path.cwd() / (Path(args.model).stem + ".toml")), ".toml")
+    args.scene = args.model
+    scene = with_settings(_load_input(args), flag_values(args, "render"))
+    _refuse_overwriting([out], scene)
+    try:
+        file = os.path.relpath(Path(args.model).resolve(), out.parent.resolve())
+    except ValueError:  # another drive
+        file = str(Path(args.model).resolve())
+    header = (
+        f"Scene file (bsrt scene format version 1), written by `bsrt scene` from {Path(args.model).name}: "
+        "its automatic camera and lights,\nspelled out to edit (docs/scene-format.md). Point lights: brightness is "
+        "the light's strength at the model's centre."
+    )
+    write_text(out, dumps_toml(import_scene_document(scene, file.replace(os.sep, "/"), args.format), header))
+    print(f"bsrt: wrote {out}", file=sys.stderr)
+    return 0
+
+
 def _cmd_info(args) -> int:
     path = Path(args.file)
     if path.suffix.lower() == ".toml":
@@ -311,6 +337,7 @@ def _cmd_animate(args) -> int:
 COMMANDS = {
     "render": _cmd_render,
     "map": _cmd_map,
+    "scene": _cmd_scene,
     "info": _cmd_info,
     "doctor": _cmd_doctor,
     "bench": _cmd_bench,

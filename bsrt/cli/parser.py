@@ -67,6 +67,20 @@ def _parser() -> argparse.ArgumentParser:
     add_flags(m, "map")
     _camera_options(m)
 
+    sc = sub.add_parser(
+        "scene",
+        help="write a model file's automatic scene as a small, editable scene file that imports it",
+        description="Write the scene `bsrt render MODEL` would render (film, camera, lights, material; the "
+        "flags below change it) as a short scene file with one [[import]] of the model: rendering it gives "
+        "the same picture, and its camera and lights are there to edit.",
+    )
+    sc.add_argument("model", help=f"model file ({extensions_text()})")
+    sc.add_argument(
+        "-o", "--output", help="the scene file to write (.toml; default: the model's name with .toml, here)"
+    )
+    add_flags(sc, "render")
+    _camera_options(sc)
+
     i = sub.add_parser("info", help="what a model or scene file holds")
     i.add_argument("file", help=INPUT_HELP)
     _format_option(i)
@@ -99,7 +113,7 @@ def _parser() -> argparse.ArgumentParser:
     from bsrt.cli.batch import add_commands as _batch_commands
 
     _batch_commands(sub, _positive_int)
-    for command in ("render", "map", "info", "preview", "batch", "animate"):  # every command that loads models
+    for command in ("render", "map", "scene", "info", "preview", "batch", "animate"):  # every command loading models
         _cache_option(sub.choices[command])
     return parser
 

@@ -63,6 +63,7 @@ def parse_scene(
     cache: bool = True,
     progress=None,
     film_size=None,
+    studio: bool = True,
 ) -> Scene:
     """Validate an already-parsed TOML document.
 
@@ -75,7 +76,7 @@ def parse_scene(
     cache, progress: for the imported model files (:func:`bsrt.io.load_model`).
     A scene with [[import]] and no [camera] gets the automatic camera (bsrt/scene/auto.py),
     fitted to film_size (width, height) when given, else to its [film]; a scene with no
-    [[light]] gets the studio rig, with a note.
+    [[light]] gets the studio rig, with a note (unless studio is False: ``Scene.build``).
     """
     known = {"film", "camera", "render", "material", "light", "surface", "import"}
     for key in data:
@@ -141,11 +142,15 @@ def parse_scene(
             model = _load_import(t, folder, cache, progress)
             inputs.append(str(model.path))
             loads.append(model.load)
+            own = t.has("material") or t.has("color")
+            file_colors = t.raw("file_colors", not own)
+            if not isinstance(file_colors, bool):
+                t.fail("file_colors", f"expected true or false, got {_show(file_colors)}")
             material = _material_for(t, materials, by_name)
-            colored = (
-                None
-                if t.has("material") or t.has("color")
-                else _colour_materials(model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
+            colored = (  # the file's colours (STEP) on the import's material, or on the default one
+                _colour_materials(model, materials, materials[material], f"{Path(model.path).name}:")
+                if file_colors
+                else None
             )
             matrix = _transform(t, "transform") if t.has("transform") else None
             t.finish()
@@ -172,7 +177,7 @@ def parse_scene(
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
-    if camera is None or not lights or bright:
+    if camera is None or (studio and not lights) or bright:
         from bsrt.scene.auto import fit_camera, studio_lights, surface_points
 
         points = surface_points([s.geometry for s in surfaces])
@@ -183,7 +188,7 @@ def parse_scene(
         if camera is None:
             w, h = film_size or (film.width, film.height)
             camera = fit_camera(points, w, h)
-        if not lights:
+        if studio and not lights:
             lights = list(studio_lights(points, camera))
             notes.append(f"{where}: no [[light]]: lit by the default studio rig (key, fill, rim and ambient light)")
     return Scene(
