@@ -270,11 +270,13 @@ def render(
     else:
         raise TypeError(f"progress: expected a function progress(stage, fraction), True or None, got {progress!r}")
     try:
-        if isinstance(scene, (str, os.PathLike)):
-            scene = load(scene, cache=cache, progress=report)
+        settings = checked_overrides(settings)
+        if isinstance(scene, (str, os.PathLike)):  # the automatic camera fits the film asked for
+            scene = load(
+                scene, cache=cache, progress=report, width=settings.get("width"), height=settings.get("height")
+            )
         elif not isinstance(scene, _scene.Scene):  # what Scene.build takes: surfaces, imports, lists of them
             scene = Scene.build(scene if isinstance(scene, (list, tuple)) else [scene], cache=cache)
-        settings = checked_overrides(settings)
         if camera is not None:
             settings["camera"] = _checked_camera(camera)
         options = RenderOptions.resolve(scene, **settings)

@@ -253,8 +253,56 @@ def _cmd_doctor(args) -> int:
     for reader in READERS.values():
         state = "ready" if reader.available() else f"needs pip install 'bsrt[{reader.extra}]'"
         print(f"reader {reader.name + ':':7} {' '.join(reader.extensions):38} {state}")
+    for name, state in optional_parts():
+        print(f"{name + ':':16} {state}")
     print("OK: bsrt can render headless")
     return 0
+
+
+def optional_parts() -> list[tuple[str, str]]:
+    """``bsrt doctor``'s checks of what only some commands need, each with the fix when it is
+    missing: the window (glfw and a display: bsrt preview), OpenCASCADE (the cad extra: STEP,
+    BREP, IGES through OCCT) and Dask (the dask extra: bsrt batch, animate)."""
+    import importlib.util
+
+    parts = [("window", _window_state())]
+    if importlib.util.find_spec("OCP") is None:
+        parts.append(("OpenCASCADE", "not installed (STEP and BREP files need it): pip install 'bsrt[cad]'"))
+    else:
+        try:
+            import OCP
+            from OCP.BRep import BRep_Builder  # noqa: F401  (loads the OCCT libraries)
+
+            parts.append(("OpenCASCADE", f"ready (OCP {getattr(OCP, '__version__', '?')})"))
+        except Exception as exc:  # a broken install: the libraries do not load
+            parts.append(("OpenCASCADE", f"FAILED to load ({exc}): pip install --force-reinstall 'bsrt[cad]'"))
+    try:
+        import dask
+        import distributed
+
+        parts.append(("Dask", f"ready (dask {dask.__version__}, distributed {distributed.__version__})"))
+    except ImportError:
+        parts.append(("Dask", "not installed (bsrt batch and animate need it): pip install 'bsrt[dask]'"))
+    return parts
+
+
+def _window_state() -> str:
+    """The preview window's state: glfw initialises on a display, or why not and the fix."""
+    fix = "bsrt render works without one; for bsrt preview run on a desktop or under xvfb-run -a"
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return f"no display (neither DISPLAY nor WAYLAND_DISPLAY is set): {fix}"
+    try:
+        import glfw
+    except ImportError:
+        return "glfw is not installed: pip install glfw"
+    glfw.ERROR_REPORTING = "ignore"
+    try:
+        if not glfw.init():
+            return f"glfw cannot open the display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')!r}: {fix}"
+        glfw.terminate()
+    except Exception as exc:
+        return f"glfw failed ({exc}): {fix}"
+    return f"ready (glfw {glfw.__version__}, display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')})"
 
 
 def _say_if_compiling() -> None:

@@ -125,7 +125,7 @@ def load_input(
         if format != "auto":
             raise InputError(f"{camera.label('format')}: only for model files; {path.name} is a scene file (.toml)")
         scene = load_scene(path, cache=cache, progress=faces, film_size=(width, height) if width and height else None)
-        if camera.view is not None or camera.turntable:
+        if camera.view is not None:
             scene = _fitted_view(scene, camera, width, height)
         return _override_camera(scene, camera)
     from bsrt.io import load_model
