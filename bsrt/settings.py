@@ -209,6 +209,23 @@ SETTINGS: tuple[Setting, ...] = (
         "spp", "render", "int", 1, "samples per pixel (anti-aliasing)", 1, validate.MAX_SPP, commands=("render",)
     ),  # the preview traces one sample per pixel
     Setting("max_depth", "render", "int", 3, "mirror-reflection bounces", 0, validate.MAX_DEPTH),
+    Setting(
+        "ao",
+        "render",
+        "bool",
+        False,
+        "ambient occlusion: the ambient light of each point times the fraction of 16 exact rays over its "
+        "hemisphere that leave within half a model radius",
+        commands=("render",),
+    ),
+    Setting(
+        "ground",
+        "render",
+        "bool",
+        False,
+        "a ground plane under the model (traced exactly: the lights' shadows fall on it) with a contact shadow",
+        commands=("render",),
+    ),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
 

@@ -207,3 +207,75 @@ def test_the_api_keywords_are_the_registrys_and_unknown_ones_are_refused():
     )
     with pytest.raises(TypeError, match="unknown render setting 'sharpness'"):
         bsrt.load(SPHERE, sharpness=3)
+
+
+def test_ao_directions_are_cosine_weighted_over_the_hemisphere():
+    from bsrt.rendering.occlusion import AO_RAYS, hemisphere_directions
+
+    normal = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    d = hemisphere_directions(normal)
+    assert d.shape == (2, AO_RAYS, 3)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=2), 1.0)
+    cos = np.einsum("krj,kj->kr", d, normal)
+    assert cos.min() > 0
+    # cosine-weighted: cos^2 is uniform on [0, 1]; the stratified grid's cos^2 are 1 - (i + 0.5) / 4, each 4 times
+    np.testing.assert_allclose(np.sort(cos[0] ** 2), np.repeat([0.125, 0.375, 0.625, 0.875], 4))
+
+
+def test_ao_under_a_parallel_plane_is_the_closed_form():
+    """A point facing a plane h above it, rays of reach R: a ray at angle theta from the normal meets
+    it when h / cos(theta) <= R, so the open fraction of cosine-weighted directions is (h / R)^2."""
+    from bsrt.rendering.occlusion import occlusion
+    from bsrt.rendering.pipeline import Geometry
+
+    def square(z, half):
+        return bsrt.Surface(
+            (1, 1),
+            [0, 0, 1, 1],
+            [0, 0, 1, 1],
+            [[[-half, -half, z], [-half, half, z]], [[half, -half, z], [half, half, z]]],
+        )
+
+    h = 1.0
+    scene = bsrt.Scene.build([square(0.0, 4.0), square(h, 4.0)], bsrt.Camera((0, -10, 5), (0, 0, 0)), lights=[])
+    geometry = Geometry(scene)
+
+    def trace(origins, directions, exclude, t_max, any_hit):
+        n = len(origins)
+        return geometry.intersect(
+            origins,
+            directions,
+            t_min=0.0,
+            t_max=np.full(n, t_max),
+            tolerance=1e-9 * geometry.diagonal,
+            any_hit=any_hit,
+            exclude=exclude,
+        )
+
+    point, up = np.array([[0.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]])
+    own = (np.array([0]), np.array([0.5]), np.array([0.5]), np.array([1e-6]), np.array([1e-6]))
+    for reach, expected in ((h * np.sqrt(2.0), 0.5), (h * 2.0, 0.25), (h * 0.9, 1.0)):
+        # the stratified directions have cos^2 = 1/8, 3/8, 5/8, 7/8: (h/R)^2 = 1/2, 1/4 fall between them
+        assert occlusion(trace, point, up, own, reach)[0] == pytest.approx(expected)
+
+
+@pytest.mark.gl
+def test_the_ground_plane_takes_a_contact_shadow_under_a_sphere(tmp_path):
+    scene = bsrt.load(SPHERE, width=64, height=48, view="iso")
+    result = bsrt.render(scene, ground=True, background=(1.0, 1.0, 1.0))
+    surface = result.hits.surface.reshape(48, 64)
+    sphere, ground = surface == 0, surface == len(scene.surfaces)  # the ground: one surface more
+    assert sphere.any() and ground.any()
+    brightness = result.linear.mean(axis=2)
+    near = np.zeros_like(sphere)  # ground pixels next to the sphere's silhouette: its base
+    near[1:] |= sphere[:-1]
+    near[:-1] |= sphere[1:]
+    near &= ground
+    far = ground.copy()
+    far[:, 8:-8] = False  # the ground at the frame's sides, a model radius and more away
+    assert near.any() and far.any()
+    assert brightness[near].min() < 0.5 * np.median(brightness[far]), (
+        brightness[near].min(),
+        np.median(brightness[far]),
+    )
+    result.save(tmp_path / "ground.png")

@@ -139,6 +139,9 @@ def test_doctor_lists_every_reader():
     assert out.returncode == 0, out.stderr
     for name in READERS:
         assert f"reader {name}:" in out.stdout
+    for part in ("window:", "OpenCASCADE:", "Dask:"):  # each "ready (...)" or what is missing and the fix
+        line = next(x for x in out.stdout.splitlines() if x.startswith(part))
+        assert "ready" in line or "pip install" in line or "xvfb-run" in line, line
 
 
 @pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")), ids=lambda p: p.name)

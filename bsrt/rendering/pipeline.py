@@ -203,11 +203,16 @@ def render(
     report = progress or (lambda stage, fraction=0.0: None)
     stats = Stats(method=opts.method, map=opts.map if opts.uses_map else None, width=width, height=height, spp=spp)
     stats.loaded(getattr(scene, "loads", ()))  # the model files' load, which came before (bsrt/scene/loading.py)
+    radius = None
     with stats.timer("setup"):
+        if opts.ground and geometry is None:  # the ground plane: one more surface (bsrt/rendering/occlusion.py)
+            from bsrt.rendering.occlusion import with_ground
+
+            scene, radius = with_ground(scene)
         geometry = geometry or Geometry(scene)
         _ = geometry.bvh  # built here, not inside the first stage that needs it
     tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
-    shader = _Shader(scene, opts, geometry, stats, report)
+    shader = _Shader(scene, opts, geometry, stats, report, radius)
     cols, rows = sample_grid(spp)
     sample_w, sample_h = width * cols, height * rows
     band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
@@ -260,8 +265,11 @@ class _Shader:
     """Colour along rays: Blinn-Phong with shadow rays to every point and
     directional light, and mirror reflection up to options.max_depth bounces."""
 
-    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report):
+    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius=None):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
+        grounded = options.ground and scene.surfaces and scene.surfaces[-1].name == "ground" and radius is not None
+        self.ground = len(scene.surfaces) - 1 if grounded else -1  # the ground plane's surface index
+        self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
         self.tolerance = options.tolerance * geometry.diagonal
         self.reflectance = np.array([m.reflectance for m in scene.materials])
         self.span, self.expected, self.traced, self.shown = (0.0, 1.0), 1, 0, 0.0
@@ -289,6 +297,8 @@ class _Shader:
         exclude = self._exclusion(hits, hit, speed[hit])
         visibility = self._visibility(pos, nrm, exclude)
         colour[hit] = shade(self.scene, pos, nrm, dirs, material, visibility)
+        if depth == 0 and (self.options.ao or self.ground >= 0):
+            self._occlude(colour, hit, hits.surface[hit], pos, nrm, material, exclude)
         reflectance = self.reflectance[material]
         mirror = np.flatnonzero(reflectance > 0)
         if mirror.size and depth < self.options.max_depth:
@@ -300,6 +310,28 @@ class _Shader:
             k = reflectance[mirror][:, None]
             colour[hit[mirror]] = (1.0 - k) * colour[hit[mirror]] + k * reflected
         return colour
+
+    def _occlude(self, colour, hit, surface, pos, nrm, material, exclude) -> None:
+        """Ambient occlusion (options.ao: the ambient lights' part of each hit's colour times its
+        openness) and the ground's contact shadow (its colour times its openness), in place."""
+        from bsrt.rendering.occlusion import AO_RAYS, occlusion
+
+        on_ground = surface == self.ground
+        which = np.arange(hit.size) if self.options.ao else np.flatnonzero(on_ground)
+        if not which.size:
+            return
+        self.stats.add("ao_rays", which.size * AO_RAYS)
+        openness = occlusion(self._trace, pos[which], nrm[which], tuple(a[which] for a in exclude), self.reach)
+        ground = on_ground[which]
+        if self.options.ao:
+            ambient = sum(
+                (np.array(light.color) * light.intensity for light in self.scene.lights if light.kind == "ambient"),
+                np.zeros(3),
+            )
+            albedo = np.array([m.color for m in self.scene.materials])[material[which]]
+            lost = (1.0 - openness)[:, None] * albedo * ambient
+            colour[hit[which[~ground]]] -= lost[~ground]
+        colour[hit[which[ground]]] *= openness[ground][:, None]
 
     def _exclusion(self, hits: Hits, hit: np.ndarray, speed: np.ndarray):
         """The parameter box around each hit that its secondary rays must not hit again.
