@@ -279,3 +279,44 @@ def test_the_ground_plane_takes_a_contact_shadow_under_a_sphere(tmp_path):
         np.median(brightness[far]),
     )
     result.save(tmp_path / "ground.png")
+
+
+def test_a_point_lights_brightness_is_its_strength_at_the_models_centre(tmp_path):
+    scene = tmp_path / "b.toml"
+    scene.write_text(
+        f'[[import]]\nfile = "{SPHERE}"\n'
+        '[[light]]\nkind = "point"\nposition = [3.0, 4.0, 12.0]\nbrightness = 0.5\n'
+        '[[light]]\nkind = "point"\nposition = [0.0, 0.0, 2.0]\nintensity = 7.0\n'
+    )
+    centre, _ = _sphere()
+    lights = bsrt.load(scene).lights
+    assert len(lights) == 2  # lights given: no studio rig
+    assert lights[0].intensity == pytest.approx(0.5 * np.sum((np.array([3.0, 4.0, 12.0]) - centre) ** 2), rel=1e-12)
+    assert lights[1].intensity == 7.0
+    bad = tmp_path / "bad.toml"
+    bad.write_text(scene.read_text().replace("brightness = 0.5\n", "brightness = 0.5\nintensity = 1.0\n", 1))
+    with pytest.raises(bsrt.InputError, match="light.0..brightness: give either intensity or brightness, not both"):
+        bsrt.load(bad)
+    bad.write_text(f'[[import]]\nfile = "{SPHERE}"\nfile_colors = 1\n')
+    with pytest.raises(bsrt.InputError, match=r"import\[0\].file_colors: expected true or false, got 1"):
+        bsrt.load(bad)
+    bad.write_text(
+        "[[surface]]\ndegree = [1, 1]\nknots_u = [0, 0, 1, 1]\nknots_v = [0, 0, 1, 1]\n"
+        "points = [[[0, 0, 0], [0, 1, 0]], [[1, 0, 0], [1, 1, 0]]]\n"
+    )
+    with pytest.raises(bsrt.InputError, match=r"camera: missing table \[camera\] \(only a scene with \[\[import\]\]"):
+        bsrt.load(bad)
+
+
+@pytest.mark.gl
+@pytest.mark.cad
+def test_bsrt_scene_of_a_coloured_step_assembly_keeps_its_colours(tmp_path):
+    step = MODELS / "step" / "pythonocc-core" / "as1-oc-214.stp"
+    part = tmp_path / "as1.toml"
+    assert main(["scene", step, "-o", part, "--width", "48", "--height", "32", "--background", "1,1,1"]) == 0
+    assert part.stat().st_size < 2000
+    scene = bsrt.load(part)
+    assert len({m.color for m in scene.materials}) > 3  # the file's colours, on the model's material
+    a = bsrt.render(step, width=48, height=32, background=(1.0, 1.0, 1.0)).pixels.astype(int)
+    b = bsrt.render(scene).pixels.astype(int)
+    assert np.abs(a - b).max() <= 1
