@@ -133,6 +133,8 @@ class Setting:
 
 
 def _shown(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"  # as the scene file spells it
     return (
         ",".join(f"{x:g}" for x in value)
         if isinstance(value, tuple)
