@@ -166,6 +166,7 @@ SETTINGS: tuple[Setting, ...] = (
         "bool",
         False,
         "write the background as transparent: RGBA with the surfaces' coverage as alpha (PNG, WebP)",
+        commands=("render",),
     ),
     Setting(
         "bit_depth",
