@@ -10,7 +10,8 @@ The Python API (docs/python-api.md)::
 ``bsrt.load``, ``bsrt.render``, ``bsrt.Scene`` (``Scene.build``,
 ``to_toml``, ``save``), ``bsrt.Surface``, ``bsrt.Camera``, ``bsrt.Light``,
 ``bsrt.Material``, ``bsrt.Film``, ``bsrt.Import``, ``bsrt.from_splipy``,
-``bsrt.from_geomdl``; ``bsrt.batch`` and ``bsrt.animate`` (many renders
+``bsrt.from_geomdl``; ``bsrt.intersect`` and ``bsrt.sensors`` (exact ray
+queries, docs/ray-queries.md); ``bsrt.batch`` and ``bsrt.animate`` (many renders
 on Dask, the extra ``bsrt[dask]``). They are imported on first use, so ``import bsrt``
 stays fast (NumPy, OpenGL and the compiled kernels load when needed).
 
@@ -42,13 +43,18 @@ _LAZY = {
     "RenderError": "errors",
     "render": "api",
     "RenderResult": "rendering.pipeline",
+    "intersect": "queries",
+    "Intersections": "queries",
     "batch": "batches.api",
     "animate": "batches.api",
 }
 
-__all__ = sorted([*_LAZY, "__version__"])
+_MODULES = ("sensors",)  # submodules imported on first use: bsrt.sensors.lidar(...)
+
+__all__ = sorted([*_LAZY, *_MODULES, "__version__"])
 
 if TYPE_CHECKING:  # what type checkers and IDEs see (the names of _LAZY)
+    from bsrt import sensors
     from bsrt.api import (
         Camera,
         Film,
@@ -65,6 +71,7 @@ if TYPE_CHECKING:  # what type checkers and IDEs see (the names of _LAZY)
     )
     from bsrt.batches.api import animate, batch
     from bsrt.errors import InputError, RenderError
+    from bsrt.queries import Intersections, intersect
     from bsrt.rendering.pipeline import RenderResult
 
 
@@ -73,6 +80,8 @@ def __getattr__(name: str):
         value = getattr(_importlib.import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value
         return value
+    if name in _MODULES:
+        return _importlib.import_module(f".{name}", __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -54,7 +54,7 @@ class Setting:
     "color" (three numbers >= 0, linear RGB; <= hi when hi is given). lo, hi: bounds (lo_open: lo
     itself excluded). choices: for "choice", and the allowed values of an "int" when given. unit: shown in help and docs.
     commands: the CLI commands that take it as a flag ("render" also means
-    batch and animate; "map"; "preview").
+    batch and animate; "map"; "preview"; "scan").
     """
 
     name: str
@@ -206,6 +206,7 @@ SETTINGS: tuple[Setting, ...] = (
         1.0,
         lo_open=True,
         unit="of the scene's diagonal",
+        commands=("render", "preview", "scan"),
     ),
     Setting("max_iterations", "render", "int", 64, "root-finder steps per pixel and start", 1, validate.MAX_ITERATIONS),
     Setting(

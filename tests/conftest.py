@@ -196,6 +196,10 @@ SLOW: dict[str, float] = {
     "tests/test_fuzz.py::test_scene_documents_are_valid_or_refused_naming_the_file": 8.3,
     "tests/test_fuzz.py::test_short_cli_fuzz_pass_keeps_every_promise": 126.7,
     "tests/test_iges_occt_hits.py::test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape": 11.7,  # 2 cases
+    "tests/test_intersect.py::test_sphere_nearest_hit_point_normal_and_parameters": 2.1,  # the first: loads the kernels
+    "tests/test_intersect_cad.py::test_against_opencascade_on_a_trimmed_step_part": 4.0,
+    "tests/test_intersect_cad.py::test_cylinder_trimmed_by_a_plane": 3.7,  # the first: loads the kernels
+    "tests/test_intersect_cad.py::test_names_of_a_step_assembly_give_the_part_paths": 2.0,
     "tests/test_map_trim.py::test_cad_parts_render_the_same_with_fewer_trimmed_roots": 5.5,  # 2 cases
     "tests/test_map_trim.py::test_the_per_fragment_trim_test_alone_renders_the_same[bearing.iges]": 3.2,
     "tests/test_models.py::test_every_model_file_renders_headless_or_is_refused[iges/occt/bearing.iges]": 3.5,

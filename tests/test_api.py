@@ -123,7 +123,7 @@ def test_the_api_names():
         "RenderError",
     ):
         assert hasattr(bsrt, name), name
-    assert set(bsrt.__all__) == set(bsrt._LAZY) | {"__version__", "render"}
+    assert set(bsrt.__all__) == set(bsrt._LAZY) | set(bsrt._MODULES) | {"__version__", "render"}
     assert bsrt.InputError is InputError and bsrt.Material is bsrt.scene.Material
     with pytest.raises(AttributeError):
         bsrt.no_such_name  # noqa: B018 (the attribute lookup is the test)

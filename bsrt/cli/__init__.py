@@ -1,4 +1,4 @@
-"""Command line: ``bsrt render | map | info | doctor | bench | preview | batch | animate``.
+"""Command line: ``bsrt render | map | info | doctor | bench | preview | batch | animate | scan``.
 
 Exit codes: 0 success, 2 bad usage or bad input (scene, model, options),
 1 a render failure (e.g. no OpenGL context) or an output that could not be

@@ -113,7 +113,10 @@ def _parser() -> argparse.ArgumentParser:
     from bsrt.cli.batch import add_commands as _batch_commands
 
     _batch_commands(sub, _positive_int)
-    for command in ("render", "map", "scene", "info", "preview", "batch", "animate"):  # every command loading models
+    from bsrt.cli.scan import add_command as _scan_command
+
+    _scan_command(sub, _positive_int, INPUT_HELP, _camera_options)
+    for command in ("render", "map", "scene", "info", "preview", "batch", "animate", "scan"):  # all loading models
         _cache_option(sub.choices[command])
     return parser
 

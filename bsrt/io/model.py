@@ -38,6 +38,9 @@ class Model:
     untrimmed: how many of the surfaces are trimmed in the file but drawn whole.
     colors: empty (the file gives no colours), or one per surface: a linear RGB
       colour (r, g, b), each in 0..1, or None where the file gives none.
+    reversed: empty (every surface as parametrised), or one bool per surface:
+      True where the outward normal is -(S_u x S_v) (a B-rep face whose
+      orientation is REVERSED, or mirrored by its placement).
     load: how this load went (time, cache), set by :func:`load_model`; not
       part of the cached value nor of equality.
     """
@@ -49,4 +52,5 @@ class Model:
     warnings: list[str] = field(default_factory=list)
     untrimmed: int = 0
     colors: list[tuple[float, float, float] | None] = field(default_factory=list)
+    reversed: list[bool] = field(default_factory=list)
     load: LoadRecord | None = field(default=None, compare=False, repr=False)

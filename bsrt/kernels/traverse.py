@@ -140,7 +140,8 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
 
 @njit(cache=True, no_cpython_wrapper=True)
 def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
-    """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either).
+    """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either); 3: a root of the piece
+    that is not a hit (outside (t_min, t_max) or trimmed away).
 
     A root that is the secondary ray's own start counts as 2 even when Newton
     reached it from a neighbouring piece; the piece is then retried (quarters)
@@ -153,9 +154,9 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
     if not (rect[0] - su <= u <= rect[1] + su and rect[2] - sv <= v <= rect[3] + sv):
         return 0
     if not (t_min < t < t_max):
-        return 0
+        return 3
     if not point_kept(T, m, u, v):
-        return 0
+        return 3
     return 1
 
 
@@ -217,8 +218,9 @@ def _solve_piece(
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
     # No retry after a root that is not grazing. The start root of a secondary ray is retried too when
     # the ray leaves it grazing: the leaf's normals lie within its cone, so a ray that meets the leaf
-    # again (a cupped surface shadowing itself) leaves it at |cos| below GRAZING_COSINE.
-    if retry_depth == 0 or ((found or state == 2) and not _grazing(P, k, u, v, dx, dy, dz)):
+    # again (a cupped surface shadowing itself) leaves it at |cos| below GRAZING_COSINE. The same holds
+    # for a root that is not a hit (trimmed away, beyond t_max): not grazing, it is the piece's only one.
+    if retry_depth == 0 or (state != 0 and not _grazing(P, k, u, v, dx, dy, dz)):
         return found, best_t, best_u, best_v, best_k, best_res, iterations
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
@@ -268,8 +270,8 @@ def _solve_piece(
             iterations += its
             state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
             again = True
-            if state == 1:
-                if t < best_t:
+            if state != 0:  # a root of this quarter: cut further only if it is grazing
+                if state == 1 and t < best_t:
                     found = True
                     best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
                 again = _grazing(P, k, u, v, dx, dy, dz)

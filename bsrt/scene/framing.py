@@ -61,7 +61,10 @@ def scene_for_model(
     lights = studio_lights(points, camera)
     materials = [MODEL_MATERIAL]
     colored = _colour_materials(model, materials, MODEL_MATERIAL, "") or [None] * len(model.surfaces)
-    surfaces = tuple(SceneSurface(g, 0 if c is None else c, n) for g, n, c in zip(model.surfaces, model.names, colored))
+    flips = model.reversed or [False] * len(model.surfaces)
+    surfaces = tuple(
+        SceneSurface(g, 0 if c is None else c, n, f) for g, n, c, f in zip(model.surfaces, model.names, colored, flips)
+    )
     notes = tuple(f"{model.path}: {w}" for w in model.warnings) + tuple(_skipped_notes(model))
     return Scene(
         Film(width, height),

@@ -39,11 +39,13 @@ class Light:
 
 @dataclass(frozen=True)
 class SceneSurface:
-    """A surface in world space (transform applied), its material index and name."""
+    """A surface in world space (transform applied), its material index and name. reversed: its
+    outward normal is -(S_u x S_v) (a REVERSED B-rep face: bsrt.io.Model.reversed)."""
 
     geometry: BSplineSurface
     material: int
     name: str
+    reversed: bool = False
 
 
 @dataclass(frozen=True)

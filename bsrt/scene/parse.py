@@ -155,11 +155,13 @@ def parse_scene(
             matrix = _transform(t, "transform") if t.has("transform") else None
             t.finish()
             notes += [f"{model.path}: {w}" for w in model.warnings] + _skipped_notes(model)
+            mirror = matrix is not None and np.linalg.det(matrix[:3, :3]) < 0  # reverses every orientation
             for k, (geometry, name) in enumerate(zip(model.surfaces, model.names)):
                 mat = material if colored is None or colored[k] is None else colored[k]
                 if matrix is not None:
                     geometry = _within_limits(t, "transform", geometry.transformed(matrix), name)
-                surfaces.append(SceneSurface(geometry, mat, name))
+                flip = bool(model.reversed[k]) if model.reversed else False
+                surfaces.append(SceneSurface(geometry, mat, name, flip != mirror))
             continue
         t = _Table(where, raw, f"surface[{i}]")
         name = t.string("name", f"surface-{i}")

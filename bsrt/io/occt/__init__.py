@@ -15,7 +15,8 @@ concern:
 - :mod:`.topology`: wires to closed trim loops across seams and poles.
 
 The faces are read FORWARD (bsrt shades both sides, so a reversed face looks
-the same). A part placed several times is converted once. A face whose
+the same); ``Model.reversed`` keeps each face's orientation (REVERSED, or
+mirrored by a placement) for the outward normals of ray queries. A part placed several times is converted once. A face whose
 wires cannot be made into closed loops is drawn over its (u, v) bounds and
 named in a warning with the reason; a face OpenCASCADE cannot convert is
 named in a warning and left out.
@@ -78,6 +79,7 @@ class FaceInfo:
     deviation: float
     approximated: bool = False
     untrimmed_reason: str = ""
+    mirrored: bool = False  # the face's own location reverses orientation (a negative determinant)
 
 
 def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
@@ -101,7 +103,7 @@ def convert_face(face, diagonal: float) -> tuple[BSplineSurface, FaceInfo]:
     local_size = diagonal / scale
     bounds = _face_bounds(face, original)
     local, pmap = convert_surface(original, bounds, local_size)
-    info = FaceInfo(pmap.deviation * scale, approximated=pmap.approximated)
+    info = FaceInfo(pmap.deviation * scale, approximated=pmap.approximated, mirrored=bool(trsf.IsNegative()))
     try:
         # a face bounded by its surface's own bounds (NaturalRestriction) is the whole converted surface
         loops = [] if BRep_Tool.NaturalRestriction_s(face) else face_loops(face, original, pmap, local, local_size)
@@ -175,7 +177,9 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
     visible = [leaf for leaf in leaves if leaf.visible]
     placed = [(leaf, list(faces(leaf.shape))) for leaf in visible]
     total = sum(len(f) for _, f in placed)
-    surfaces, names, colors, warnings = [], [], [], []
+    from OCP.TopAbs import TopAbs_REVERSED
+
+    surfaces, names, colors, warnings, reversed_ = [], [], [], [], []
     untrimmed: list[str] = []
     not_converted: list[str] = []
     approximated, worst_approx = 0, 0.0
@@ -194,6 +198,7 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
         trsf = leaf.location.Transformation()
         scale = abs(float(trsf.ScaleFactor())) or 1.0
         moved = not leaf.location.IsIdentity()
+        mirrored = bool(trsf.IsNegative())
         for k, face in enumerate(leaf_faces):
             key = ShapeKey(face)
             if key not in converted:
@@ -217,6 +222,7 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
                 worst_approx = max(worst_approx, info.deviation * scale)
             surfaces.append(surface.transformed(matrix(trsf)) if moved else surface)
             names.append(f"{base}:{name}")
+            reversed_.append((face.Orientation() == TopAbs_REVERSED) ^ mirrored ^ info.mirrored)
             colors.append(leaf.face_colors.get(key, leaf.color))
     if not surfaces:
         raise InputError(
@@ -244,4 +250,13 @@ def read(path, format: str = "occt", progress: Callable[[int, int], None] | None
         skipped["edges not on any face (wireframe)"] = free_edges
     if all(c is None for c in colors):
         colors = []
-    return Model(path, surfaces, names, skipped=skipped, warnings=warnings, untrimmed=len(untrimmed), colors=colors)
+    return Model(
+        path,
+        surfaces,
+        names,
+        skipped=skipped,
+        warnings=warnings,
+        untrimmed=len(untrimmed),
+        colors=colors,
+        reversed=reversed_ if any(reversed_) else [],
+    )
