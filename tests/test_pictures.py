@@ -320,3 +320,13 @@ def test_bsrt_scene_of_a_coloured_step_assembly_keeps_its_colours(tmp_path):
     a = bsrt.render(step, width=48, height=32, background=(1.0, 1.0, 1.0)).pixels.astype(int)
     b = bsrt.render(scene).pixels.astype(int)
     assert np.abs(a - b).max() <= 1
+
+
+def test_an_animations_summary_counts_its_frames_and_its_file_apart():
+    from bsrt.batches.engine import Item, Summary
+
+    items = [Item("p.step", f"o/frame_{k:04d}.png", "ok") for k in range(1, 13)] + [Item("p.step", "o/p.webp", "ok")]
+    summary = Summary(items, 2.0, "o", frames=12)
+    assert summary.line().startswith("12 frames: 12 rendered, 0 skipped, 0 failed, and the animated file p.webp")
+    assert summary.to_dict()["frames"] == 12 and len(summary.to_dict()["items"]) == 13
+    assert Summary(items[:3], 1.0, "o").line().startswith("3 items: 3 rendered")

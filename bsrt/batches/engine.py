@@ -375,6 +375,7 @@ class Summary:
             "ok": self.count("ok"),
             "skipped": self.count("skipped"),
             "failed": self.count("failed"),
+            **({} if self.frames is None else {"frames": self.frames}),  # an animation: items after them are its file
             "items": [asdict(item) for item in self.items],
         }
 
