@@ -51,7 +51,7 @@ from bsrt.scene.document import (
     scene_document,
     surface_doc,
 )
-from bsrt.settings import Film, RenderSettings, checked_overrides, with_settings
+from bsrt.settings import Film, RenderSettings, checked_overrides, setting_keywords, with_settings
 
 if TYPE_CHECKING:
     from bsrt.rendering.pipeline import RenderResult
@@ -109,8 +109,8 @@ class Scene(_scene.Scene):
         :meth:`Surface.from_object` takes (Splipy, geomdl, bsrt surfaces),
         numbered in this order. camera: None frames the surfaces
         automatically, as for a model file (a three-quarter view from
-        above, +z up). lights: None gives the model files' key, fill and
-        ambient light; ``[]`` none. materials: the named materials that
+        above, +z up). lights: None gives the model files' studio rig (key,
+        fill, rim and ambient light); ``[]`` none. materials: the named materials that
         surfaces refer to (Materials given on surfaces are added after
         them). film, render: the ``[film]`` and ``[render]`` values
         (defaults: 512x512, black; the scene format's defaults). name: the
@@ -123,7 +123,9 @@ class Scene(_scene.Scene):
         """
         data, order = _document(list(surfaces), camera, lights, materials, film, render)
         with python_words():
-            scene = _scene.parse_scene(data, name, None if folder is None else Path(folder), order, cache=cache)
+            scene = _scene.parse_scene(
+                data, name, None if folder is None else Path(folder), order, cache=cache, studio=False
+            )
         if camera is None or lights is None:
             scene = _automatic(scene, camera is None, lights is None)
         return _wrap(scene)
@@ -170,40 +172,30 @@ def _wrap(scene: _scene.Scene) -> Scene:
 # Loading
 
 
+@setting_keywords
 def load(
     path: str | os.PathLike,
     *,
-    width: int | None = None,
-    height: int | None = None,
-    background: Vector3 | None = None,
-    method: str | None = None,
-    map: str | None = None,
-    tolerance: float | None = None,
-    max_iterations: int | None = None,
-    spp: int | None = None,
-    max_depth: int | None = None,
-    adaptive_spp: int | None = None,
-    edges: bool | None = None,
-    edge_width: float | None = None,
-    edge_color: Vector3 | None = None,
-    hidden_edges: bool | None = None,
     camera_eye: Vector3 | None = None,
     camera_look_at: Vector3 | None = None,
     camera_up: Vector3 | None = None,
     fov: float | None = None,
+    view: str | None = None,
     format: str = "auto",
     cache: bool = True,
     progress: Callable[[str, float], None] | None = None,
+    **settings,
 ) -> Scene:
     """Read a scene file (.toml) or a model file (.igs, .bez, .g2, ...).
 
     A model file gets the automatic scene of ``bsrt render MODEL``: a camera
     framing it from a three-quarter view above (+z up unless camera_up says
     otherwise), key, fill and ambient lights, one neutral material.
-    Overrides, as the command line's options: width, height (the film),
-    method, spp, map, tolerance, max_iterations, max_depth, adaptive_spp,
-    edges, edge_width, edge_color, hidden_edges (``[render]``), camera_eye, camera_look_at, camera_up ((3,) each), fov (degrees) and
-    format (model files: "auto", by extension, or a format name). The
+    Overrides, as the command line's options: every render setting of the
+    registry (bsrt.settings.SETTINGS: width, height, background, spp, ...; the
+    signature lists them), camera_eye, camera_look_at, camera_up ((3,) each),
+    fov (degrees), view (a named view of the automatic camera: "iso", "front",
+    "back", "left", "right", "top", "bottom") and format (model files: "auto", by extension, or a format name). The
     overrides become part of the scene (``to_toml`` writes them).
     cache: False reads model files (a scene's imports too) without the
     converted-model cache, writing nothing to it; by default a second load
@@ -215,25 +207,8 @@ def load(
     """
     from bsrt.scene.loading import CameraOverrides, load_input
 
-    settings = checked_overrides(
-        dict(
-            width=width,
-            height=height,
-            method=method,
-            spp=spp,
-            map=map,
-            tolerance=tolerance,
-            max_iterations=max_iterations,
-            max_depth=max_depth,
-            background=background,
-            adaptive_spp=adaptive_spp,
-            edges=edges,
-            edge_width=edge_width,
-            edge_color=edge_color,
-            hidden_edges=hidden_edges,
-        )
-    )
-    camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True)
+    settings = checked_overrides(settings)
+    camera = CameraOverrides(camera_eye, camera_look_at, camera_up, fov, keywords=True, view=view)
     scene = load_input(
         path,
         format,
@@ -250,36 +225,23 @@ def load(
 # Rendering
 
 
+@setting_keywords
 def render(
     scene: Scene | _scene.Scene | str | os.PathLike | Surface | Import | Iterable | Any,
     *,
-    width: int | None = None,
-    height: int | None = None,
-    background: Vector3 | None = None,
-    method: str | None = None,
-    map: str | None = None,
-    tolerance: float | None = None,
-    max_iterations: int | None = None,
-    spp: int | None = None,
-    max_depth: int | None = None,
-    adaptive_spp: int | None = None,
-    edges: bool | None = None,
-    edge_width: float | None = None,
-    edge_color: Vector3 | None = None,
-    hidden_edges: bool | None = None,
     camera: Camera | Mapping | None = None,
     progress: ProgressArg = None,
     cache: bool = True,
+    **settings,
 ) -> RenderResult:
     """Render a scene: a :class:`Scene`, a scene or model file (loaded with :func:`load`), or
     what :meth:`Scene.build` takes (surfaces: bsrt, Splipy or geomdl objects, :class:`Import`,
     or a list of them; framed and lit automatically).
 
     The keywords override the scene's own settings for this render only
-    (None: the scene's value): width, height, method ("newton", "gradient",
-    "fast", "martin"), spp, map ("float", "rgba8"), tolerance,
-    max_iterations, max_depth, adaptive_spp, edges, edge_width, edge_color,
-    hidden_edges, camera (a :class:`Camera`). progress: a
+    (None: the scene's value): every render setting of the registry
+    (bsrt.settings.SETTINGS: width, height, background, transparent, method,
+    spp, ...; the signature lists them), camera (a :class:`Camera`). progress: a
     function called as ``progress(stage, fraction)`` (stage "map", "solve",
     "shade", "aov" or "done"; fraction 0..1 of the whole render; it may
     raise to abandon the render; given a file, first "load" with the
@@ -308,28 +270,13 @@ def render(
     else:
         raise TypeError(f"progress: expected a function progress(stage, fraction), True or None, got {progress!r}")
     try:
-        if isinstance(scene, (str, os.PathLike)):
-            scene = load(scene, cache=cache, progress=report)
+        settings = checked_overrides(settings)
+        if isinstance(scene, (str, os.PathLike)):  # the automatic camera fits the film asked for
+            scene = load(
+                scene, cache=cache, progress=report, width=settings.get("width"), height=settings.get("height")
+            )
         elif not isinstance(scene, _scene.Scene):  # what Scene.build takes: surfaces, imports, lists of them
             scene = Scene.build(scene if isinstance(scene, (list, tuple)) else [scene], cache=cache)
-        settings = checked_overrides(
-            dict(
-                width=width,
-                height=height,
-                method=method,
-                spp=spp,
-                map=map,
-                tolerance=tolerance,
-                max_iterations=max_iterations,
-                max_depth=max_depth,
-                background=background,
-                adaptive_spp=adaptive_spp,
-                edges=edges,
-                edge_width=edge_width,
-                edge_color=edge_color,
-                hidden_edges=hidden_edges,
-            )
-        )
         if camera is not None:
             settings["camera"] = _checked_camera(camera)
         options = RenderOptions.resolve(scene, **settings)

@@ -32,15 +32,29 @@ from bsrt.methods import DEFAULT_METHOD, METHODS
 
 MAP_MODES = ("float", "rgba8")
 
+#: name -> (direction from the model to the eye, the camera's up), in the frame (X, Y, Z = up) of
+#: :func:`bsrt.scene.auto.view_frame`; "default" is bsrt's three-quarter view from above
+VIEWS = {
+    "default": ((-0.75, 0.55, 0.42), (0.0, 0.0, 1.0)),
+    "iso": ((1.0, -1.0, 1.0), (0.0, 0.0, 1.0)),
+    "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
+    "back": ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    "left": ((-1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "right": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "top": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+    "bottom": ((0.0, 0.0, -1.0), (0.0, 1.0, 0.0)),
+}
+VIEW_NAMES = tuple(v for v in VIEWS if v != "default")
+
 
 @dataclass(frozen=True)
 class Setting:
     """One render setting.
 
     name: the Python keyword, the RenderOptions field and the key in its
-    table. table: "film" or "render". kind: "int", "float", "choice" or
-    "color" (three numbers >= 0, linear RGB). lo, hi: bounds (lo_open: lo
-    itself excluded). choices: for "choice". unit: shown in help and docs.
+    table. table: "film" or "render". kind: "int", "float", "choice", "bool" or
+    "color" (three numbers >= 0, linear RGB; <= hi when hi is given). lo, hi: bounds (lo_open: lo
+    itself excluded). choices: for "choice", and the allowed values of an "int" when given. unit: shown in help and docs.
     commands: the CLI commands that take it as a flag ("render" also means
     batch and animate; "map"; "preview"; "scan").
     """
@@ -76,7 +90,10 @@ class Setting:
         else an InputError ``<label>: <what is wrong>`` (label: the name by default)."""
         label = self.name if label is None else label
         if self.kind == "int":
-            return validate.whole(label, value, int(self.lo), int(self.hi))
+            number = validate.whole(label, value, int(self.lo), int(self.hi))
+            if self.choices and number not in self.choices:
+                raise InputError(f"{label}: expected one of {', '.join(map(str, self.choices))}, got {number}")
+            return number
         if self.kind == "float":
             low = f"{'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}]"
             return validate.real(label, value, self.lo, self.hi, lo_open=self.lo_open, expected=f"a number in {low}")
@@ -97,16 +114,20 @@ class Setting:
             raise InputError(f"{label}: expected three numbers (linear RGB), got {validate.show(value)}")
         if not all(math.isfinite(x) and x >= 0 for x in value):
             raise InputError(f"{label}: expected three finite numbers >= 0 (linear RGB), got {validate.show(value)}")
+        if self.hi is not None and any(x > self.hi for x in value):
+            raise InputError(
+                f"{label}: expected three numbers in [0, {self.hi:g}] (linear RGB), got {validate.show(value)}"
+            )
         return tuple(float(x) for x in value)
 
     def describe(self) -> str:
         """The help line: text, range or choices, default."""
-        if self.kind == "choice":
-            span = "one of " + ", ".join(self.choices)
+        if self.kind == "choice" or self.choices:
+            span = "one of " + ", ".join(map(str, self.choices))
         elif self.kind == "bool":
             span = "true or false"
         elif self.kind == "color":
-            span = "R,G,B >= 0"
+            span = "R,G,B >= 0" if self.hi is None else f"R,G,B in [0, {self.hi:g}]"
         else:
             span = f"{'>' if self.lo_open else '>='} {self.lo:g}, <= {self.hi:g}"
         unit = f" {self.unit}" if self.unit else ""
@@ -115,7 +136,7 @@ class Setting:
 
 def _shown(value) -> str:
     if isinstance(value, bool):
-        return "true" if value else "false"
+        return "true" if value else "false"  # as the scene file spells it
     return (
         ",".join(f"{x:g}" for x in value)
         if isinstance(value, tuple)
@@ -140,7 +161,26 @@ SETTINGS: tuple[Setting, ...] = (
         unit="pixels",
         commands=("render", "map"),
     ),
-    Setting("background", "film", "color", (0.03, 0.03, 0.04), "colour where no surface is hit, linear RGB"),
+    Setting("background", "film", "color", (0.03, 0.03, 0.04), "colour where no surface is hit, linear RGB", hi=1.0),
+    Setting(
+        "transparent",
+        "film",
+        "bool",
+        False,
+        "write the background as transparent: RGBA with the surfaces' coverage as alpha (PNG, WebP)",
+        commands=("render",),
+    ),
+    Setting(
+        "bit_depth",
+        "film",
+        "int",
+        8,
+        "bits per channel of a PNG (16: PNG only)",
+        8,
+        16,
+        choices=(8, 16),
+        commands=("render",),
+    ),
     Setting(
         "method",
         "render",
@@ -189,6 +229,23 @@ SETTINGS: tuple[Setting, ...] = (
     Setting("edge_width", "render", "float", 1.5, "width of the drawn edges", 0.0, 64.0, lo_open=True, unit="pixels"),
     Setting("edge_color", "render", "color", (0.0, 0.0, 0.0), "colour of the drawn edges, linear RGB"),
     Setting("hidden_edges", "render", "bool", False, "also draw the hidden edges, faint and dashed (with edges)"),
+    Setting(
+        "ao",
+        "render",
+        "bool",
+        False,
+        "ambient occlusion: the ambient light of each point times the fraction of 16 exact rays over its "
+        "hemisphere that leave within half a model radius",
+        commands=("render",),
+    ),
+    Setting(
+        "ground",
+        "render",
+        "bool",
+        False,
+        "a ground plane under the model (traced exactly: the lights' shadows fall on it) with a contact shadow",
+        commands=("render",),
+    ),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}
 
@@ -218,6 +275,28 @@ def checked_overrides(values: Mapping[str, Any]) -> dict:
             setting = BY_NAME[name]
             out[name] = setting.check(value)
     return out
+
+
+def setting_keywords(function):
+    """``function`` (whose ``**settings`` take the render settings) with a signature that names
+    every setting as a keyword-only parameter (default None), in registry order, after its
+    positional parameters: what ``help()``, notebooks and ``inspect.signature`` show. The
+    function itself checks ``settings`` with :func:`checked_overrides` (an unknown name is a
+    TypeError)."""
+    import inspect
+
+    signature = inspect.signature(function)
+    params = list(signature.parameters.values())
+    positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    keywords = [p for p in params if p.kind is p.KEYWORD_ONLY]
+    named = [
+        inspect.Parameter(
+            s.name, inspect.Parameter.KEYWORD_ONLY, default=None, annotation=f"{s.python_type.__name__} | None"
+        )
+        for s in SETTINGS
+    ]
+    function.__signature__ = signature.replace(parameters=positional + named + keywords)
+    return function
 
 
 def with_settings(scene, values: Mapping[str, Any]):
@@ -294,12 +373,12 @@ def markdown_table() -> str:
     """The settings as a Markdown table (docs/scene-format.md carries it; a test keeps it current)."""
     rows = ["| scene key | Python keyword | flag | type | default | range | meaning |", "|---|---|---|---|---|---|---|"]
     for s in SETTINGS:
-        if s.kind == "choice":
+        if s.kind == "choice" or s.choices:
             span = ", ".join(f"`{c}`" for c in s.choices)
         elif s.kind == "bool":
             span = "`true`, `false`"
         elif s.kind == "color":
-            span = "3 numbers >= 0"
+            span = "3 numbers >= 0" if s.hi is None else f"3 numbers in [0, {s.hi:g}]"
         else:
             span = f"{'(' if s.lo_open else '['}{s.lo:g}, {s.hi:g}]"
         flag = f"`{s.flag}`"

@@ -174,6 +174,8 @@ SLOW: dict[str, float] = {
     "tests/test_batch.py::test_files_travel_with_the_task_to_a_scheduler": 7.1,
     "tests/test_batch.py::test_six_items_match_single_renders_and_one_failure_is_reported": 21.7,
     "tests/test_batch.py::test_without_dask_one_line_and_exit_2": 5.7,
+    "tests/test_registries.py::test_doctor_lists_every_reader": 8.0,
+    "tests/test_pictures.py::test_bsrt_scene_of_a_coloured_step_assembly_keeps_its_colours": 31.2,  # load 12
     "tests/test_bounded.py::test_a_film_wider_than_the_gl_limit_renders_through_tiles": 3.1,
     "tests/test_bounded.py::test_highest_degree_surface_renders_in_bounded_memory": 10.3,
     "tests/test_bounded.py::test_plane_of_degree_10_hits_every_pixel_at_the_closed_form_depth_in_bounded_memory": 5.5,

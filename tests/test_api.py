@@ -325,7 +325,7 @@ def test_build_without_camera_or_lights_frames_like_a_model_file():
     auto = scene_for_model(Model("x", [s.geometry for s in surfaces], ["a"]), 80, 60)
     for f in ("eye", "look_at", "up"):
         np.testing.assert_array_equal(getattr(scene.camera, f), getattr(auto.camera, f))
-    assert scene.lights == auto.lights and len(scene.lights) == 3
+    assert scene.lights == auto.lights and len(scene.lights) == 4  # the studio rig: ambient, key, fill, rim
     assert bsrt.Scene.build(surfaces, lights=[]).lights == ()
 
 

@@ -157,7 +157,8 @@ def test_usage_errors_exit_2(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "x.png"), "--method", "nope"])
     assert exc.value.code == 2
-    assert main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "x.jpg")]) == 2
+    assert main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "x.tif")]) == 2  # no such format
+    assert "cannot tell the image format from '.tif'" in capsys.readouterr().err
     assert main(["render", str(tmp_path / "missing.toml"), "-o", str(tmp_path / "x.png")]) == 2
     assert "no such file" in capsys.readouterr().err
     assert main(["render", str(SCENES / "quad.toml"), "-o", str(tmp_path / "nodir" / "x.png")]) == 2

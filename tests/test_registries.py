@@ -91,7 +91,7 @@ def test_the_api_keywords_and_dataclasses_are_the_settings():
 @pytest.mark.parametrize("setting", SETTINGS, ids=lambda s: s.name)
 def test_each_setting_is_read_from_its_scene_key_and_checked_the_same_everywhere(setting):
     value = {
-        "int": lambda: setting.lo + 1,
+        "int": lambda: setting.choices[-1] if setting.choices else setting.lo + 1,
         "float": lambda: 1e-6,
         "color": lambda: [0.5, 0.25, 0.125],
         "choice": lambda: setting.choices[-1],
@@ -139,6 +139,9 @@ def test_doctor_lists_every_reader():
     assert out.returncode == 0, out.stderr
     for name in READERS:
         assert f"reader {name}:" in out.stdout
+    for part in ("window:", "OpenCASCADE:", "Dask:"):  # each "ready (...)" or what is missing and the fix
+        line = next(x for x in out.stdout.splitlines() if x.startswith(part))
+        assert "ready" in line or "pip install" in line or "xvfb-run" in line, line
 
 
 @pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")), ids=lambda p: p.name)

@@ -161,7 +161,8 @@ def animate(
     options = {"settings": checked_overrides(settings), "cache": bool(cache)}
     path = Path(input)
     root, files = batching.pack(path)
-    template = batching.Job(str(path), path.stem, files, root, options)
+    # an orbit of a model file: the automatic camera centred on the model's up axis (bsrt/scene/auto.py)
+    template = batching.Job(str(path), path.stem, files, root, options, CameraOverrides(turntable=orbit is not None))
     with batching.Unpacked(template) as local:
         scene = batching.load_job(template, local)
     if orbit is None and not scene.keyframes:
@@ -185,7 +186,7 @@ def animate(
         items.append(_write_animation(items, out / f"{path.stem}{ANIMATION_KINDS[animation]}", fps, animation))
         if report:
             report(items[-1])
-    result = batching.Summary(items, time.perf_counter() - start, str(out))
+    result = batching.Summary(items, time.perf_counter() - start, str(out), frames=len(cameras))
     _write_summary(summary_file, result)
     return result
 

@@ -268,7 +268,7 @@ def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
 
     options = RenderOptions.resolve(scene)  # the job's settings are in the scene (load_job)
     result = render(scene, options)
-    return _encoded(png_writer(result.pixels)), _encoded(npz_writer(result.aovs())) if job.aov else None
+    return _encoded(png_writer(result.image)), _encoded(npz_writer(result.aovs())) if job.aov else None
 
 
 def _encoded(write) -> bytes:
@@ -345,9 +345,10 @@ class Summary:
     items: list[Item]
     seconds: float
     out: str
+    frames: int | None = None  # an animation's frames: the items after them are its animated file
 
-    def count(self, status: str) -> int:
-        return sum(item.status == status for item in self.items)
+    def count(self, status: str, items: list[Item] | None = None) -> int:
+        return sum(item.status == status for item in (self.items if items is None else items))
 
     @property
     def exit_code(self) -> int:
@@ -355,9 +356,16 @@ class Summary:
         return 1 if self.count("failed") else 0
 
     def line(self) -> str:
+        """``12 frames: 12 rendered, 0 skipped, 0 failed, and the animated file x.webp, 3.1 s, into out``
+        (an animation), else ``N items: ...``."""
+        if self.frames is None:
+            head, items, extra = f"{len(self.items)} items", self.items, ""
+        else:
+            head, items = f"{self.frames} frame{'s' if self.frames != 1 else ''}", self.items[: self.frames]
+            extra = "".join(f", and the animated file {Path(i.output).name}" for i in self.items[self.frames :])
         return (
-            f"{len(self.items)} items: {self.count('ok')} rendered, {self.count('skipped')} skipped, "
-            f"{self.count('failed')} failed, {self.seconds:.1f} s, into {self.out}"
+            f"{head}: {self.count('ok', items)} rendered, {self.count('skipped', items)} skipped, "
+            f"{self.count('failed', items)} failed{extra}, {self.seconds:.1f} s, into {self.out}"
         )
 
     def to_dict(self) -> dict:
@@ -367,6 +375,7 @@ class Summary:
             "ok": self.count("ok"),
             "skipped": self.count("skipped"),
             "failed": self.count("failed"),
+            **({} if self.frames is None else {"frames": self.frames}),  # an animation: items after them are its file
             "items": [asdict(item) for item in self.items],
         }
 

@@ -35,11 +35,17 @@ def _load_input(args, progress=None):
     return scene
 
 
-def _check_output(path: str, suffix: str) -> Path:
+def default_output(source: str) -> str:
+    """The output of ``bsrt render MODEL`` without ``-o``: MODEL's stem with ``.png``, in the
+    current folder (``bearing.step`` -> ``./bearing.png``; never the input itself)."""
+    return str(Path.cwd() / (Path(source).stem + ".png"))
+
+
+def _check_output(path: str, suffix: str | None) -> Path:
     """An output path the run can write (checked before any work): the right
-    suffix, an existing folder, not a folder itself."""
+    suffix (any when None), an existing folder, not a folder itself."""
     out = Path(path)
-    if out.suffix.lower() != suffix:
+    if suffix is not None and out.suffix.lower() != suffix:
         raise InputError(f"{path}: the output file name must end in {suffix}")
     if not out.parent.is_dir():
         raise InputError(f"{path}: the folder {str(out.parent)!r} does not exist")
@@ -89,11 +95,13 @@ def _progress(args):
 def _cmd_render(args) -> int:
     """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
     from bsrt.outputs import Outputs
-    from bsrt.rendering.image import npz_writer, png_writer
+    from bsrt.rendering.image import check_image_path, image_writer, npz_writer
     from bsrt.rendering.options import RenderOptions
     from bsrt.rendering.pipeline import render
 
-    out = _check_output(args.output, ".png")
+    out = _check_output(args.output or default_output(args.scene), None)
+    given = flag_values(args, "render")
+    check_image_path(out, bool(given.get("transparent")), given.get("bit_depth", 8), "--")
     aov = _check_output(args.aov, ".npz") if args.aov else None
     progress = _progress(args)
     try:
@@ -103,7 +111,8 @@ def _cmd_render(args) -> int:
             progress.clear()
         raise
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
-    options = RenderOptions.resolve(scene, **flag_values(args, "render"))
+    options = RenderOptions.resolve(scene, **given)
+    check_image_path(out, options.transparent, options.bit_depth, f"{scene.path}: film.")  # the scene's own
     _say_if_compiling()
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
@@ -111,7 +120,7 @@ def _cmd_render(args) -> int:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
             result = render(scene, options, progress=progress)
             clock = time.perf_counter()
-            outputs.write(out, png_writer(result.pixels))
+            outputs.write(out, image_writer(out, result.image))
             if aov:
                 outputs.write(aov, npz_writer(result.aovs()))
             result.stats["seconds"]["write"] = time.perf_counter() - clock
@@ -147,6 +156,32 @@ def _cmd_map(args) -> int:
         )
         outputs.write(out, png_writer(prelim.picture))
         outputs.commit()
+    return 0
+
+
+def _cmd_scene(args) -> int:
+    """``bsrt scene MODEL -o part.toml``: the model's automatic scene as a small scene file that imports it."""
+    from bsrt.rendering.image import write_text
+    from bsrt.scene.document import dumps_toml, import_scene_document
+    from bsrt.settings import with_settings
+
+    if Path(args.model).suffix.lower() == ".toml":
+        raise InputError(f"{args.model}: is a scene file already; give a model file")
+    out = _check_output(args.output or str(Path.cwd() / (Path(args.model).stem + ".toml")), ".toml")
+    args.scene = args.model
+    scene = with_settings(_load_input(args), flag_values(args, "render"))
+    _refuse_overwriting([out], scene)
+    try:
+        file = os.path.relpath(Path(args.model).resolve(), out.parent.resolve())
+    except ValueError:  # another drive
+        file = str(Path(args.model).resolve())
+    header = (
+        f"Scene file (bsrt scene format version 1), written by `bsrt scene` from {Path(args.model).name}: "
+        "its automatic camera and lights,\nspelled out to edit (docs/scene-format.md). Point lights: brightness is "
+        "the light's strength at the model's centre."
+    )
+    write_text(out, dumps_toml(import_scene_document(scene, file.replace(os.sep, "/"), args.format), header))
+    print(f"bsrt: wrote {out}", file=sys.stderr)
     return 0
 
 
@@ -218,8 +253,56 @@ def _cmd_doctor(args) -> int:
     for reader in READERS.values():
         state = "ready" if reader.available() else f"needs pip install 'bsrt[{reader.extra}]'"
         print(f"reader {reader.name + ':':7} {' '.join(reader.extensions):38} {state}")
+    for name, state in optional_parts():
+        print(f"{name + ':':16} {state}")
     print("OK: bsrt can render headless")
     return 0
+
+
+def optional_parts() -> list[tuple[str, str]]:
+    """``bsrt doctor``'s checks of what only some commands need, each with the fix when it is
+    missing: the window (glfw and a display: bsrt preview), OpenCASCADE (the cad extra: STEP,
+    BREP, IGES through OCCT) and Dask (the dask extra: bsrt batch, animate)."""
+    import importlib.util
+
+    parts = [("window", _window_state())]
+    if importlib.util.find_spec("OCP") is None:
+        parts.append(("OpenCASCADE", "not installed (STEP and BREP files need it): pip install 'bsrt[cad]'"))
+    else:
+        try:
+            import OCP
+            from OCP.BRep import BRep_Builder  # noqa: F401  (loads the OCCT libraries)
+
+            parts.append(("OpenCASCADE", f"ready (OCP {getattr(OCP, '__version__', '?')})"))
+        except Exception as exc:  # a broken install: the libraries do not load
+            parts.append(("OpenCASCADE", f"FAILED to load ({exc}): pip install --force-reinstall 'bsrt[cad]'"))
+    try:
+        import dask
+        import distributed
+
+        parts.append(("Dask", f"ready (dask {dask.__version__}, distributed {distributed.__version__})"))
+    except ImportError:
+        parts.append(("Dask", "not installed (bsrt batch and animate need it): pip install 'bsrt[dask]'"))
+    return parts
+
+
+def _window_state() -> str:
+    """The preview window's state: glfw initialises on a display, or why not and the fix."""
+    fix = "bsrt render works without one; for bsrt preview run on a desktop or under xvfb-run -a"
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return f"no display (neither DISPLAY nor WAYLAND_DISPLAY is set): {fix}"
+    try:
+        import glfw
+    except ImportError:
+        return "glfw is not installed: pip install glfw"
+    glfw.ERROR_REPORTING = "ignore"
+    try:
+        if not glfw.init():
+            return f"glfw cannot open the display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')!r}: {fix}"
+        glfw.terminate()
+    except Exception as exc:
+        return f"glfw failed ({exc}): {fix}"
+    return f"ready (glfw {glfw.__version__}, display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')})"
 
 
 def _say_if_compiling() -> None:
@@ -308,6 +391,7 @@ def _cmd_scan(args) -> int:
 COMMANDS = {
     "render": _cmd_render,
     "map": _cmd_map,
+    "scene": _cmd_scene,
     "info": _cmd_info,
     "doctor": _cmd_doctor,
     "bench": _cmd_bench,

@@ -10,7 +10,7 @@ import re
 from bsrt import __version__
 from bsrt.io.formats import extensions_text, format_choices
 from bsrt.methods import MAP_METHODS, METHODS
-from bsrt.settings import add_flags
+from bsrt.settings import VIEW_NAMES, add_flags
 
 
 def _positive_int(text: str) -> int:
@@ -43,7 +43,12 @@ def _parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     r.add_argument("scene", help=INPUT_HELP)
-    r.add_argument("-o", "--output", required=True, help="output image (.png)")
+    r.add_argument(
+        "-o",
+        "--output",
+        help="output image: .png (8 or 16 bits, RGB or RGBA), .jpg/.jpeg or .webp, by its extension "
+        "(default: the input's name with .png, in the current folder)",
+    )
     add_flags(r, "render")
     _camera_options(r)
     r.add_argument("--aov", metavar="FILE.npz", help="also write per-pixel arrays (hit, t, surface, u, v, ...)")
@@ -61,6 +66,20 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("-o", "--output", required=True, help="output image (.png)")
     add_flags(m, "map")
     _camera_options(m)
+
+    sc = sub.add_parser(
+        "scene",
+        help="write a model file's automatic scene as a small, editable scene file that imports it",
+        description="Write the scene `bsrt render MODEL` would render (film, camera, lights, material; the "
+        "flags below change it) as a short scene file with one [[import]] of the model: rendering it gives "
+        "the same picture, and its camera and lights are there to edit.",
+    )
+    sc.add_argument("model", help=f"model file ({extensions_text()})")
+    sc.add_argument(
+        "-o", "--output", help="the scene file to write (.toml; default: the model's name with .toml, here)"
+    )
+    add_flags(sc, "render")
+    _camera_options(sc)
 
     i = sub.add_parser("info", help="what a model or scene file holds")
     i.add_argument("file", help=INPUT_HELP)
@@ -97,7 +116,7 @@ def _parser() -> argparse.ArgumentParser:
     from bsrt.cli.scan import add_command as _scan_command
 
     _scan_command(sub, _positive_int, INPUT_HELP, _camera_options)
-    for command in ("render", "map", "info", "preview", "batch", "animate", "scan"):  # every command that loads models
+    for command in ("render", "map", "scene", "info", "preview", "batch", "animate", "scan"):  # all loading models
         _cache_option(sub.choices[command])
     return parser
 
@@ -163,6 +182,12 @@ def _camera_options(parser) -> None:
     parser.add_argument("--camera-look-at", type=_vector, metavar="X,Y,Z", help="point the camera looks at")
     parser.add_argument("--camera-up", type=_vector, metavar="X,Y,Z", help="up direction (models default to +z)")
     parser.add_argument("--fov", type=float, help="vertical field of view in degrees, 0 < fov < 180")
+    parser.add_argument(
+        "--view",
+        choices=VIEW_NAMES,
+        help="a named view of the automatic camera, fitted to the model (or the scene's surfaces): "
+        "the model fills 90%% of the frame, centred (default: a three-quarter view from above)",
+    )
 
 
 # Values that start with '-': `--camera-eye -1,-2,3`, `--camera-look-at

@@ -49,11 +49,12 @@ def disagreeing(pixels: np.ndarray) -> np.ndarray:
     return marked
 
 
-def refine(linear, pixels, grid, shade, trace, options, stats, chunk_samples: int) -> None:
+def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_samples: int) -> None:
     """Re-render the marked pixels with the samples of ``--spp columns * rows``, in place.
 
     linear: (H, W, 3) float64 and pixels: (H, W, 3) uint8, the one-sample render, updated where
-    marked. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
+    marked; coverage: (H, W) float64, the fraction of each pixel's samples that hit, updated
+    alike. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
     camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
     most samples traced at once."""
     cols, rows = grid
@@ -64,16 +65,20 @@ def refine(linear, pixels, grid, shade, trace, options, stats, chunk_samples: in
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     flat = linear.reshape(-1, 3)
     centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
-    early = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
+    early, early_hit = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
+    cover = coverage.reshape(-1)
     levels = srgb_encode(early).astype(np.int32)
     spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
     full = spread.max(axis=1) > CONTRAST
     flat[marked[~full]] = early[~full].mean(axis=1)
+    cover[marked[~full]] = early_hit[~full].mean(axis=1)
     if first.all():
         flat[marked[full]] = early[full].mean(axis=1)
+        cover[marked[full]] = early_hit[full].mean(axis=1)
     else:
-        rest = _samples(marked[full], offset[~first], shade, trace, options, stats, chunk_samples)
+        rest, rest_hit = _samples(marked[full], offset[~first], shade, trace, options, stats, chunk_samples)
         flat[marked[full]] = (early[full].sum(axis=1) + rest.sum(axis=1)) / offset.shape[0]
+        cover[marked[full]] = (early_hit[full].sum(axis=1) + rest_hit.sum(axis=1)) / offset.shape[0]
     stats.add("adaptive_pixels", marked.size)
     stats.add("adaptive_full", int(full.sum()))
     stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int((~first).sum()))
@@ -82,11 +87,12 @@ def refine(linear, pixels, grid, shade, trace, options, stats, chunk_samples: in
 
 
 def _samples(which, offset, shade, trace, options, stats, chunk_samples: int) -> np.ndarray:
-    """(K, n, 3) linear RGB of the samples at offset (n, 2) (fractions of a pixel from its top-left
-    corner) in each pixel which (K,) (flat indices, row-major)."""
+    """The samples at offset (n, 2) (fractions of a pixel from its top-left corner) in each pixel
+    which (K,) (flat indices, row-major): (colour (K, n, 3) linear RGB, hit (K, n) bool)."""
     width, height = options.width, options.height
     n = offset.shape[0]
     out = np.empty((which.size, n, 3))
+    hit = np.zeros((which.size, n), dtype=bool)
     step = max(1, chunk_samples // n)
     for start in range(0, which.size, step):
         part = which[start : start + step]
@@ -96,4 +102,5 @@ def _samples(which, offset, shade, trace, options, stats, chunk_samples: int) ->
         with stats.timer("solve"):
             hits = trace(directions)
         out[start : start + part.size] = shade(hits, directions).reshape(-1, n, 3)
-    return out
+        hit[start : start + part.size] = hits.hit.reshape(-1, n)
+    return out, hit

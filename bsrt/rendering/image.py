@@ -1,4 +1,4 @@
-"""Writing results: sRGB-encoded 8-bit PNG and AOV archives, atomically.
+"""Writing results: sRGB-encoded PNG (8 or 16 bits, RGB or RGBA), JPEG, WebP and AOV archives, atomically.
 
 Each file is written all or nothing (bsrt/outputs.py): a failure never
 leaves a half-written output behind.
@@ -28,9 +28,61 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
     return np.rint(s * 255.0).astype(np.uint8)
 
 
+def srgb_encode16(linear: np.ndarray) -> np.ndarray:
+    """Linear RGB in [0, 1] (any shape) -> 16-bit sRGB, clipped."""
+    c = np.clip(np.nan_to_num(linear, nan=0.0), 0.0, 1.0)
+    s = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+    return np.rint(s * 65535.0).astype(np.uint16)
+
+
+def encode_picture(linear: np.ndarray, coverage: np.ndarray, background, transparent: bool, bits: int) -> np.ndarray:
+    """The picture to write. linear: (H, W, 3) float64, the pixels' mean colour (background
+    samples included); coverage: (H, W) float64 in [0, 1], the fraction of samples that hit.
+
+    Opaque: (H, W, 3) sRGB. Transparent: (H, W, 4), alpha = coverage, and the colour the
+    surfaces alone give (straight alpha: linear = a * colour + (1 - a) * background, solved for
+    colour; 0 where a = 0). uint8 for bits = 8, uint16 for 16."""
+    encode = srgb_encode if bits == 8 else srgb_encode16
+    if not transparent:
+        return encode(linear)
+    a = coverage[..., None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        colour = np.where(a > 0, (linear - (1.0 - a) * np.asarray(background, dtype=np.float64)) / a, 0.0)
+    scale = 255.0 if bits == 8 else 65535.0
+    alpha = np.rint(np.clip(coverage, 0.0, 1.0) * scale).astype(np.uint8 if bits == 8 else np.uint16)
+    return np.concatenate([encode(colour), alpha[..., None]], axis=2)
+
+
 def png_writer(pixels: np.ndarray):
-    """pixels: (H, W, 3) uint8 -> a function writing them as PNG to a binary file."""
-    return lambda f: Image.fromarray(pixels, "RGB").save(f, format="PNG")
+    """pixels: (H, W, 3|4) uint8 or uint16 -> a function writing them as PNG (RGB or RGBA,
+    8 or 16 bits a channel) to a binary file."""
+    if pixels.dtype == np.uint16:
+        return lambda f: f.write(png16_bytes(pixels))
+    return lambda f: Image.fromarray(pixels, "RGB" if pixels.shape[2] == 3 else "RGBA").save(f, format="PNG")
+
+
+def png16_bytes(pixels: np.ndarray) -> bytes:
+    """pixels: (H, W, 3|4) uint16 -> a 16-bit RGB or RGBA PNG file's bytes (Pillow writes
+    16 bits only for grey pictures: the chunks are written here, PNG specification section 11)."""
+    import struct
+    import zlib
+
+    h, w, channels = pixels.shape
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", w, h, 16, 2 if channels == 3 else 6, 0, 0, 0)
+    rows = np.zeros((h, 1 + w * channels * 2), dtype=np.uint8)  # filter byte 0 (none), then big-endian samples
+    rows[:, 1:] = pixels.astype(">u2").reshape(h, -1).view(np.uint8)
+    srgb = chunk(b"sRGB", b"\x00")
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", header)
+        + srgb
+        + chunk(b"IDAT", zlib.compress(rows.tobytes(), 6))
+        + chunk(b"IEND", b"")
+    )
 
 
 def npz_writer(arrays: dict):
@@ -43,9 +95,9 @@ def write_png(path, pixels: np.ndarray) -> None:
     write_file(path, png_writer(pixels))
 
 
-def write_image(path, pixels: np.ndarray) -> None:
-    """pixels: (H, W, 3) uint8 -> the format the extension of ``path`` names (IMAGE_FORMATS), all or
-    nothing; an InputError for any other extension."""
+def check_image_path(path, transparent: bool = False, bits: int = 8, label: str = "") -> str:
+    """The image format (an IMAGE_FORMATS key) the extension of ``path`` names, checked against what
+    the picture needs; else an InputError (label: how the caller names the setting, e.g. "--")."""
     from pathlib import Path
 
     ext = Path(path).suffix.lower()
@@ -54,8 +106,29 @@ def write_image(path, pixels: np.ndarray) -> None:
             f"{path}: cannot tell the image format from {ext or 'no extension'!r}; use one of "
             f"{', '.join(IMAGE_FORMATS)}"
         )
+    key = lambda name: "--" + name.replace("_", "-") if label == "--" else label + name  # noqa: E731
+    if transparent and IMAGE_FORMATS[ext][0] == "JPEG":
+        raise InputError(f"{path}: {key('transparent')}: JPEG has no transparency; write .png or .webp")
+    if bits != 8 and ext != ".png":
+        raise InputError(f"{path}: {key('bit_depth')} {bits}: only PNG holds 16 bits a channel; write .png")
+    return ext
+
+
+def image_writer(path, pixels: np.ndarray):
+    """pixels: (H, W, 3|4) uint8 (or uint16 for PNG) -> a function writing them, in the format
+    the extension of ``path`` names, to a binary file (check_image_path first)."""
+    ext = check_image_path(path, pixels.shape[2] == 4, 16 if pixels.dtype == np.uint16 else 8)
+    if ext == ".png":
+        return png_writer(pixels)
     name, options = IMAGE_FORMATS[ext]
-    write_file(path, lambda f: Image.fromarray(pixels, "RGB").save(f, format=name, **options))
+    return lambda f: Image.fromarray(pixels, "RGB" if pixels.shape[2] == 3 else "RGBA").save(f, format=name, **options)
+
+
+def write_image(path, pixels: np.ndarray) -> None:
+    """pixels: (H, W, 3|4) uint8 (or uint16 for PNG) -> the format the extension of ``path`` names
+    (IMAGE_FORMATS), all or nothing; an InputError for any other extension."""
+    writer = image_writer(path, pixels)
+    write_file(path, writer)
 
 
 def write_text(path, text: str) -> None:

@@ -41,7 +41,9 @@ class RenderResult:
     prelim: the preliminary map of the last band traced, the whole film's
       when it fits in one band (None for method "martin").
     stats: timings (seconds) and counters, JSON-serialisable.
-    options: the settings it was rendered with; geometry: the scene's Geometry."""
+    options: the settings it was rendered with; geometry: the scene's Geometry.
+    coverage: (H, W) float64, the fraction of each pixel's samples that hit a surface
+      (the alpha of a transparent picture)."""
 
     pixels: np.ndarray
     linear: np.ndarray
@@ -50,6 +52,18 @@ class RenderResult:
     stats: dict
     options: RenderOptions
     geometry: Geometry
+    coverage: np.ndarray | None = None
+
+    @property
+    def image(self) -> np.ndarray:
+        """What ``save`` writes: (H, W, 3) RGB, or (H, W, 4) RGBA with the coverage as alpha when
+        options.transparent; uint8, or uint16 when options.bit_depth is 16 (sRGB)."""
+        from bsrt.rendering.image import encode_picture
+
+        coverage = np.ones(self.linear.shape[:2]) if self.coverage is None else self.coverage
+        return encode_picture(
+            self.linear, coverage, self.options.background, self.options.transparent, self.options.bit_depth
+        )
 
     @cached_property
     def _frames(self):
@@ -75,18 +89,21 @@ class RenderResult:
         )
 
     def to_pil(self):
-        """The image as a ``PIL.Image.Image`` (RGB, 8-bit sRGB)."""
+        """The image as a ``PIL.Image.Image`` (8-bit sRGB: RGB, or RGBA when transparent)."""
         from PIL import Image
 
+        if self.options.transparent:
+            return Image.fromarray(encode_picture_8(self), "RGBA")
         return Image.fromarray(self.pixels, "RGB")
 
     def save(self, path) -> None:
         """Write the image in the format its extension names (``.png``, ``.jpg``/``.jpeg``,
         ``.webp``: bsrt.rendering.image.IMAGE_FORMATS), atomically: a failure leaves no file. Another
-        extension is an InputError, before anything is written."""
+        extension, or one that cannot hold the picture (JPEG with transparency, 16 bits but PNG),
+        is an InputError, before anything is written."""
         from bsrt.rendering.image import write_image
 
-        write_image(path, self.pixels)
+        write_image(path, self.image)
 
     def png_bytes(self) -> bytes:
         """The image encoded as PNG."""
@@ -114,6 +131,14 @@ class RenderResult:
             "iterations": hits.iterations.astype(np.int32).reshape(h, w),
             "residual": hits.residual.reshape(h, w),
         }
+
+
+def encode_picture_8(result: RenderResult) -> np.ndarray:
+    """The result's picture as 8-bit (H, W, 3|4) uint8, whatever its bit depth."""
+    from bsrt.rendering.image import encode_picture
+
+    coverage = np.ones(result.linear.shape[:2]) if result.coverage is None else result.coverage
+    return encode_picture(result.linear, coverage, result.options.background, result.options.transparent, 8)
 
 
 class Geometry:
@@ -178,17 +203,23 @@ def render(
     report = progress or (lambda stage, fraction=0.0: None)
     stats = Stats(method=opts.method, map=opts.map if opts.uses_map else None, width=width, height=height, spp=spp)
     stats.loaded(getattr(scene, "loads", ()))  # the model files' load, which came before (bsrt/scene/loading.py)
+    radius = None
     with stats.timer("setup"):
+        if opts.ground and geometry is None:  # the ground plane: one more surface (bsrt/rendering/occlusion.py)
+            from bsrt.rendering.occlusion import with_ground
+
+            scene, radius = with_ground(scene)
         geometry = geometry or Geometry(scene)
         _ = geometry.bvh  # built here, not inside the first stage that needs it
     tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
-    shader = _Shader(scene, opts, geometry, stats, report)
+    shader = _Shader(scene, opts, geometry, stats, report, radius)
     cols, rows = sample_grid(spp)
     sample_w, sample_h = width * cols, height * rows
     band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     linear = np.zeros((height, width, 3))  # sums of the samples until a pixel row is complete
+    coverage = np.zeros((height, width))  # samples that hit a surface, then their fraction
     pixels = np.zeros((height, width, 3), dtype=np.uint8)
     primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
@@ -201,10 +232,12 @@ def render(
             colour = shader.shade(hits, directions)
         sums = colour.reshape(stop - first, width, cols, 3).sum(axis=2)  # (band rows, width, 3)
         np.add.at(linear, np.arange(first, stop) // rows, sums)
+        np.add.at(coverage, np.arange(first, stop) // rows, hits.hit.reshape(stop - first, width, cols).sum(axis=2))
         done = stop // rows
         if done > complete:
             final = slice(complete, done)
             linear[final] /= spp
+            coverage[final] /= spp
             pixels[final] = srgb_encode(linear[final])  # per band: no film-sized temporaries
             complete = done
         if spp == 1:
@@ -217,9 +250,9 @@ def render(
             hits, _ = tracer.trace(width, height, (first, stop), None)
             primary.put(slice(first * width, stop * width), hits)
     if spp == 1 and opts.adaptive_spp > 1:
-        _adaptive(linear, pixels, tracer, shader, opts, geometry, stats)
+        _adaptive(linear, pixels, coverage, tracer, shader, opts, geometry, stats)
     if opts.edges:
-        linear, pixels = _edges(linear, primary, opts, geometry, stats)
+        linear, pixels, coverage = _edges(linear, coverage, primary, opts, geometry, stats)
     report("done", 1.0)
     hits = primary
     work = hits.iterations[hits.iterations > 0]
@@ -229,10 +262,10 @@ def render(
         iterations_mean=float(work.mean()) if work.size else 0.0,
         iterations_max=int(hits.iterations.max()),
     )
-    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry)
+    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
 
 
-def _adaptive(linear, pixels, tracer, shader, opts: RenderOptions, geometry: Geometry, stats: Stats) -> None:
+def _adaptive(linear, pixels, coverage, tracer, shader, opts: RenderOptions, geometry: Geometry, stats: Stats) -> None:
     """Adaptive anti-aliasing of a one-sample render (rendering/antialias.py), in place."""
     from bsrt.rendering.antialias import refine
 
@@ -244,24 +277,30 @@ def _adaptive(linear, pixels, tracer, shader, opts: RenderOptions, geometry: Geo
         with stats.timer("shade"):
             return shader.shade(hits, directions)
 
-    refine(linear, pixels, sample_grid(opts.adaptive_spp), shade, trace, opts, stats, MAX_BAND_SAMPLES)
+    refine(linear, pixels, coverage, sample_grid(opts.adaptive_spp), shade, trace, opts, stats, MAX_BAND_SAMPLES)
 
 
-def _edges(linear, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
-    """The edges drawn over the image (rendering/edges.py): (linear (H, W, 3), pixels (H, W, 3) uint8)."""
+def _edges(linear, coverage, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
+    """The edges drawn over the image (rendering/edges.py): (linear (H, W, 3), pixels (H, W, 3)
+    uint8, coverage (H, W)); a line adds to the coverage (the alpha) as it covers the pixel,
+    ``a + e (1 - a)``, so a transparent picture keeps the lines drawn over the background."""
     from bsrt.rendering.edges import draw, edge_coverage
 
     with stats.timer("edges"):
-        linear = draw(linear, edge_coverage(geometry, opts, hits, stats), opts.edge_color)
-    return linear, srgb_encode(linear)
+        lines = edge_coverage(geometry, opts, hits, stats)
+        linear = draw(linear, lines, opts.edge_color)
+    return linear, srgb_encode(linear), coverage + lines * (1.0 - coverage)
 
 
 class _Shader:
     """Colour along rays: Blinn-Phong with shadow rays to every point and
     directional light, and mirror reflection up to options.max_depth bounces."""
 
-    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report):
+    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius=None):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
+        grounded = options.ground and scene.surfaces and scene.surfaces[-1].name == "ground" and radius is not None
+        self.ground = len(scene.surfaces) - 1 if grounded else -1  # the ground plane's surface index
+        self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
         self.tolerance = options.tolerance * geometry.diagonal
         self.reflectance = np.array([m.reflectance for m in scene.materials])
         self.span, self.expected, self.traced, self.shown = (0.0, 1.0), 1, 0, 0.0
@@ -289,6 +328,8 @@ class _Shader:
         exclude = self._exclusion(hits, hit, speed[hit])
         visibility = self._visibility(pos, nrm, exclude)
         colour[hit] = shade(self.scene, pos, nrm, dirs, material, visibility)
+        if depth == 0 and (self.options.ao or self.ground >= 0):
+            self._occlude(colour, hit, hits.surface[hit], pos, nrm, material, exclude)
         reflectance = self.reflectance[material]
         mirror = np.flatnonzero(reflectance > 0)
         if mirror.size and depth < self.options.max_depth:
@@ -300,6 +341,28 @@ class _Shader:
             k = reflectance[mirror][:, None]
             colour[hit[mirror]] = (1.0 - k) * colour[hit[mirror]] + k * reflected
         return colour
+
+    def _occlude(self, colour, hit, surface, pos, nrm, material, exclude) -> None:
+        """Ambient occlusion (options.ao: the ambient lights' part of each hit's colour times its
+        openness) and the ground's contact shadow (its colour times its openness), in place."""
+        from bsrt.rendering.occlusion import AO_RAYS, occlusion
+
+        on_ground = surface == self.ground
+        which = np.arange(hit.size) if self.options.ao else np.flatnonzero(on_ground)
+        if not which.size:
+            return
+        self.stats.add("ao_rays", which.size * AO_RAYS)
+        openness = occlusion(self._trace, pos[which], nrm[which], tuple(a[which] for a in exclude), self.reach)
+        ground = on_ground[which]
+        if self.options.ao:
+            ambient = sum(
+                (np.array(light.color) * light.intensity for light in self.scene.lights if light.kind == "ambient"),
+                np.zeros(3),
+            )
+            albedo = np.array([m.color for m in self.scene.materials])[material[which]]
+            lost = (1.0 - openness)[:, None] * albedo * ambient
+            colour[hit[which[~ground]]] -= lost[~ground]
+        colour[hit[which[ground]]] *= openness[ground][:, None]
 
     def _exclusion(self, hits: Hits, hit: np.ndarray, speed: np.ndarray):
         """The parameter box around each hit that its secondary rays must not hit again.

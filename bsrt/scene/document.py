@@ -167,7 +167,7 @@ def scene_document(scene: Scene) -> dict:
         used.add(name)
         names.append(name)
     doc: dict[str, Any] = {
-        "film": {"width": scene.film.width, "height": scene.film.height, "background": list(scene.film.background)},
+        "film": asdict(scene.film),
         "camera": camera_doc(scene.camera),
         "render": asdict(scene.render),
         "material": [{**asdict(m), "name": n} for m, n in zip(scene.materials, names)],
@@ -277,3 +277,35 @@ def _string(text: str) -> str:
 def camera_toml(camera: Camera) -> str:
     """The camera as a scene file's [camera] table (floats round-trip exactly)."""
     return dumps_toml({"camera": camera_doc(camera)})
+
+
+def import_scene_document(scene: Scene, model_file: str, format: str = "auto") -> dict:
+    """The small, editable scene of ``bsrt scene MODEL``: ``scene`` (the automatic scene of the
+    model file, bsrt.scene.framing.scene_for_model) as [film], [camera], [render], the model's
+    material, its lights spelled out (point lights by their brightness at the model's centre,
+    bsrt.scene.auto) and one [[import]] of ``model_file`` (a path as the scene file will name
+    it) with the file's own colours. Reading it renders the same picture as the model file."""
+    from bsrt.scene.auto import surface_points
+
+    points = surface_points([s.geometry for s in scene.surfaces])
+    centre = (points.min(axis=0) + points.max(axis=0)) / 2.0
+    base = scene.materials[0]  # the model's material; the file's colours follow it (file_colors)
+    lights = []
+    for light in scene.lights:
+        doc = light_doc(light)
+        if light.kind == "point":
+            distance2 = float(np.sum((np.array(light.position) - centre) ** 2))
+            doc = {k: v for k, v in doc.items() if k != "intensity"}
+            doc["brightness"] = light.intensity / distance2 if distance2 > 0 else light.intensity
+        lights.append(doc)
+    camera = camera_doc(scene.camera)
+    return plain(
+        {
+            "film": asdict(scene.film),
+            "camera": camera,
+            "render": asdict(scene.render),
+            "material": [asdict(base)],
+            "light": lights,
+            "import": [{"file": model_file, "format": format, "material": base.name, "file_colors": True}],
+        }
+    )

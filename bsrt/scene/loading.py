@@ -24,13 +24,18 @@ class CameraOverrides:
     the scene's value (or the automatic camera's, for a model). ``eye``,
     ``look_at`` and ``up`` are 3-sequences; ``fov`` is degrees in (0, 180).
     ``keywords``: messages name the Python API's keywords (``camera_eye``)
-    instead of the command line's options (``--camera-eye``)."""
+    instead of the command line's options (``--camera-eye``). ``view``: a named
+    view of the automatic camera (bsrt.scene.auto.VIEW_NAMES), fitted to the
+    model or the scene's surfaces; ``turntable``: the automatic camera of an
+    orbit (centred on the model's up axis)."""
 
     eye: tuple | None = None
     look_at: tuple | None = None
     up: tuple | None = None
     fov: float | None = None
     keywords: bool = False
+    view: str | None = None
+    turntable: bool = False
 
     @classmethod
     def from_args(cls, args) -> CameraOverrides:
@@ -41,6 +46,7 @@ class CameraOverrides:
             getattr(args, "camera_look_at", None),
             getattr(args, "camera_up", None),
             getattr(args, "fov", None),
+            view=getattr(args, "view", None),
         )
 
     def label(self, name: str) -> str:
@@ -50,7 +56,7 @@ class CameraOverrides:
     def respell(self, message: str) -> str:
         """A message naming command-line options, in the user's spelling."""
         if self.keywords:
-            for option in ("camera-eye", "camera-look-at", "camera-up", "fov", "format"):
+            for option in ("camera-eye", "camera-look-at", "camera-up", "fov", "format", "view"):
                 message = message.replace("--" + option, option.replace("-", "_"))
         return message
 
@@ -65,6 +71,11 @@ class CameraOverrides:
             if value is not None:
                 vectors[name] = _vector(self.label(f"camera_{name}"), value)
         fov = None if self.fov is None else validate.fov(self.fov, self.label("fov"))
+        if self.view is not None:
+            from bsrt.scene.auto import VIEW_NAMES
+
+            if self.view not in VIEW_NAMES:
+                raise InputError(f"{self.label('view')}: expected one of {', '.join(VIEW_NAMES)}, got {self.view!r}")
         return replace(self, fov=fov, **vectors)
 
 
@@ -113,16 +124,44 @@ def load_input(
     if path.suffix.lower() == ".toml":
         if format != "auto":
             raise InputError(f"{camera.label('format')}: only for model files; {path.name} is a scene file (.toml)")
-        return _override_camera(load_scene(path, cache=cache, progress=faces), camera)
+        scene = load_scene(path, cache=cache, progress=faces, film_size=(width, height) if width and height else None)
+        if camera.view is not None:
+            scene = _fitted_view(scene, camera, width, height)
+        return _override_camera(scene, camera)
     from bsrt.io import load_model
 
     model = load_model(path, format, cache=cache, progress=faces)
     try:
         return scene_for_model(
-            model, width or 512, height or 512, camera.eye, camera.look_at, camera.fov, camera.up or (0.0, 0.0, 1.0)
+            model,
+            width or 512,
+            height or 512,
+            camera.eye,
+            camera.look_at,
+            camera.fov,
+            camera.up or (0.0, 0.0, 1.0),
+            view=camera.view,
+            turntable=camera.turntable,
         )
     except InputError as exc:
         raise InputError(camera.respell(str(exc))) from None
+
+
+def _fitted_view(scene, overrides: CameraOverrides, width, height):
+    """The scene seen along the named view (or framed for a turntable) by the automatic camera,
+    fitted to its surfaces and the film (width, height, else the scene's)."""
+    from bsrt.scene.auto import DEFAULT_FOV, fit_camera, surface_points
+
+    camera = fit_camera(
+        surface_points([s.geometry for s in scene.surfaces]),
+        width or scene.film.width,
+        height or scene.film.height,
+        overrides.view or "default",
+        overrides.up or (0.0, 0.0, 1.0),
+        overrides.fov or DEFAULT_FOV,
+        overrides.turntable,
+    )
+    return replace(scene, camera=camera)
 
 
 def _override_camera(scene, overrides: CameraOverrides):

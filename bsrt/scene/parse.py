@@ -25,11 +25,12 @@ from bsrt.scene.tables import _show, _Table
 from bsrt.settings import SETTINGS
 
 
-def load_scene(path: str | Path, *, cache: bool = True, progress=None) -> Scene:
+def load_scene(path: str | Path, *, cache: bool = True, progress=None, film_size=None) -> Scene:
     """Read and validate a scene file (docs/scene-format.md is the format).
 
     cache, progress: for the model files of its [[import]] tables, as in
-    :func:`bsrt.io.load_model` (progress(done, total): faces converted)."""
+    :func:`bsrt.io.load_model` (progress(done, total): faces converted). film_size: the
+    (width, height) an automatic camera is fitted to (default: the scene's [film])."""
     path = check_input_file(path, "scene file")
     where = path.name
     try:
@@ -49,12 +50,20 @@ def load_scene(path: str | Path, *, cache: bool = True, progress=None) -> Scene:
     except RecursionError:
         raise InputError(f"{where}: invalid TOML: arrays or tables nested too deeply") from None
     order = re.findall(r"(?m)^[ \t]*\[\[[ \t]*(surface|import)[ \t]*\]\]", text)
-    scene = parse_scene(data, where, path.parent, order, cache=cache, progress=progress)
+    scene = parse_scene(data, where, path.parent, order, cache=cache, progress=progress, film_size=film_size)
     return replace(scene, inputs=(str(path),) + scene.inputs)
 
 
 def parse_scene(
-    data: dict, where: str = "<scene>", folder: Path | None = None, order=None, *, cache: bool = True, progress=None
+    data: dict,
+    where: str = "<scene>",
+    folder: Path | None = None,
+    order=None,
+    *,
+    cache: bool = True,
+    progress=None,
+    film_size=None,
+    studio: bool = True,
 ) -> Scene:
     """Validate an already-parsed TOML document.
 
@@ -65,6 +74,9 @@ def parse_scene(
     "import") of the surface-producing tables as they appear in the text,
     which tomllib does not keep (None: surfaces first, then imports).
     cache, progress: for the imported model files (:func:`bsrt.io.load_model`).
+    A scene with [[import]] and no [camera] gets the automatic camera (bsrt/scene/auto.py),
+    fitted to film_size (width, height) when given, else to its [film]; a scene with no
+    [[light]] gets the studio rig, with a note (unless studio is False: ``Scene.build``).
     """
     known = {"film", "camera", "render", "material", "light", "surface", "import"}
     for key in data:
@@ -74,28 +86,11 @@ def parse_scene(
     film = Film(**_settings_table(where, data, "film"))
 
     if "camera" not in data:
-        raise InputError(f"{where}: camera: missing table [camera]")
-    cam_t = _Table(where, data["camera"], "camera")
-    eye = np.array(cam_t.vector("eye", required=True))
-    look_at = np.array(cam_t.vector("look_at", required=True))
-    up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
-    fov = cam_t.number("fov", 40.0, lo=0.0, hi=validate.MAX_FOV, lo_open=True, hi_open=True)
-    if fov < validate.MIN_FOV:
-        cam_t.fail(
-            "fov", f"must be at least {validate.MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {fov:g}"
-        )
-    fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
-    keyframes = cam_t.raw("keyframe", [])  # parsed below, by bsrt/scene/keyframes.py
-    cam_t.finish()
-    camera = Camera(eye, look_at, up, fov, fov_axis)
-    try:
-        validate.camera(camera)
-    except InputError as exc:
-        raise InputError(f"{where}: {exc}") from None
-    if keyframes != []:
-        from bsrt.scene.keyframes import parse_keyframes
-
-        keyframes = parse_keyframes(keyframes, where, camera)
+        if "import" not in data:
+            raise InputError(f"{where}: camera: missing table [camera] (only a scene with [[import]] may leave it out)")
+        camera, keyframes = None, []  # the automatic camera, fitted to the surfaces below
+    else:
+        camera, keyframes = _camera(where, data)
 
     render = RenderSettings(**_settings_table(where, data, "render"))
 
@@ -116,10 +111,18 @@ def parse_scene(
         by_name[name] = len(materials)
         materials.append(mat)
 
-    lights = []
+    lights, bright = [], []  # bright: (light index, brightness at the model's centre)
     for i, raw in enumerate(_array_of_tables(where, data, "light")):
         t = _Table(where, raw, f"light[{i}]")
         kind = t.string("kind", required=True, choices=("point", "directional", "ambient"))
+        if t.has("brightness"):
+            if kind != "point":
+                t.fail(
+                    "brightness", "only for point lights (a directional or ambient light's intensity has no falloff)"
+                )
+            if t.has("intensity"):
+                t.fail("brightness", "give either intensity or brightness, not both")
+            bright.append((i, t.number("brightness", lo=0.0)))
         light = Light(
             kind=kind,
             color=t.vector("color", (1.0, 1.0, 1.0), lo=0.0),
@@ -139,11 +142,15 @@ def parse_scene(
             model = _load_import(t, folder, cache, progress)
             inputs.append(str(model.path))
             loads.append(model.load)
+            own = t.has("material") or t.has("color")
+            file_colors = t.raw("file_colors", not own)
+            if not isinstance(file_colors, bool):
+                t.fail("file_colors", f"expected true or false, got {_show(file_colors)}")
             material = _material_for(t, materials, by_name)
-            colored = (
-                None
-                if t.has("material") or t.has("color")
-                else _colour_materials(model, materials, DEFAULT_MATERIAL, f"{Path(model.path).name}:")
+            colored = (  # the file's colours (STEP) on the import's material, or on the default one
+                _colour_materials(model, materials, materials[material], f"{Path(model.path).name}:")
+                if file_colors
+                else None
             )
             matrix = _transform(t, "transform") if t.has("transform") else None
             t.finish()
@@ -172,6 +179,20 @@ def parse_scene(
         surfaces.append(SceneSurface(geometry, material, name))
     if not surfaces:
         raise InputError(f"{where}: the scene has no [[surface]] or [[import]] (nothing to render)")
+    if camera is None or (studio and not lights) or bright:
+        from bsrt.scene.auto import fit_camera, studio_lights, surface_points
+
+        points = surface_points([s.geometry for s in surfaces])
+        centre = (points.min(axis=0) + points.max(axis=0)) / 2.0
+        for i, value in bright:  # as bright as `value` at the centre: no inverse-square arithmetic
+            distance2 = float(np.sum((np.array(lights[i].position) - centre) ** 2))
+            lights[i] = replace(lights[i], intensity=value * distance2)
+        if camera is None:
+            w, h = film_size or (film.width, film.height)
+            camera = fit_camera(points, w, h)
+        if studio and not lights:
+            lights = list(studio_lights(points, camera))
+            notes.append(f"{where}: no [[light]]: lit by the default studio rig (key, fill, rim and ambient light)")
     return Scene(
         film,
         camera,
@@ -185,6 +206,32 @@ def parse_scene(
         tuple(keyframes),
         tuple(loads),
     )
+
+
+def _camera(where: str, data: dict):
+    """The [camera] table: (Camera, its parsed keyframes)."""
+    cam_t = _Table(where, data["camera"], "camera")
+    eye = np.array(cam_t.vector("eye", required=True))
+    look_at = np.array(cam_t.vector("look_at", required=True))
+    up = np.array(cam_t.vector("up", (0.0, 0.0, 1.0)))
+    fov = cam_t.number("fov", 40.0, lo=0.0, hi=validate.MAX_FOV, lo_open=True, hi_open=True)
+    if fov < validate.MIN_FOV:
+        cam_t.fail(
+            "fov", f"must be at least {validate.MIN_FOV:g} degrees (see Limits in docs/scene-format.md), got {fov:g}"
+        )
+    fov_axis = cam_t.string("fov_axis", "y", choices=("x", "y"))
+    keyframes = cam_t.raw("keyframe", [])  # parsed below, by bsrt/scene/keyframes.py
+    cam_t.finish()
+    camera = Camera(eye, look_at, up, fov, fov_axis)
+    try:
+        validate.camera(camera)
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
+    if keyframes != []:
+        from bsrt.scene.keyframes import parse_keyframes
+
+        keyframes = parse_keyframes(keyframes, where, camera)
+    return camera, keyframes
 
 
 def _settings_table(where: str, data: dict, table: str) -> dict:
