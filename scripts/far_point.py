@@ -3,7 +3,8 @@
 Takes scenes of ``scenes/`` and moves one control point of one surface to
 x = 1e9 (a legal scene of size about 10 with one point very far away), then
 renders each at 40x40 with ``bsrt render --stats`` in a child process and
-prints the wall time, the leaves and the rays that ran out of their budget:
+prints the wall and CPU time (the child's, all threads), the stages' wall
+times and the rays that ran out of their budget (bvh.py, "Budget"):
 
     python scripts/far_point.py [--width 40] [--x 1e9] [--write DIR] [--no-render]
 
@@ -17,6 +18,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -60,6 +62,11 @@ def write_scenes(folder: Path, x: float = 1e9) -> list[Path]:
     return out
 
 
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--width", type=int, default=40, help="film width and height")
@@ -81,16 +88,18 @@ def main() -> int:
             cmd += ["--width", str(args.width), "--height", str(args.width), "--stats"]
             if args.method:
                 cmd += ["--method", args.method]
-            clock = time.perf_counter()
+            clock, used = time.perf_counter(), _children_cpu()
             proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
-            wall = time.perf_counter() - clock
+            wall, cpu = time.perf_counter() - clock, _children_cpu() - used
             if proc.returncode != 0:
                 print(f"{path.stem}: exit {proc.returncode}: {proc.stderr.strip()[-300:]}")
                 continue
             record = json.loads(proc.stdout)
             keys = ("leaves", "out_of_budget", "hierarchy")
             counts = ", ".join(f"{k} {record[k]}" for k in keys if k in record)
-            print(f"{path.stem}: {wall:.2f} s wall, solve {record['seconds']['solve']:.2f} s, {counts}", flush=True)
+            stages = ", ".join(f"{k} {v:.2f}" for k, v in record["seconds"].items())
+            print(f"{path.stem}: {wall:.2f} s wall, {cpu:.2f} s CPU; stages (wall s): {stages}; {counts}", flush=True)
+        print(f"load average {open('/proc/loadavg').read().split()[:3]}", flush=True)
     return 0
 
 

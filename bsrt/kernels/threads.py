@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import threading
 import time
-from concurrent.futures import ThreadPoolExecutor, wait
+from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -94,15 +94,15 @@ def run_chunks(kernel, n: int, *args, min_chunk: int = MIN_CHUNK, per_worker: in
     try:
         pending = futures
         while pending:
-            _, pending = wait(pending, timeout=POLL_SECONDS if main else None)
+            done, pending = wait(pending, timeout=POLL_SECONDS if main else None, return_when=FIRST_EXCEPTION)
+            for future in done:
+                future.result()  # a slice's exception ends the others too (below)
             if main:
                 interrupts.safe_point()
-        for future in futures:
-            future.result()
     except BaseException:
-        # An interruption (a signal raises here) must not free the arrays the running
-        # slices still write into: no slice starts any more, a stoppable one ends at
-        # its next item, and those running are waited for (short: SLICE_SECONDS).
+        # An interruption (a signal raises here) or a slice's exception must not free the
+        # arrays the running slices still write into: no slice starts any more, a
+        # stoppable one ends at its next item, and those running are waited for (short).
         cursor.stopped = True
         if extra:
             extra[0][0] = 1

@@ -337,9 +337,9 @@ def ray_budget(max_iterations: int = DEFAULT_MAX_ITERATIONS) -> int:
     return RAY_BUDGET_PIECES * int(max_iterations)
 
 
-def out_of_budget(hits: Hits, max_iterations: int = DEFAULT_MAX_ITERATIONS) -> int:
-    """How many of these hits (from intersect with max_iterations) spent their ray's budget."""
-    return int(np.count_nonzero(hits.iterations >= ray_budget(max_iterations)))
+def out_of_budget(hits: Hits, budget: int) -> int:
+    """How many of these hits (from intersect with this budget) spent their ray's budget."""
+    return int(np.count_nonzero(hits.iterations >= budget))
 
 
 def intersect(
@@ -353,6 +353,7 @@ def intersect(
     any_hit: bool = False,
     retry_depth: int = DEFAULT_RETRY_DEPTH,
     exclude=None,
+    budget: int | None = None,
 ) -> Hits:
     """Nearest hit (or any hit) of N rays with the surfaces of ``bvh``.
 
@@ -366,7 +367,9 @@ def intersect(
     a root on that surface within that parameter box around (u, v) is not a
     hit. Secondary rays pass the root they start from, so they never find it
     again (no self-shadowing acne) without an offset that would open a gap
-    where two surfaces touch.
+    where two surfaces touch. budget: Newton iterations per ray (default
+    ray_budget(max_iterations); the module doc's "Budget"); a ray that spent
+    it has hits.iterations >= budget (out_of_budget).
     """
     rays = Rays.from_arrays(origins, directions)
     n = len(rays)
@@ -407,7 +410,7 @@ def intersect(
         hits.patch,
         hits.residual,
         iterations,
-        ray_budget(max_iterations),
+        ray_budget(max_iterations) if budget is None else int(budget),
         stoppable=True,
     )
     miss = ~hits.hit

@@ -17,7 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, build_bvh, intersect, out_of_budget
+from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, build_bvh, intersect, out_of_budget, ray_budget
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.image import srgb_encode
 from bsrt.rendering.options import RenderOptions
@@ -136,8 +136,9 @@ class Geometry:
 
     def intersect(self, origins, directions, **kwargs) -> Hits:
         """bvh.intersect with this geometry's hierarchy (see there for the arguments)."""
-        hits = intersect(self.bvh, origins, directions, **kwargs)
-        self.out_of_budget += out_of_budget(hits, kwargs.get("max_iterations", DEFAULT_MAX_ITERATIONS))
+        budget = kwargs.pop("budget", None) or ray_budget(kwargs.get("max_iterations", DEFAULT_MAX_ITERATIONS))
+        hits = intersect(self.bvh, origins, directions, budget=budget, **kwargs)
+        self.out_of_budget += out_of_budget(hits, budget)
         return hits
 
 
