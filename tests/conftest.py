@@ -194,6 +194,9 @@ SLOW: dict[str, float] = {
     "tests/test_fuzz.py::test_scene_documents_are_valid_or_refused_naming_the_file": 8.3,
     "tests/test_fuzz.py::test_short_cli_fuzz_pass_keeps_every_promise": 126.7,
     "tests/test_iges_occt_hits.py::test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape": 11.7,  # 2 cases
+    "tests/test_interrupts.py::test_scenes_with_a_control_point_at_1e9_render_40x40_and_count_rays_out_of_budget": 10.8,
+    "tests/test_interrupts.py::test_sigterm_during_a_far_control_point_render_ends_it_within_a_second": 6.2,
+    "tests/test_interrupts.py::test_sigterm_during_a_large_antialiased_column_ends_it_within_a_second": 16.1,
     "tests/test_map_trim.py::test_cad_parts_render_the_same_with_fewer_trimmed_roots": 5.5,  # 2 cases
     "tests/test_map_trim.py::test_the_per_fragment_trim_test_alone_renders_the_same[bearing.iges]": 3.2,
     "tests/test_models.py::test_every_model_file_renders_headless_or_is_refused[iges/occt/bearing.iges]": 3.5,

@@ -202,14 +202,18 @@ def padded_nets(patches: PatchSet):
     return nets, degree
 
 
-def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: int = DEFAULT_MAX_DEPTH):
+def flatten(
+    patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: int = DEFAULT_MAX_DEPTH, floor: float = 0.0
+):
     """Cut every Bezier patch into flat pieces (compiled: kernels/flatten.py).
 
     The leaves' nets are bounded: the largest depth bound <= max_depth at
     which they hold at most max(LEAF_NET_FLOATS, LEAVES_PER_PATCH floats per
     patch's net) floats is used (a high-degree patch then keeps coarser,
     curved leaves; the grazing/miss retries cut those further per ray); one
-    counting walk gives the leaf counts at every bound.
+    counting walk gives the leaf counts at every bound. floor: a piece
+    whose box diagonal is at most this is not cut for its normals (build_bvh
+    passes the box padding: the module doc's "Budget").
     Returns (patch (L,) int64, rect (L, 4), depth (L,) int64, degree (L, 2)
     int64, and the nets: patch_net (P, Pm, Qm, 4), piece_net (R, Pm, Qm, 4),
     row (L,) int64 as BVH.patch_net, leaf_net, leaf_net_row).
@@ -228,6 +232,7 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
         patches.bounds,
         eps,
         BEND,
+        float(floor),
         max_depth,
         by_depth,
         min_chunk=PATCH_CHUNK,
@@ -254,6 +259,7 @@ def flatten(patches: PatchSet, flatness: float = DEFAULT_FLATNESS, max_depth: in
         patches.bounds,
         eps,
         BEND,
+        float(floor),
         max_depth,
         counts,
         starts,
@@ -290,7 +296,7 @@ def build_bvh(
     diag = patches.scene_diagonal()
     if padding is None:
         padding = 1e-8 * diag
-    patch, rect, depth, degree, (patch_net, piece_net, row) = flatten(patches, flatness, max_depth)
+    patch, rect, depth, degree, (patch_net, piece_net, row) = flatten(patches, flatness, max_depth, padding)
     if patches.trimmed:  # pieces the trims remove entirely hold no hit (their nets stay, unused)
         keep = (
             rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3])
