@@ -8,8 +8,9 @@ times and the rays that ran out of their budget (bvh.py, "Budget"):
 
     python scripts/far_point.py [--width 40] [--x 1e9] [--write DIR] [--no-render]
 
-``--write DIR`` keeps the scenes (``<scene>-s<surface>.toml``); tests use it
-(tests/test_interrupts.py) so that the way such a scene is made has one owner.
+``--write DIR`` keeps the scenes (``<scene>-s<surface>.toml``; with
+``--no-render`` it prints their paths): tests/test_interrupts.py runs it so,
+so that the way such a scene is made has one owner.
 """
 
 from __future__ import annotations

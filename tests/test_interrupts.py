@@ -2,12 +2,11 @@
 iterations, renders of scenes with one control point far out, and signals at
 random moments of long renders acted on within a second, leaving nothing.
 
-The far scenes are made by scripts/far_point.py (the one owner of how);
-their timing is that script's, not a test's."""
+The far scenes are written by scripts/far_point.py (the one owner of how; run
+as a command, not imported); their timing is that script's, not a test's."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import random
 import signal
@@ -27,9 +26,14 @@ from bsrt.kernels import threads
 from bsrt.rendering.bvh import build_bvh, intersect, out_of_budget, ray_budget
 
 ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("far_point", ROOT / "scripts" / "far_point.py")
-far_point = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(far_point)
+
+
+def far_scenes(folder: Path) -> dict[str, Path]:
+    """The far-point scenes, written by scripts/far_point.py (run, not imported): stem -> path."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    command = [sys.executable, str(ROOT / "scripts" / "far_point.py"), "--write", str(folder), "--no-render"]
+    out = subprocess.run(command, env=env, check=True, capture_output=True, text=True).stdout
+    return {Path(line).stem: Path(line) for line in out.split()}
 
 
 def _quad(corners) -> object:
@@ -72,7 +76,7 @@ def test_a_ray_within_its_budget_finds_the_plane_and_one_past_it_stops_and_is_co
 @pytest.mark.gl
 def test_scenes_with_a_control_point_at_1e9_render_40x40_and_count_rays_out_of_budget(tmp_path):
     outcomes = {}
-    for path in far_point.write_scenes(tmp_path):
+    for path in far_scenes(tmp_path).values():
         scene = bsrt.load(path)
         result = bsrt.render(scene, width=40, height=40)
         stats = result.stats
@@ -86,10 +90,10 @@ def test_scenes_with_a_control_point_at_1e9_render_40x40_and_count_rays_out_of_b
     assert outcomes["quad-s0"] == 0
 
 
-def test_far_point_moves_exactly_one_control_point_to_x_1e9():
+def test_far_point_moves_exactly_one_control_point_to_x_1e9(tmp_path):
     text = (ROOT / "scenes" / "column.toml").read_text()
     before = tomllib.loads(text)["surface"]
-    after = tomllib.loads(far_point.far_scene(text, 20, 1, 2, 1e9))["surface"]
+    after = tomllib.loads(far_scenes(tmp_path)["column-s20"].read_text())["surface"]
     moved = [
         (k, i, j, c)
         for k, (s0, s1) in enumerate(zip(before, after))
@@ -157,7 +161,7 @@ def _signal_at_random_moments(tmp_path, command, seed: int, renders: int, longes
 
 @pytest.mark.gl
 def test_sigterm_during_a_far_control_point_render_ends_it_within_a_second(tmp_path):
-    scene = far_point.write_scenes(tmp_path / "scenes")[0]  # column-s0: minutes a frame before the budget
+    scene = far_scenes(tmp_path / "scenes")["column-s0"]  # column-s0: minutes a frame before the budget
     command = [sys.executable, "-m", "bsrt", "render", str(scene), "-o", "out.png", "--aov", "out.npz"]
     command += ["--width", "160", "--height", "160"]
     _signal_at_random_moments(tmp_path, command, seed=28, renders=4, longest=5.0)
