@@ -40,7 +40,10 @@ class Intersections:
     surface's own parameters. surface: (K,) int64, index into ``names``
     (-1 where no hit). residual: (K,) float64, |S(u, v) - (o + t d)| in
     scene units. ray: (K,) int64, the ray of each record. offsets: (N + 1,)
-    int64, ray i's records are offsets[i]:offsets[i + 1]. names: (S,) the
+    int64, ray i's records are offsets[i]:offsets[i + 1]. exhausted: (N,)
+    bool, the rays that spent their work budget (module rendering/raycast.py:
+    64 times a rendered ray's; none on ordinary parts): their records may
+    lack a hit. names: (S,) the
     surfaces' names (a STEP file's ``FILE:ASSEMBLY/.../PART#k``, an IGES
     label, a scene surface's name). Floats are NaN where there is no hit.
     mode, tolerance (fraction of the diagonal) and diagonal (scene units):
@@ -58,6 +61,7 @@ class Intersections:
     residual: np.ndarray
     ray: np.ndarray
     offsets: np.ndarray
+    exhausted: np.ndarray
     names: tuple[str, ...] = field(repr=False)
     mode: str = "nearest"
     tolerance: float = DEFAULT_TOLERANCE
@@ -143,7 +147,7 @@ def intersect(
             f"origins{where}; the least is {least:.2g}"
         )
     names = tuple(s.name for s in scene.surfaces)
-    found = caster.cast(np.ascontiguousarray(o), unit, lo, hi, tolerance, mode)
+    found, exhausted = caster.cast(np.ascontiguousarray(o), unit, lo, hi, tolerance, mode)
     offsets = np.searchsorted(found.ray, np.arange(n + 1)).astype(np.int64)
     return Intersections(
         found.hit,
@@ -157,6 +161,7 @@ def intersect(
         found.residual,
         found.ray,
         offsets,
+        exhausted,
         names,
         mode,
         tolerance,

@@ -204,6 +204,9 @@ SLOW: dict[str, float] = {
     "tests/test_intersect_cad.py::test_against_opencascade_on_a_trimmed_step_part": 4.0,
     "tests/test_intersect_cad.py::test_cylinder_trimmed_by_a_plane": 3.7,  # the first: loads the kernels
     "tests/test_intersect_cad.py::test_names_of_a_step_assembly_give_the_part_paths": 2.0,
+    "tests/test_interrupts.py::test_scenes_with_a_control_point_at_1e9_render_40x40_and_count_rays_out_of_budget": 10.8,
+    "tests/test_interrupts.py::test_sigterm_during_a_far_control_point_render_ends_it_within_a_second": 6.2,
+    "tests/test_interrupts.py::test_sigterm_during_a_large_antialiased_column_ends_it_within_a_second": 16.1,
     "tests/test_map_trim.py::test_cad_parts_render_the_same_with_fewer_trimmed_roots": 5.5,  # 2 cases
     "tests/test_map_trim.py::test_the_per_fragment_trim_test_alone_renders_the_same[bearing.iges]": 3.2,
     "tests/test_models.py::test_every_model_file_renders_headless_or_is_refused[iges/occt/bearing.iges]": 3.5,

@@ -93,7 +93,7 @@ def test_counts_at_every_depth_match_separate_counts():
     nets, degree = B.padded_nets(patches)
     eps = B.DEFAULT_FLATNESS * patches.scene_diagonal()
     by_depth = np.zeros((patches.size, 13), dtype=np.int64)
-    count_leaves(0, patches.size, nets, degree, patches.bounds, eps, B.BEND, 12, by_depth)
+    count_leaves(0, patches.size, nets, degree, patches.bounds, eps, B.BEND, 0.0, 12, by_depth)
     for d in range(13):
         assert B.flatten(patches, max_depth=d)[0].size == by_depth[:, d].sum()
     assert by_depth[0, 0] == 1 and by_depth[0, 12] > 4

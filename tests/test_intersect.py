@@ -269,3 +269,14 @@ def test_bad_sensor_arguments():
         bsrt.sensors.lidar((0, 0, 0), vertical_fov=(10, -10))
     with pytest.raises(InputError, match="look_at: must differ from eye"):
         bsrt.sensors.pinhole((1, 1, 1), (1, 1, 1))
+
+
+def test_a_ray_grazing_a_sphere_by_its_pole_is_not_cut_short_by_the_work_budget():
+    """The ray along x at z = R (1 - 1e-6) passes 1.4e-3 R from the pole, across the pole's many small
+    pieces: about 9,000 Newton steps, twice a rendered ray's budget; a query finds both hits and
+    says no ray ran out."""
+    b_in = R * (1 - 1e-6)
+    result = bsrt.intersect(ball(), A([[-5.0, 0, b_in]]), A([X]), mode="all", tolerance=1e-12)
+    half = math.sqrt(R**2 - b_in**2)
+    assert result.count.tolist() == [2] and not result.exhausted.any()
+    assert np.allclose(result.t, [5 - half, 5 + half], rtol=0, atol=1e-9)

@@ -8,7 +8,7 @@ Imports nothing of bsrt outside this package (but the version, below).
 from pathlib import Path as _Path
 
 #: bump when a type the kernels take as an argument (a NamedTuple) moves to another module
-CACHE_EPOCH = 2
+CACHE_EPOCH = 3
 
 
 def _drop_stale_machine_code() -> None:

@@ -130,14 +130,17 @@ def copy_net(src, dst, p, q):
 
 # (explicit signature: see split_half)
 @njit(
-    "int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, int64, boolean, float64[:, ::1], "
+    "int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, float64, int64, boolean, float64[:, ::1], "
     "int64[::1], float64[:, :, :, ::1], int64[::1])",
     cache=True,
     no_cpython_wrapper=True,
     nogil=True,
 )
-def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_net, hist):
+def _cut(net, p, q, rect, eps, bend, floor, max_depth, fill, out_rect, out_depth, out_net, hist):
     """Cut one patch depth-first. Returns the leaf count.
+
+    floor: a piece whose box diagonal is at most this is not cut for its
+    normals (cone, bend): the tolerance resolves nothing finer (bvh.py).
 
     fill: write its leaves into out_rect (n, 4), out_depth (n,), out_net
     (n, Pm, Qm, 4) from index 0. Otherwise count, into hist (2 * (max_depth
@@ -164,7 +167,7 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_n
         top -= 1
         dev, dev_u, dev_v, twist, size = measures(stack[top], p, q)
         split = depth[top] < max_depth and dev > eps
-        if depth[top] < max_depth and not split:
+        if depth[top] < max_depth and not split and size > floor:
             if cone:
                 split = not normal_cone_within(stack[top], p, q, COS_CONE, h, hu, hv, uv, nrm, binom)
             else:
@@ -196,11 +199,11 @@ def _cut(net, p, q, rect, eps, bend, max_depth, fill, out_rect, out_depth, out_n
 
 
 @njit(cache=True, nogil=True)
-def count_leaves(start, stop, nets, degree, rects, eps, bend, max_depth, counts):
+def count_leaves(start, stop, nets, degree, rects, eps, bend, floor, max_depth, counts):
     """Leaf counts of patches start..stop-1 at every depth bound, in one walk each.
 
     nets: (P, Pm, Qm, 4) homogeneous Bezier nets (degree (P, 2) fills the
-    corner); rects: (P, 4) parameter rectangles; counts: (P, max_depth + 1)
+    corner); rects: (P, 4) parameter rectangles; floor: see _cut; counts: (P, max_depth + 1)
     int64 out: counts[k, d] = the leaves of patch k cut at most d times.
     Called on slices by threads.run_chunks (patches are independent).
     """
@@ -209,7 +212,19 @@ def count_leaves(start, stop, nets, degree, rects, eps, bend, max_depth, counts)
     for k in range(start, stop):
         hist[:] = 0
         _cut(
-            nets[k], degree[k, 0], degree[k, 1], rects[k], eps, bend, max_depth, False, dummy_r, dummy_d, dummy_n, hist
+            nets[k],
+            degree[k, 0],
+            degree[k, 1],
+            rects[k],
+            eps,
+            bend,
+            floor,
+            max_depth,
+            False,
+            dummy_r,
+            dummy_d,
+            dummy_n,
+            hist,
         )
         leaves = 0
         for d in range(max_depth + 1):
@@ -226,6 +241,7 @@ def flatten_patches(
     rects,
     eps,
     bend,
+    floor,
     max_depth,
     counts,
     starts,
@@ -265,6 +281,7 @@ def flatten_patches(
                 rects[k],
                 eps,
                 bend,
+                floor,
                 max_depth,
                 True,
                 out_rect[first:],

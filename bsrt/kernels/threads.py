@@ -1,47 +1,110 @@
-"""Running a compiled loop on every core: chunks of its index range on a thread pool.
+"""Running a compiled loop on every core: short slices of its index range on a thread pool.
 
 The kernels are compiled without ``parallel=True`` (numba's parallel loops
 cost most of the compile time) and with ``nogil=True``; ``run_chunks`` calls
 one on consecutive slices from as many threads as there are cores, and the
 slices run at once because the kernel releases the GIL.
+
+Slices are short, so a signal is acted on within a second at any moment
+(issue #28): each thread takes the next slice from a shared cursor, and a
+slice's length follows the measured cost of the items before it (aiming at
+SLICE_SECONDS; the first slices are FIRST_SLICE items). The calling thread
+waits in steps of POLL_SECONDS and takes a waiting signal between them
+(``interrupts.safe_point``); then no further slice starts, and a kernel run
+with ``stoppable=True`` (its last argument is a (1,) uint8 stop flag, read
+between items) leaves the slice it is in at its next item.
 """
 
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor, wait
+import threading
+import time
+from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
+
+import numpy as np
 
 from bsrt import interrupts
 
 _POOL: ThreadPoolExecutor | None = None
 MIN_CHUNK = 2048
+SLICE_SECONDS = 0.05  # a slice's aim: the stop and the cursor are read between slices
+FIRST_SLICE = 64  # items in a thread's first slice, before any cost was measured
+POLL_SECONDS = 0.02  # the calling thread looks for a signal this often
 
 
 def workers() -> int:
     return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
 
 
-def run_chunks(kernel, n: int, *args, min_chunk: int = MIN_CHUNK, per_worker: int = 4) -> None:
-    """kernel(start, stop, *args) over [0, n) in about per_worker slices per core (at least
-    min_chunk items each; the pool hands the next slice to the first free thread, so items
-    of uneven cost want more, smaller slices)."""
+class _Cursor:
+    """The next slice of [0, n) to take, its length adapted to the measured cost per item."""
+
+    def __init__(self, n: int, first: int, largest: int):
+        self.n, self.next, self.size, self.largest = n, 0, max(1, first), max(1, largest)
+        self.stopped = False
+        self.lock = threading.Lock()
+
+    def take(self) -> tuple[int, int]:
+        with self.lock:
+            if self.stopped:
+                return self.n, self.n
+            a = self.next
+            self.next = min(self.n, a + self.size)
+            return a, self.next
+
+    def measured(self, items: int, seconds: float) -> None:
+        """Next slices: about SLICE_SECONDS at this cost per item, growing at most 8-fold a step."""
+        wanted = int(items * SLICE_SECONDS / max(seconds, 1e-7))
+        with self.lock:
+            self.size = max(1, min(wanted, 8 * items, self.largest))
+
+
+def _drain(kernel, cursor: _Cursor, args) -> None:
+    while True:
+        a, b = cursor.take()
+        if a >= b:
+            return
+        clock = time.perf_counter()
+        kernel(a, b, *args)
+        cursor.measured(b - a, time.perf_counter() - clock)
+
+
+def run_chunks(kernel, n: int, *args, min_chunk: int = MIN_CHUNK, per_worker: int = 4, stoppable: bool = False) -> None:
+    """kernel(start, stop, *args) over [0, n) in short slices from every core (see the module doc).
+
+    Work of at most min_chunk items runs as one call in this thread; slices
+    are at most n / (per_worker x cores) items (items of uneven cost want
+    more, smaller slices). stoppable: the kernel takes a (1,) uint8 stop
+    flag after args and returns early once it is set (an interruption)."""
     global _POOL
-    interrupts.safe_point()
+    main = threading.current_thread() is threading.main_thread()
+    if main:
+        interrupts.safe_point()
+    extra = (np.zeros(1, dtype=np.uint8),) if stoppable else ()
     count = min(per_worker * workers(), max(1, n // max(1, min_chunk)))
-    if count <= 1:
+    if count <= 1 and not stoppable:
         kernel(0, n, *args)
         return
     if _POOL is None:
         _POOL = ThreadPoolExecutor(max_workers=workers(), thread_name_prefix="bsrt-kernel")
-    bounds = [n * i // count for i in range(count + 1)]
-    futures = [_POOL.submit(kernel, a, b, *args) for a, b in zip(bounds[:-1], bounds[1:])]
+    cursor = _Cursor(n, min(FIRST_SLICE, min_chunk), -(-n // count))
+    threads = min(workers(), max(1, -(-n // cursor.size)))
+    futures = [_POOL.submit(_drain, kernel, cursor, args + extra) for _ in range(threads)]
     try:
-        for future in futures:
-            future.result()
+        pending = futures
+        while pending:
+            done, pending = wait(pending, timeout=POLL_SECONDS if main else None, return_when=FIRST_EXCEPTION)
+            for future in done:
+                future.result()  # a slice's exception ends the others too (below)
+            if main:
+                interrupts.safe_point()
     except BaseException:
-        # An interruption (a signal raises here) must not free the arrays the
-        # running slices still write into: cancel the rest, let those finish.
-        for future in futures:
-            future.cancel()
+        # An interruption (a signal raises here) or a slice's exception must not free the
+        # arrays the running slices still write into: no slice starts any more, a
+        # stoppable one ends at its next item, and those running are waited for (short).
+        cursor.stopped = True
+        if extra:
+            extra[0][0] = 1
         wait(futures)
         raise

@@ -1,20 +1,6 @@
 """Rays through Martin et al.'s hierarchy of flat pieces, one ray per loop iteration.
 
-``BVHArrays`` (built by ``bsrt.rendering.bvh.build_bvh``; L leaves, K nodes, node 0 the root):
-
-    node_bounds: (K, 6) float64, (min x, y, z, max x, y, z) of each node.
-    node_left, node_right: (K,) int64 children, -1 for a tree leaf.
-    node_first, node_count: (K,) int64, a tree leaf's pieces are
-      first .. first + count - 1.
-    leaf_surface: (L,) int64. leaf_rect: (L, 4) float64 (u0, u1, v0, v1).
-    leaf_obb: (L, 15) float64, oriented box: centre (3), axes (3 x 3, row k
-      = axis k), half extents (3), padded.
-    patch_net: (P, Pm, Qm, 4), leaf_net: (R, Pm, Qm, 4) float64 and
-      leaf_net_row: (L,) int64: a leaf's homogeneous Bezier net (in its
-      [:p + 1, :q + 1] corner) is flatten.leaf_net(patch_net, leaf_net,
-      leaf_net_row, leaf): its patch's own, or a cut piece's.
-      leaf_degree: (L, 2) int64, (p, q).
-    leaf_planar: (L,) bool, the piece lies in one plane.
+The hierarchy's table: ``hierarchy.BVHArrays``.
 
 Per ray (``trace_one``): a depth-first walk, nearer child first, that skips
 nodes entered beyond the nearest root so far (any-hit: stops at the first
@@ -45,22 +31,6 @@ from bsrt.kernels.trim import point_kept
 GRAZING_COSINE = 0.3
 RECT_SLACK = 1e-9
 STACK = 64
-
-
-class BVHArrays(NamedTuple):
-    node_bounds: np.ndarray
-    node_left: np.ndarray
-    node_right: np.ndarray
-    node_first: np.ndarray
-    node_count: np.ndarray
-    leaf_surface: np.ndarray
-    leaf_rect: np.ndarray
-    leaf_obb: np.ndarray
-    patch_net: np.ndarray
-    leaf_net: np.ndarray
-    leaf_net_row: np.ndarray
-    leaf_degree: np.ndarray
-    leaf_planar: np.ndarray
 
 
 class Exclusion(NamedTuple):
@@ -326,8 +296,13 @@ def trace_one(
     rects,
     depth,
     tmp,
+    budget,
 ):
-    """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations)."""
+    """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations).
+
+    budget: the ray's work bound in Newton iterations; once spent, no further
+    piece is solved and the nearest root found so far is the answer (the
+    piece being solved completes: at most its retries' work more)."""
     e = ray_frame(dx, dy, dz)
     ix = 1.0 / dx if abs(dx) > 1e-300 else np.copysign(1e300, dx)
     iy = 1.0 / dy if abs(dy) > 1e-300 else np.copysign(1e300, dy)
@@ -350,6 +325,8 @@ def trace_one(
         left = B.node_left[node]
         if left < 0:
             for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
+                if iterations >= budget:
+                    return best_k >= 0, best_t, best_u, best_v, best_k, best_res, iterations
                 if skip_start and B.leaf_surface[leaf] == ex_m:
                     r = B.leaf_rect[leaf]
                     if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
@@ -451,10 +428,14 @@ def trace_rays(
     patch,
     residual,
     iterations,
+    budget,
+    halt,
 ):
     """trace_one for rays start..stop-1 of origin, direction (N, 3) (unit directions),
     with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays);
-    results into (N,) outputs. Called on slices by threads.run_chunks."""
+    results into (N,) outputs. budget: each ray's Newton iterations (trace_one).
+    halt: (1,) uint8, read before each ray: set, the slice ends there (an
+    interruption). Called on slices by threads.run_chunks (stoppable)."""
     pm, qm = B.patch_net.shape[1], B.patch_net.shape[2]
     size = 4 * retry_depth + 8
     stack = np.empty(STACK, dtype=np.int64)  # scratch, once per slice
@@ -464,6 +445,8 @@ def trace_rays(
     depth = np.empty(size, dtype=np.int64)
     tmp = np.empty(max(pm, qm))
     for i in range(start, stop):
+        if halt[0]:
+            return
         h, tt, uu, vv, k, res, its = trace_one(
             P,
             T,
@@ -492,5 +475,6 @@ def trace_rays(
             rects,
             depth,
             tmp,
+            budget,
         )
         hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its

@@ -17,7 +17,7 @@ from functools import cached_property
 import numpy as np
 
 from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.bvh import build_bvh, intersect
+from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, build_bvh, intersect, out_of_budget, ray_budget
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.image import srgb_encode
 from bsrt.rendering.options import RenderOptions
@@ -151,6 +151,7 @@ class Geometry:
         self.material = np.array([s.material for s in scene.surfaces], dtype=np.int64)
         self.diagonal = max(self.patches.scene_diagonal(), 1e-300)
         self._bvh = None
+        self.out_of_budget = 0  # rays that spent their budget in the hierarchy (bvh.py, "Budget"), all renders
 
     @property
     def bvh(self):
@@ -160,7 +161,10 @@ class Geometry:
 
     def intersect(self, origins, directions, **kwargs) -> Hits:
         """bvh.intersect with this geometry's hierarchy (see there for the arguments)."""
-        return intersect(self.bvh, origins, directions, **kwargs)
+        budget = kwargs.pop("budget", None) or ray_budget(kwargs.get("max_iterations", DEFAULT_MAX_ITERATIONS))
+        hits = intersect(self.bvh, origins, directions, budget=budget, **kwargs)
+        self.out_of_budget += out_of_budget(hits, budget)
+        return hits
 
 
 def sample_grid(spp: int) -> tuple[int, int]:
@@ -211,6 +215,7 @@ def render(
             scene, radius = with_ground(scene)
         geometry = geometry or Geometry(scene)
         _ = geometry.bvh  # built here, not inside the first stage that needs it
+    spent_before = geometry.out_of_budget
     tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
     shader = _Shader(scene, opts, geometry, stats, report, radius)
     cols, rows = sample_grid(spp)
@@ -262,6 +267,7 @@ def render(
         iterations_mean=float(work.mean()) if work.size else 0.0,
         iterations_max=int(hits.iterations.max()),
     )
+    stats.add("out_of_budget", geometry.out_of_budget - spent_before)
     return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
 
 

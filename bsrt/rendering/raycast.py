@@ -12,6 +12,10 @@ resolution or caching.
   (1e-6 of the diagonal, as secondary rays do), so a ray crossing a surface
   twice at one point (tangent) reports it once. Rounds stop when no ray
   finds more, or after MAX_ALL_HITS hits per ray.
+* budget: a query ray may spend QUERY_BUDGET_FACTOR times the Newton
+  iterations a rendered ray may (a ray grazing a sphere 1e-6 of its radius
+  from the pole needs about 9,000, twice a rendered ray's budget); a ray that
+  spends it all is flagged (``exhausted``): its records may lack a hit.
 * tolerance: the kernel converges to max(tolerance, KERNEL_TOLERANCE) of the
   diagonal; below that, POLISH_STEPS float64 Newton steps on
   S(u, v) - (o + t d) = 0 (a 3 x 3 solve per hit) take the residual down,
@@ -27,6 +31,7 @@ import numpy as np
 from bsrt import validate
 from bsrt.kernels.shading import frames_many
 from bsrt.kernels.threads import run_chunks
+from bsrt.rendering.bvh import ray_budget
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.pipeline import Geometry
 
@@ -39,6 +44,7 @@ SAME_T = 1e-8  # all-hits: a later hit lies at least this much further (fraction
 POLE = 1e-8  # |S_u x S_v| below this fraction of the patch's typical |S_u| |S_v|: a pole (degenerate)
 POLE_STEP = 1e-6  # ... whose normal is taken this fraction of the patch toward its centre
 MAX_ALL_HITS = 4096  # all-hits: at most this many hits per ray
+QUERY_BUDGET_FACTOR = 64  # a query ray may spend this many times a rendered ray's work (bvh.py, "Budget")
 
 
 @dataclass(eq=False)
@@ -77,6 +83,7 @@ class RayCaster:
         _ = self.geometry.bvh  # built now, not in the first query
         self.reversed = np.array([bool(getattr(s, "reversed", False)) for s in scene.surfaces], dtype=bool)
         self.diagonal = self.geometry.diagonal
+        self.budget = QUERY_BUDGET_FACTOR * ray_budget()
         lo, hi = self.geometry.patches.scene_box()
         self._reach = max(float(np.abs(lo).max()), float(np.abs(hi).max()))
         worst = validate.smallest_tolerance_of_high_degrees(
@@ -92,21 +99,25 @@ class RayCaster:
         least = max(MIN_TOLERANCE, validate.FLOAT_STEPS * np.finfo(np.float64).eps * reach / self.diagonal)
         return max(least, self.high_degree[0]) if self.high_degree else least
 
-    def cast(self, origins, directions, t_min, t_max, tolerance: float, mode: str) -> RayHits:
+    def cast(self, origins, directions, t_min, t_max, tolerance: float, mode: str) -> tuple[RayHits, np.ndarray]:
         """origins, directions: (N, 3) float64, unit directions; t_min, t_max: (N,) float64;
-        tolerance: fraction of the diagonal; mode "nearest", "any" or "all"."""
+        tolerance: fraction of the diagonal; mode "nearest", "any" or "all" -> (the records,
+        exhausted (N,) bool: the rays that spent their work budget)."""
         n = directions.shape[0]
         parts = []
+        self._exhausted = np.zeros(n, dtype=bool)
         for a in range(0, n, CHUNK):
             part = slice(a, min(n, a + CHUNK))
             if mode == "all":
                 parts.append(self._all(origins[part], directions[part], t_min[part], t_max[part], tolerance, a))
             else:
                 hits = self._trace(origins[part], directions[part], t_min[part], t_max[part], tolerance, mode == "any")
+                self._exhausted[part] |= hits.iterations >= self.budget
                 parts.append(self._records(hits, origins[part], directions[part], np.arange(a, part.stop), tolerance))
         if not parts:
             parts.append(self._records(Hits.empty(0), origins, directions, np.zeros(0, dtype=np.int64), tolerance))
-        return RayHits(*(np.concatenate([getattr(p, f) for p in parts]) for f in RayHits.__dataclass_fields__))
+        found = RayHits(*(np.concatenate([getattr(p, f) for p in parts]) for f in RayHits.__dataclass_fields__))
+        return found, self._exhausted
 
     def _trace(self, origins, directions, t_min, t_max, tolerance, any_hit, exclude=None) -> Hits:
         return self.geometry.intersect(
@@ -117,6 +128,7 @@ class RayCaster:
             tolerance=max(tolerance, KERNEL_TOLERANCE) * self.diagonal,
             any_hit=any_hit,
             exclude=exclude,
+            budget=self.budget,
         )
 
     def _all(self, origins, directions, t_min, t_max, tolerance, first: int) -> RayHits:
@@ -129,6 +141,7 @@ class RayCaster:
         patches = self.geometry.patches
         while rays.size:
             hits = self._trace(origins[rays], directions[rays], start[rays], t_max[rays], tolerance, False, exclude)
+            self._exhausted[first + rays] |= hits.iterations >= self.budget
             keep = np.flatnonzero(hits.hit)
             rays, hits = rays[keep], hits.take(keep)
             if not rays.size:
