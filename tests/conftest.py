@@ -168,6 +168,8 @@ SLOW: dict[str, float] = {
     "tests/test_api.py::test_to_toml_reads_back_to_the_same_scene[iges-trimmed]": 1.6,
     "tests/test_batch.py::test_a_killed_worker_does_not_lose_the_batch": 6.4,
     "tests/test_fold.py::test_128_004_agrees_with_opencascade_away_from_edges": 1.5,
+    "tests/test_film.py::test_a_streamed_render_gives_the_kept_render_s_image_and_stats": 5.6,  # load 11
+    "tests/test_film.py::test_shadow_rays_block_exactly_where_the_any_hit_tracer_finds_an_occluder": 1.3,
     "tests/test_batch.py::test_bad_usage_exits_2": 5.6,
     "tests/test_batch.py::test_files_travel_with_the_task_to_a_scheduler": 7.1,
     "tests/test_batch.py::test_six_items_match_single_renders_and_one_failure_is_reported": 21.7,

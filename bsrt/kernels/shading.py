@@ -46,13 +46,18 @@ def surface_frame(P, k, u, v, tx, ty, tz):
 
 
 @njit(cache=True, nogil=True)
-def frames_many(start, stop, P, patch, u, v, towards, position, normal, speed):
-    """surface_frame at each hit i (patch[i], u[i], v[i]) of start..stop-1.
+def frames_many(start, stop, P, hit, patch, u, v, towards, position, normal, speed):
+    """surface_frame at each ray i of start..stop-1 that hit (hit[i]; patch[i], u[i], v[i]), NaN where not.
 
-    towards: (K, 3) the ray directions (the normal faces their origins).
-    position, normal: (K, 3) and speed: (K, 2) (|S_u|, |S_v|) outputs.
+    hit: (K,) bool; patch: (K,) int64; u, v: (K,) float64; towards: (K, 3) the ray directions (the
+    normal faces their origins). position, normal: (K, 3) and speed: (K, 2) (|S_u|, |S_v|) outputs.
     """
     for i in range(start, stop):
+        if not hit[i]:
+            for c in range(3):
+                position[i, c] = normal[i, c] = np.nan
+            speed[i, 0] = speed[i, 1] = np.nan
+            continue
         f = surface_frame(P, patch[i], u[i], v[i], towards[i, 0], towards[i, 1], towards[i, 2])
         position[i, 0], position[i, 1], position[i, 2] = f[0], f[1], f[2]
         normal[i, 0], normal[i, 1], normal[i, 2] = f[3], f[4], f[5]

@@ -22,23 +22,20 @@ def facing_frames(patches: PatchSet, hits: Hits, directions: np.ndarray):
     vanishes (a pole, a collapsed edge) the limit normal is taken a small
     step toward the patch centre, so no NaN reaches the image."""
     n = len(hits)
-    position, normal, speed = np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.full((n, 2), np.nan)
-    hit = np.flatnonzero(hits.hit)
-    if hit.size:
-        pos, nrm, spd = np.empty((hit.size, 3)), np.empty((hit.size, 3)), np.empty((hit.size, 2))
-        run_chunks(
-            frames_many,
-            hit.size,
-            patches.arrays,
-            hits.patch[hit],
-            hits.u[hit],
-            hits.v[hit],
-            np.ascontiguousarray(directions[hit], dtype=np.float64),
-            pos,
-            nrm,
-            spd,
-        )
-        position[hit], normal[hit], speed[hit] = pos, nrm, spd
+    position, normal, speed = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2))
+    run_chunks(
+        frames_many,
+        n,
+        patches.arrays,
+        np.ascontiguousarray(hits.hit),
+        np.ascontiguousarray(hits.patch),
+        np.ascontiguousarray(hits.u),
+        np.ascontiguousarray(hits.v),
+        np.ascontiguousarray(directions, dtype=np.float64),
+        position,
+        normal,
+        speed,
+    )
     return position, normal, speed
 
 
