@@ -120,10 +120,15 @@ def occluded(P, T, B, ox, oy, oz, dx, dy, dz, t_max, tol, max_iterations, retry_
         right = B.node_right[node]
         n1, f1 = _slab(B.node_bounds[left], ox, oy, oz, ix, iy, iz)
         n2, f2 = _slab(B.node_bounds[right], ox, oy, oz, ix, iy, iz)
-        if n1 <= f1 and f1 >= 0.0 and n1 <= t_max and top < stack.shape[0]:
+        hit1 = n1 <= f1 and f1 >= 0.0 and n1 <= t_max
+        hit2 = n2 <= f2 and f2 >= 0.0 and n2 <= t_max
+        if hit1 and hit2 and top + 2 <= stack.shape[0]:  # a full stack drops what trace_one drops
+            stack[top], stack[top + 1] = right, left
+            top += 2
+        elif hit1:
             stack[top] = left
             top += 1
-        if n2 <= f2 and f2 >= 0.0 and n2 <= t_max and top < stack.shape[0]:
+        elif hit2:
             stack[top] = right
             top += 1
     return False, -1, iterations
