@@ -1,6 +1,6 @@
 """How a whole render scales with the film: time ratio 2048² / 512² and peak memory.
 
-Time: one process renders the scene at 512x512 and at 2048x2048 in
+Time (wall and CPU): one process renders the scene at 512x512 and at 2048x2048 in
 alternating rounds (after an untimed render of each, so kernels, the GL
 context and the hierarchy are warm); prints each size's median and the
 median of the per-round ratios. Memory: each size in a fresh child process
@@ -32,8 +32,9 @@ print(json.dumps({"code": run.returncode, "peak_mb": peak, "stderr": run.stderr[
 """
 
 
-def timed_rounds(scene_path: Path, sizes: list[int], rounds: int) -> dict[int, list[float]]:
-    """Whole-render seconds per size, rendered in alternating rounds in this process."""
+def timed_rounds(scene_path: Path, sizes: list[int], rounds: int):
+    """Whole-render seconds per size, rendered in alternating rounds in this process:
+    ({size: wall seconds per round}, {size: CPU seconds per round}, all threads)."""
     from bsrt.rendering.options import RenderOptions
     from bsrt.rendering.pipeline import Geometry, render
     from bsrt.scene import load_scene
@@ -44,12 +45,14 @@ def timed_rounds(scene_path: Path, sizes: list[int], rounds: int) -> dict[int, l
     for n in sizes:
         render(scene, options[n], geometry=geometry)  # warm-up
     times: dict[int, list[float]] = {n: [] for n in sizes}
+    cpu: dict[int, list[float]] = {n: [] for n in sizes}
     for _ in range(rounds):
         for n in sizes:
-            clock = time.perf_counter()
-            render(scene, options[n], geometry=geometry)
+            clock, used = time.perf_counter(), time.process_time()
+            render(scene, options[n], geometry=geometry, keep=False)  # as bsrt render without --aov
             times[n].append(time.perf_counter() - clock)
-    return times
+            cpu[n].append(time.process_time() - used)
+    return times, cpu
 
 
 def peak_mb(scene_path: Path, size: int) -> float:
@@ -84,12 +87,20 @@ def main() -> int:
     a = p.parse_args()
     scene = Path(a.scene)
     small, large = a.sizes
-    times = timed_rounds(scene, [small, large], a.rounds)
+    print(f"load average before: {os.getloadavg()[0]:.2f}", flush=True)
+    times, cpu = timed_rounds(scene, [small, large], a.rounds)
     ratios = [b / s for s, b in zip(times[small], times[large])]
+    cpu_ratios = [b / s for s, b in zip(cpu[small], cpu[large])]
     print(
         f"{scene.name}: whole render, median of {a.rounds} rounds: {small}x{small} {statistics.median(times[small]):.2f} s, "
         f"{large}x{large} {statistics.median(times[large]):.2f} s; ratio {statistics.median(ratios):.1f}x "
         f"(pixels {(large / small) ** 2:.0f}x; per round {', '.join(f'{r:.1f}' for r in ratios)})",
+        flush=True,
+    )
+    print(
+        f"{scene.name}: CPU time, median: {small}x{small} {statistics.median(cpu[small]):.2f} s, "
+        f"{large}x{large} {statistics.median(cpu[large]):.2f} s; ratio {statistics.median(cpu_ratios):.1f}x; "
+        f"load average after: {os.getloadavg()[0]:.2f}",
         flush=True,
     )
     for n in a.peak_sizes:

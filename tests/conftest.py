@@ -170,6 +170,8 @@ SLOW: dict[str, float] = {
     "tests/test_edges.py::test_the_box_edges_fall_on_the_pixels_its_visible_edges_cross_and_nowhere_else": 1.7,  # 2 cases
     "tests/test_edges.py::test_a_wider_edge_in_a_colour_covers_as_its_width_says": 1.1,
     "tests/test_fold.py::test_128_004_agrees_with_opencascade_away_from_edges": 1.5,
+    "tests/test_film.py::test_a_streamed_render_gives_the_kept_render_s_image_and_stats": 5.6,  # load 11
+    "tests/test_film.py::test_shadow_rays_block_exactly_where_the_any_hit_tracer_finds_an_occluder": 1.3,
     "tests/test_batch.py::test_bad_usage_exits_2": 5.6,
     "tests/test_batch.py::test_files_travel_with_the_task_to_a_scheduler": 7.1,
     "tests/test_batch.py::test_six_items_match_single_renders_and_one_failure_is_reported": 21.7,

@@ -9,7 +9,6 @@ from test_models import exact_sphere
 
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import render
-from bsrt.rendering.shade import shade
 from bsrt.scene import parse_scene
 from bsrt.scene.camera import pixel_rays
 
@@ -135,8 +134,13 @@ def test_no_acne_on_a_lit_convex_surface():
     )
     res = render(scene)
     hit = res.hits.hit
-    d = pixel_rays(scene.camera, 128, 128)[hit]
-    unshadowed = shade(scene, res.position[hit], res.normal[hit], d, np.zeros(hit.sum(), dtype=int))
+    p, n = res.position[hit], res.normal[hit]
+    to_point = np.array([2.0, -3.0, 4.0]) - p  # Lambert (specular 0): albedo * max(cos, 0) * intensity / r^2
+    r2 = np.einsum("ij,ij->i", to_point, to_point)
+    cos_point = np.einsum("ij,ij->i", n, to_point) / np.sqrt(r2)
+    sun = -np.array([1.0, 0.2, -0.3]) / np.linalg.norm([1.0, 0.2, -0.3])
+    unshadowed = 0.8 * (29.0 * np.maximum(cos_point, 0.0) / r2 + 0.5 * np.maximum(n @ sun, 0.0))
+    unshadowed = np.repeat(unshadowed[:, None], 3, axis=1)
     got = res.linear.reshape(-1, 3)[hit]
     assert hit.sum() > 2000
     assert res.stats["shadow_rays"] > 1000

@@ -267,7 +267,7 @@ def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
     from bsrt.rendering.pipeline import render
 
     options = RenderOptions.resolve(scene)  # the job's settings are in the scene (load_job)
-    result = render(scene, options)
+    result = render(scene, options, keep=bool(job.aov))  # no AOVs: a streamed film
     return _encoded(png_writer(result.image)), _encoded(npz_writer(result.aovs())) if job.aov else None
 
 

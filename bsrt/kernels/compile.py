@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 
-from bsrt.kernels import flatten, patches, prelim, roots, shading, tables, traverse, trim, trim_pieces
+from bsrt.kernels import film, flatten, lighting, patches, prelim, roots, shading, tables, traverse, trim, trim_pieces
 
 # the kernels called from Python (the rest are compiled as part of them)
 ENTRY_KERNELS = (
@@ -28,7 +28,9 @@ ENTRY_KERNELS = (
     tables.permute_rows,
     tables.power_coefficients,
     shading.frames_many,
-    shading.blinn_phong,
+    lighting.shade_hits,
+    film.add_samples,
+    film.encode_rows,
     prelim.decode_tile,
     prelim.pixel_rays_into,
     prelim.normalise_rows,

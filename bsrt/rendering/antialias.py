@@ -52,8 +52,8 @@ def disagreeing(pixels: np.ndarray) -> np.ndarray:
 def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_samples: int) -> None:
     """Re-render the marked pixels with the samples of ``--spp columns * rows``, in place.
 
-    linear: (H, W, 3) float64 and pixels: (H, W, 3) uint8, the one-sample render, updated where
-    marked; coverage: (H, W) float64, the fraction of each pixel's samples that hit, updated
+    linear: (H, W, 3) float64 (or None: a streamed film) and pixels: (H, W, 3) uint8, the one-sample
+    render, updated where marked; coverage: (H, W) float64, the fraction of each pixel's samples that hit, updated
     alike. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
     camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
     most samples traced at once."""
@@ -63,27 +63,25 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     offset = np.stack([(a + 0.5) / cols, (b + 0.5) / rows], axis=1)  # (n, 2)
     first = ((a == 0) | (a == cols - 1)) & ((b == 0) | (b == rows - 1))  # the grid's corners
     marked = np.flatnonzero(disagreeing(pixels).ravel())
-    flat = linear.reshape(-1, 3)
     centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
     early, early_hit = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
     cover = coverage.reshape(-1)
     levels = srgb_encode(early).astype(np.int32)
     spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
     full = spread.max(axis=1) > CONTRAST
-    flat[marked[~full]] = early[~full].mean(axis=1)
-    cover[marked[~full]] = early_hit[~full].mean(axis=1)
-    if first.all():
-        flat[marked[full]] = early[full].mean(axis=1)
-        cover[marked[full]] = early_hit[full].mean(axis=1)
-    else:
+    value = early.mean(axis=1)  # (K, 3): the marked pixels' new linear RGB
+    cover[marked] = early_hit.mean(axis=1)
+    if not first.all():
         rest, rest_hit = _samples(marked[full], offset[~first], shade, trace, options, stats, chunk_samples)
-        flat[marked[full]] = (early[full].sum(axis=1) + rest.sum(axis=1)) / offset.shape[0]
+        value[full] = (early[full].sum(axis=1) + rest.sum(axis=1)) / offset.shape[0]
         cover[marked[full]] = (early_hit[full].sum(axis=1) + rest_hit.sum(axis=1)) / offset.shape[0]
     stats.add("adaptive_pixels", marked.size)
     stats.add("adaptive_full", int(full.sum()))
     stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int((~first).sum()))
     if marked.size:
-        pixels.reshape(-1, 3)[marked] = srgb_encode(flat[marked])
+        if linear is not None:
+            linear.reshape(-1, 3)[marked] = value
+        pixels.reshape(-1, 3)[marked] = srgb_encode(value)
 
 
 def _samples(which, offset, shade, trace, options, stats, chunk_samples: int) -> np.ndarray:

@@ -180,22 +180,22 @@ def _percent(row: dict, base: dict) -> float:
 
 
 def format_full(results: dict) -> str:
-    """Whole renders by stage (``--full``): seconds per stage (medians), secondary rays per second.
+    """Whole renders by stage (``--full``): seconds per stage (medians), secondary (shadow and mirror) rays per second of shading.
 
     "whole" is what one ``bsrt render`` of a loaded scene costs: the set-up
     (patch table and hierarchy, measured once) plus the median render.
     """
     lines = [
         f"Whole renders, {results['size']}x{results['size']}, seconds (median of {results['repeat']}); "
-        "shade includes secondary (shadow and mirror rays)"
+        "shade includes the shadow rays and secondary (mirror rays); rays/s: shadow and mirror rays per second of shade"
     ]
-    head = ("scene", "method", "setup", "map", "solve", "shade", "secondary", "render", "whole", "sec. rays/s")
+    head = ("scene", "method", "setup", "map", "solve", "shade", "secondary", "render", "whole", "rays/s")
     lines.append(f"{head[0]:12s}{head[1]:>9s}" + "".join(f"{h:>11s}" for h in head[2:]))
     for name, e in results["scenes"].items():
         for m, row in e["methods"].items():
             sec = row["seconds"]
             rays = row["shadow_rays"] + row["reflection_rays"]
-            rate = rays / sec["secondary"] if sec.get("secondary") else 0.0
+            rate = rays / sec["shade"] if sec.get("shade") else 0.0
             cells = (
                 e["setup_seconds"],
                 sec["map"],

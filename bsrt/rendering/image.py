@@ -28,6 +28,12 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
     return np.rint(s * 255.0).astype(np.uint8)
 
 
+def srgb_decode(pixels: np.ndarray) -> np.ndarray:
+    """8-bit sRGB (any shape, uint8) -> linear RGB float64 in [0, 1] (the curve's inverse)."""
+    s = pixels.astype(np.float64) / 255.0
+    return np.where(s <= 0.04045, s / 12.92, np.power((s + 0.055) / 1.055, 2.4))
+
+
 def srgb_encode16(linear: np.ndarray) -> np.ndarray:
     """Linear RGB in [0, 1] (any shape) -> 16-bit sRGB, clipped."""
     c = np.clip(np.nan_to_num(linear, nan=0.0), 0.0, 1.0)

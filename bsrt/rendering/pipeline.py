@@ -17,25 +17,37 @@ from functools import cached_property
 import numpy as np
 
 from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, build_bvh, intersect, out_of_budget, ray_budget
+from bsrt.kernels.lighting import shade_hits
+from bsrt.kernels.threads import run_chunks
+from bsrt.rendering.bvh import (
+    DEFAULT_MAX_ITERATIONS,
+    DEFAULT_RETRY_DEPTH,
+    build_bvh,
+    intersect,
+    out_of_budget,
+    ray_budget,
+)
+from bsrt.rendering.film import Film
 from bsrt.rendering.hits import Hits
-from bsrt.rendering.image import srgb_encode
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap
-from bsrt.rendering.shade import facing_frames, light_directions, shade
+from bsrt.rendering.shade import facing_frames, light_arrays
 from bsrt.rendering.stats import Stats
 from bsrt.rendering.trace import make_primary_tracer
 from bsrt.scene import Scene
 from bsrt.scene.camera import pixel_rays
 
 MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
-SECONDARY_CHUNK = 1 << 16  # secondary rays per kernel call: progress and cancellation points
+SECONDARY_CHUNK = 1 << 16  # rays (hits shaded, mirror rays) per kernel call: progress and cancellation points
+SHADOW_ITERATIONS = 16  # Newton iterations of a shadow ray on one piece (bvh.intersect's default)
 
 
 @dataclass(eq=False)
 class RenderResult:
     """pixels: (H, W, 3) uint8 sRGB. linear: (H, W, 3) float64.
     hits: Hits for the H * W pixel-centre rays (row-major).
+    linear and hits are None for a render with ``keep=False`` (a streamed
+    film: memory bounded by the band; no AOVs).
     position, normal: (H * W, 3) float64, NaN where no hit, computed from the
       hits on first use (a large film keeps only its hits).
     prelim: the preliminary map of the last band traced, the whole film's
@@ -60,6 +72,8 @@ class RenderResult:
         options.transparent; uint8, or uint16 when options.bit_depth is 16 (sRGB)."""
         from bsrt.rendering.image import encode_picture
 
+        if self.linear is None:  # a streamed film: opaque and 8-bit (render keeps the rest)
+            return self.pixels
         coverage = np.ones(self.linear.shape[:2]) if self.coverage is None else self.coverage
         return encode_picture(
             self.linear, coverage, self.options.background, self.options.transparent, self.options.bit_depth
@@ -67,6 +81,8 @@ class RenderResult:
 
     @cached_property
     def _frames(self):
+        if self.hits is None:
+            raise ValueError("this render kept no hits (keep=False): no positions, normals or AOVs")
         h, w = self.pixels.shape[:2]
         directions = pixel_rays(self.options.camera, w, h)
         return facing_frames(self.geometry.patches, self.hits, directions)[:2]
@@ -81,7 +97,7 @@ class RenderResult:
 
     def __repr__(self) -> str:
         h, w = self.pixels.shape[:2]
-        hit = int(np.count_nonzero(self.hits.hit))
+        hit = self.stats.get("hits", 0)
         took = f", {sum(self.stats.get('seconds', {}).values()):.2f} s"
         return (
             f"<RenderResult {w}x{h}, {self.options.spp} spp, {self.options.method}, {hit} of {w * h} pixel rays "
@@ -119,7 +135,7 @@ class RenderResult:
     def aovs(self) -> dict:
         """The arrays of ``--aov`` (keys, dtypes and shapes of the scene format)."""
         h, w = self.pixels.shape[:2]
-        hits = self.hits
+        normal, hits = self.normal, self.hits  # (raises first if the render kept no hits)
         return {
             "hit": hits.hit.reshape(h, w),
             "t": hits.t.reshape(h, w),
@@ -127,7 +143,7 @@ class RenderResult:
             "u": hits.u.reshape(h, w),
             "v": hits.v.reshape(h, w),
             "position": self.position.reshape(h, w, 3),
-            "normal": self.normal.reshape(h, w, 3),
+            "normal": normal.reshape(h, w, 3),
             "iterations": hits.iterations.astype(np.int32).reshape(h, w),
             "residual": hits.residual.reshape(h, w),
         }
@@ -137,6 +153,8 @@ def encode_picture_8(result: RenderResult) -> np.ndarray:
     """The result's picture as 8-bit (H, W, 3|4) uint8, whatever its bit depth."""
     from bsrt.rendering.image import encode_picture
 
+    if result.linear is None:  # a streamed film: opaque and 8-bit
+        return result.pixels
     coverage = np.ones(result.linear.shape[:2]) if result.coverage is None else result.coverage
     return encode_picture(result.linear, coverage, result.options.background, result.options.transparent, 8)
 
@@ -183,6 +201,7 @@ def render(
     ctx=None,
     prelim: PrelimMap | None = None,
     progress=None,
+    keep: bool = True,
 ) -> RenderResult:
     """Render a scene with ``options`` (default: the scene's own settings).
 
@@ -193,7 +212,10 @@ def render(
     elsewhere; spp = 1 only). progress: called as ``progress(stage,
     fraction)`` with a stage name ("map", "solve", "shade", "aov", "done") and
     the fraction (0..1) of the whole render done (bands traced and shaded,
-    secondary rays included); it may raise to abandon the render.
+    secondary rays included); it may raise to abandon the render. keep: hold
+    the linear image and every pixel-centre ray's hit for the result (its
+    ``linear``, ``hits``, ``aovs()``); False streams the film (rendering/film.py):
+    memory bounded by the band whatever the film's size, pixels and stats only.
 
     Anti-aliasing: spp samples per pixel sit at the centres of a stratified
     columns x rows grid (sample_grid), which is exactly the pixel-centre grid
@@ -223,52 +245,42 @@ def render(
     band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
-    linear = np.zeros((height, width, 3))  # sums of the samples until a pixel row is complete
-    coverage = np.zeros((height, width))  # samples that hit a surface, then their fraction
-    pixels = np.zeros((height, width, 3), dtype=np.uint8)
-    primary = Hits.empty(width * height)  # the pixel-centre rays' hits, filled band by band
+    # a transparent or 16-bit picture is encoded from the linear image; edges read the pixel-centre hits
+    keep = keep or opts.transparent or opts.bit_depth != 8 or opts.edges
+    film = Film(width, height, cols, rows, band, keep)
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
-    complete = 0  # pixel rows 0..complete-1 are final
     for first in range(0, sample_h, band):
         stop = min(sample_h, first + band)
         hits, directions = tracer.trace(sample_w, sample_h, (first, stop), prelim, first / total)
         shader.begin_band(hits, (first / total, stop / total))
         with stats.timer("shade"):
             colour = shader.shade(hits, directions)
-        sums = colour.reshape(stop - first, width, cols, 3).sum(axis=2)  # (band rows, width, 3)
-        np.add.at(linear, np.arange(first, stop) // rows, sums)
-        np.add.at(coverage, np.arange(first, stop) // rows, hits.hit.reshape(stop - first, width, cols).sum(axis=2))
-        done = stop // rows
-        if done > complete:
-            final = slice(complete, done)
-            linear[final] /= spp
-            coverage[final] /= spp
-            pixels[final] = srgb_encode(linear[final])  # per band: no film-sized temporaries
-            complete = done
+            film.add(colour, first, stop)
+        film.count_hits(hits.hit, first, stop)
+        del colour, directions
         if spp == 1:
-            primary.put(slice(first * width, stop * width), hits)
+            film.put_hits(first * width, hits)
     if spp > 1:  # the AOVs: pixel-centre rays
         band = max(1, MAX_BAND_SAMPLES // width)
         for first in range(0, height, band):
             report("aov", (sample_h + first) / total)
             stop = min(height, first + band)
             hits, _ = tracer.trace(width, height, (first, stop), None)
-            primary.put(slice(first * width, stop * width), hits)
+            film.put_hits(first * width, hits)
+    coverage = film.coverage
     if spp == 1 and opts.adaptive_spp > 1:
-        _adaptive(linear, pixels, coverage, tracer, shader, opts, geometry, stats)
+        _adaptive(film.linear, film.pixels, coverage, tracer, shader, opts, geometry, stats)
     if opts.edges:
-        linear, pixels, coverage = _edges(linear, coverage, primary, opts, geometry, stats)
+        coverage = _edges(film.linear, film.pixels, coverage, film.hits, opts, geometry, stats)
     report("done", 1.0)
-    hits = primary
-    work = hits.iterations[hits.iterations > 0]
     stats.fields.update(
         pixels=width * height,
-        hits=int(hits.hit.sum()),
-        iterations_mean=float(work.mean()) if work.size else 0.0,
-        iterations_max=int(hits.iterations.max()),
+        hits=film.hit_count,
+        iterations_mean=film.iterations_sum / film.iterations_count if film.iterations_count else 0.0,
+        iterations_max=film.iterations_max,
     )
     stats.add("out_of_budget", geometry.out_of_budget - spent_before)
-    return RenderResult(pixels, linear, hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
+    return RenderResult(film.pixels, film.linear, film.hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
 
 
 def _adaptive(linear, pixels, coverage, tracer, shader, opts: RenderOptions, geometry: Geometry, stats: Stats) -> None:
@@ -286,21 +298,29 @@ def _adaptive(linear, pixels, coverage, tracer, shader, opts: RenderOptions, geo
     refine(linear, pixels, coverage, sample_grid(opts.adaptive_spp), shade, trace, opts, stats, MAX_BAND_SAMPLES)
 
 
-def _edges(linear, coverage, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
-    """The edges drawn over the image (rendering/edges.py): (linear (H, W, 3), pixels (H, W, 3)
-    uint8, coverage (H, W)); a line adds to the coverage (the alpha) as it covers the pixel,
+def _edges(linear, pixels, coverage, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
+    """The edges drawn over the image (rendering/edges.py), in place: pixels (H, W, 3) uint8 and,
+    when kept, linear (H, W, 3) float64 (else the 8-bit pixels under a line are decoded to blend
+    with). Returns the coverage (H, W): a line adds to it (the alpha) as it covers the pixel,
     ``a + e (1 - a)``, so a transparent picture keeps the lines drawn over the background."""
     from bsrt.rendering.edges import draw, edge_coverage
+    from bsrt.rendering.image import srgb_decode, srgb_encode
 
     with stats.timer("edges"):
         lines = edge_coverage(geometry, opts, hits, stats)
-        linear = draw(linear, lines, opts.edge_color)
-    return linear, srgb_encode(linear), coverage + lines * (1.0 - coverage)
+        under = lines > 0
+        base = linear[under] if linear is not None else srgb_decode(pixels[under])
+        blended = draw(base, lines[under], opts.edge_color)
+        if linear is not None:
+            linear[under] = blended
+        pixels[under] = srgb_encode(blended)
+    return coverage + lines * (1.0 - coverage)
 
 
 class _Shader:
     """Colour along rays: Blinn-Phong with shadow rays to every point and
-    directional light, and mirror reflection up to options.max_depth bounces."""
+    directional light (one compiled pass per slice of hits: kernels/lighting.py),
+    and mirror reflection up to options.max_depth bounces."""
 
     def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius=None):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
@@ -309,43 +329,94 @@ class _Shader:
         self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
         self.tolerance = options.tolerance * geometry.diagonal
         self.reflectance = np.array([m.reflectance for m in scene.materials])
+        mats = scene.materials
+        self.materials = (
+            np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
+            np.array([m.specular for m in mats], dtype=np.float64),
+            np.array([m.shininess for m in mats], dtype=np.float64),
+        )
+        self.lights = light_arrays(scene.lights)
+        self.background = np.array(options.background, dtype=np.float64).reshape(3)
         self.span, self.expected, self.traced, self.shown = (0.0, 1.0), 1, 0, 0.0
         self.casting = sum(light.kind != "ambient" for light in scene.lights)
         stats.add("shadow_rays", 0)
         stats.add("reflection_rays", 0)
 
     def begin_band(self, hits: Hits, span: tuple[float, float]) -> None:
-        """Progress of the band's secondary rays is reported within span (fractions of the render),
-        against an estimate of their number (one shadow ray per hit and light, and a bounce where mirrors are)."""
+        """Progress of the band's shading is reported within span (fractions of the render),
+        against an estimate of its secondary rays (one shadow ray per hit and light, and a bounce where mirrors are)."""
         mirrors = 2 if np.any(self.reflectance > 0) and self.options.max_depth > 0 else 1
         self.span, self.traced = span, 0
         self.expected = max(1, int(hits.hit.sum()) * max(self.casting, 1) * mirrors)
 
+    def _advance(self, rays: int) -> None:
+        lo, hi = self.span
+        self.traced += rays
+        self.shown = max(self.shown, lo + (hi - lo) * min(0.99, self.traced / self.expected))
+        self.report("shade", self.shown)
+
     def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0):
-        """Linear RGB (K, 3) seen along each ray (ending at ``hits``)."""
-        position, normal, speed = facing_frames(self.geometry.patches, hits, directions)
-        colour = np.empty((len(hits), 3))
-        colour[:] = self.options.background
+        """Linear RGB (K, 3) seen along each ray (ending at ``hits``); directions: (K, 3) unit."""
+        n = len(hits)
+        directions = np.ascontiguousarray(directions, dtype=np.float64)
+        colour, position, normal = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        radius, shadow_rays, exhausted = np.empty((n, 2)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+        geometry = self.geometry
+        bvh = geometry.bvh
+        for a in range(0, n, SECONDARY_CHUNK):  # progress and cancellation points
+            part = slice(a, min(n, a + SECONDARY_CHUNK))
+            run_chunks(
+                shade_hits,
+                part.stop - part.start,
+                geometry.patches.arrays,
+                geometry.patches.trims,
+                bvh.arrays,
+                hits.hit[part],
+                hits.patch[part],
+                hits.surface[part],
+                hits.u[part],
+                hits.v[part],
+                directions[part],
+                geometry.material,
+                *self.materials,
+                *self.lights,
+                self.background,
+                1e-6 * geometry.diagonal,
+                float(self.tolerance),
+                SHADOW_ITERATIONS,
+                DEFAULT_RETRY_DEPTH,
+                bvh.padding + float(self.tolerance),
+                ray_budget(SHADOW_ITERATIONS),
+                colour[part],
+                position[part],
+                normal[part],
+                radius[part],
+                shadow_rays[part],
+                exhausted[part],
+                min_chunk=256,
+            )
+            geometry.out_of_budget += int(exhausted[part].sum())  # lit, as bvh.py's "Budget" says
+            rays = int(shadow_rays[part].sum())
+            self.stats.add("shadow_rays", rays)
+            self._advance(rays)
         hit = np.flatnonzero(hits.hit)
-        if not hit.size:
+        if hit.size and depth == 0 and (self.options.ao or self.ground >= 0):
+            surface = hits.surface[hit]
+            exclude = (surface, hits.u[hit], hits.v[hit], radius[hit, 0], radius[hit, 1])
+            self._occlude(colour, hit, surface, position[hit], normal[hit], geometry.material[surface], exclude)
+        if not hit.size or depth >= self.options.max_depth:
             return colour
-        pos, nrm, dirs = position[hit], normal[hit], directions[hit]
-        material = self.geometry.material[hits.surface[hit]]
-        exclude = self._exclusion(hits, hit, speed[hit])
-        visibility = self._visibility(pos, nrm, exclude)
-        colour[hit] = shade(self.scene, pos, nrm, dirs, material, visibility)
-        if depth == 0 and (self.options.ao or self.ground >= 0):
-            self._occlude(colour, hit, hits.surface[hit], pos, nrm, material, exclude)
-        reflectance = self.reflectance[material]
-        mirror = np.flatnonzero(reflectance > 0)
-        if mirror.size and depth < self.options.max_depth:
-            d, n = dirs[mirror], nrm[mirror]
-            r = d - 2.0 * np.einsum("ij,ij->i", d, n)[:, None] * n
+        reflectance = self.reflectance[geometry.material[hits.surface[hit]]]
+        mirror = hit[reflectance > 0]
+        if mirror.size:
+            d, nrm = directions[mirror], normal[mirror]
+            r = d - 2.0 * np.einsum("ij,ij->i", d, nrm)[:, None] * nrm
             self.stats.add("reflection_rays", mirror.size)
-            seen = self._trace(pos[mirror], r, tuple(a[mirror] for a in exclude))
+            exclude = (hits.surface[mirror], hits.u[mirror], hits.v[mirror], radius[mirror, 0], radius[mirror, 1])
+            seen = self._trace(position[mirror], r, exclude)
             reflected = self.shade(seen, r, depth + 1)
-            k = reflectance[mirror][:, None]
-            colour[hit[mirror]] = (1.0 - k) * colour[hit[mirror]] + k * reflected
+            k = reflectance[reflectance > 0][:, None]
+            colour[mirror] = (1.0 - k) * colour[mirror] + k * reflected
         return colour
 
     def _occlude(self, colour, hit, surface, pos, nrm, material, exclude) -> None:
@@ -370,26 +441,12 @@ class _Shader:
             colour[hit[which[~ground]]] -= lost[~ground]
         colour[hit[which[ground]]] *= openness[ground][:, None]
 
-    def _exclusion(self, hits: Hits, hit: np.ndarray, speed: np.ndarray):
-        """The parameter box around each hit that its secondary rays must not hit again.
-
-        Half-widths: 1e-6 of the scene diagonal in scene units, converted with
-        |S_u|, |S_v| (a thousand times the root finder's tolerance), at most a
-        quarter of the patch (where S_u or S_v vanishes, at poles).
-        """
-        eps = 1e-6 * self.geometry.diagonal
-        bounds = self.geometry.patches.bounds[hits.patch[hit]]
-        with np.errstate(divide="ignore"):
-            ru = np.minimum(eps / speed[:, 0], 0.25 * (bounds[:, 1] - bounds[:, 0]))
-            rv = np.minimum(eps / speed[:, 1], 0.25 * (bounds[:, 3] - bounds[:, 2]))
-        return hits.surface[hit], hits.u[hit], hits.v[hit], ru, rv
-
     def _trace(self, origins, directions, exclude, t_max=np.inf, any_hit=False) -> Hits:
-        """Secondary rays through the hierarchy, in chunks (progress, cancellation)."""
+        """Mirror, occlusion and edge rays through the hierarchy (nearest hits, or any hit before
+        t_max), in chunks (progress, cancellation)."""
         parts = []
         n = directions.shape[0]
         t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
-        lo, hi = self.span
         with self.stats.timer("secondary"):
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
@@ -400,28 +457,9 @@ class _Shader:
                         t_min=0.0,
                         t_max=t_max[part],
                         tolerance=self.tolerance,
-                        any_hit=any_hit,
                         exclude=tuple(x[part] for x in exclude),
+                        any_hit=any_hit,
                     )
                 )
-                self.traced += part.stop - part.start
-                self.shown = max(self.shown, lo + (hi - lo) * min(0.99, self.traced / self.expected))
-                self.report("shade", self.shown)
+                self._advance(part.stop - part.start)
         return Hits.concatenate(parts) if parts else Hits.empty(0)
-
-    def _visibility(self, position, normal, exclude) -> np.ndarray:
-        """(K, L) 1.0 where light L reaches the point, 0.0 in shadow (any-hit shadow rays)."""
-        visibility = np.ones((position.shape[0], len(self.scene.lights)))
-        for index, light in enumerate(self.scene.lights):
-            if light.kind == "ambient":
-                continue
-            to_light, dist = light_directions(light, position)
-            facing = np.flatnonzero(np.einsum("ij,ij->i", normal, to_light) > 0)
-            if not facing.size:
-                continue
-            self.stats.add("shadow_rays", facing.size)
-            blocked = self._trace(
-                position[facing], to_light[facing], tuple(a[facing] for a in exclude), t_max=dist[facing], any_hit=True
-            )
-            visibility[facing[blocked.hit], index] = 0.0
-        return visibility

@@ -1,7 +1,8 @@
-"""Colour from hits: exact normals and Blinn-Phong lighting. Linear RGB.
+"""Colour from hits: exact normals, and the lights as the shading kernels take them. Linear RGB.
 
-The per-hit loops are compiled (``kernels/shading.py``); this module turns a
-scene's materials and lights into the kernels' arrays.
+The per-hit loops are compiled: frames (``kernels/shading.py``), and the
+whole lighting pass with its shadow rays (``kernels/lighting.py``, driven by
+rendering/pipeline.py); this module turns a scene's lights into their arrays.
 """
 
 from __future__ import annotations
@@ -9,10 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.geometry.patches import PatchSet
-from bsrt.kernels.shading import LIGHT_KINDS, blinn_phong, frames_many
+from bsrt.kernels.shading import LIGHT_KINDS, frames_many
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.hits import Hits
-from bsrt.scene import Scene
 
 
 def facing_frames(patches: PatchSet, hits: Hits, directions: np.ndarray):
@@ -22,53 +22,27 @@ def facing_frames(patches: PatchSet, hits: Hits, directions: np.ndarray):
     vanishes (a pole, a collapsed edge) the limit normal is taken a small
     step toward the patch centre, so no NaN reaches the image."""
     n = len(hits)
-    position, normal, speed = np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.full((n, 2), np.nan)
-    hit = np.flatnonzero(hits.hit)
-    if hit.size:
-        pos, nrm, spd = np.empty((hit.size, 3)), np.empty((hit.size, 3)), np.empty((hit.size, 2))
-        run_chunks(
-            frames_many,
-            hit.size,
-            patches.arrays,
-            hits.patch[hit],
-            hits.u[hit],
-            hits.v[hit],
-            np.ascontiguousarray(directions[hit], dtype=np.float64),
-            pos,
-            nrm,
-            spd,
-        )
-        position[hit], normal[hit], speed[hit] = pos, nrm, spd
+    position, normal, speed = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2))
+    run_chunks(
+        frames_many,
+        n,
+        patches.arrays,
+        np.ascontiguousarray(hits.hit),
+        np.ascontiguousarray(hits.patch),
+        np.ascontiguousarray(hits.u),
+        np.ascontiguousarray(hits.v),
+        np.ascontiguousarray(directions, dtype=np.float64),
+        position,
+        normal,
+        speed,
+    )
     return position, normal, speed
 
 
-def light_directions(light, position: np.ndarray):
-    """Unit directions (K, 3) from each point toward the light, distances (K,) (inf if directional)."""
-    if light.kind == "point":
-        to_light = np.array(light.position) - position
-        dist = np.linalg.norm(to_light, axis=1)
-        return to_light / np.maximum(dist, 1e-300)[:, None], dist
-    d = np.array(light.direction)
-    return np.broadcast_to(-d / np.linalg.norm(d), position.shape), np.full(position.shape[0], np.inf)
-
-
-def shade(
-    scene: Scene,
-    position: np.ndarray,
-    normal: np.ndarray,
-    view: np.ndarray,
-    material: np.ndarray,
-    visibility: np.ndarray | None = None,
-) -> np.ndarray:
-    """Blinn-Phong radiance toward the viewer.
-
-    position, normal: (K, 3) (normal unit, facing the viewer); view: (K, 3)
-    unit directions from the viewer to the point; material: (K,) int index
-    into scene.materials; visibility: (K, L) float, 1 where light L reaches
-    the point (0 in its shadow), None for all lit. Point lights fall off with
-    the inverse square of the distance. Returns (K, 3) float64 linear RGB.
-    """
-    k, lights = position.shape[0], scene.lights
+def light_arrays(lights):
+    """The kernels' view of a scene's lights (L of them): kind (L,) int64 (LIGHT_KINDS),
+    position (L, 3) (point lights; 0 for others), direction (L, 3) (directional lights: the unit
+    direction toward the light; 0 for others), strength (L, 3) = colour x intensity."""
     kind = np.array([LIGHT_KINDS[light.kind] for light in lights], dtype=np.int64)
     light_pos = np.array([light.position or (0.0, 0.0, 0.0) for light in lights], dtype=np.float64).reshape(-1, 3)
     light_dir = np.zeros((len(lights), 3))
@@ -76,23 +50,4 @@ def shade(
         if light.kind == "directional":
             light_dir[j] = -np.array(light.direction) / np.linalg.norm(light.direction)
     strength = np.array([np.array(light.color) * light.intensity for light in lights], dtype=np.float64).reshape(-1, 3)
-    if visibility is None:
-        visibility = np.ones((k, len(lights)))
-    out = np.empty((k, 3))
-    mats = scene.materials
-    blinn_phong(
-        np.ascontiguousarray(position, dtype=np.float64),
-        np.ascontiguousarray(normal, dtype=np.float64),
-        np.ascontiguousarray(view, dtype=np.float64),
-        np.ascontiguousarray(material, dtype=np.int64),
-        np.array([m.color for m in mats], dtype=np.float64),
-        np.array([m.specular for m in mats], dtype=np.float64),
-        np.array([m.shininess for m in mats], dtype=np.float64),
-        kind,
-        light_pos,
-        light_dir,
-        strength,
-        np.ascontiguousarray(visibility, dtype=np.float64),
-        out,
-    )
-    return out
+    return kind, light_pos, light_dir, strength

@@ -12,7 +12,7 @@ from bsrt.scene import parse_scene
 
 def warm_up() -> float:
     """Compile (or load) every kernel by rendering a tiny trimmed scene with each method and a
-    shadow-casting light (GL included); returns the seconds it took."""
+    shadow-casting light (GL included), and the AOVs once; returns the seconds it took."""
     square = [
         {"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]}
         for a, b in (
@@ -43,5 +43,6 @@ def warm_up() -> float:
     )
     clock = time.perf_counter()
     for method in METHODS:
-        render(scene, RenderOptions.resolve(scene, method=method))
+        result = render(scene, RenderOptions.resolve(scene, method=method))
+    result.aovs()  # the AOVs' frames (--aov)
     return time.perf_counter() - clock

@@ -1,0 +1,114 @@
+"""The film a render fills band by band: pixel sums, sRGB bytes, and (when kept) every pixel's hit.
+
+A streaming film (``keep=False``) holds the 8-bit image and only the pixel
+rows the current band touches, so a render's memory is bounded by the band
+(about 3 bytes per pixel of the film, plus the band's working arrays); a kept
+film also holds the linear RGB (24 bytes per pixel) and the pixel-centre rays'
+hits (53 bytes per pixel) that RenderResult.linear, .hits and .aovs() give.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bsrt.kernels.film import add_samples, encode_rows
+from bsrt.kernels.threads import run_chunks
+from bsrt.rendering.hits import Hits
+
+ROWS_PER_TASK = 8  # pixel rows per thread-pool task when summing and encoding
+
+
+class Film:
+    """width x height pixels of spp = columns x rows samples, traced in bands of at most
+    ``band`` sample rows (rendering/pipeline.py).
+
+    pixels: (H, W, 3) uint8 sRGB, rows final as their samples are all in.
+    linear: (H, W, 3) float64 linear RGB when kept (None when streaming).
+    hits: Hits of the H * W pixel-centre rays when kept (None when streaming).
+    coverage: (H, W) float64, the fraction of each pixel's samples that hit a surface
+      (counted in 2 bytes a pixel, kept or not: the alpha of a transparent picture).
+    hit_count, iterations_sum, iterations_count, iterations_max: the
+      pixel-centre rays' hits and root-finding iterations (rays that spent any),
+      counted as they come, kept or not.
+    """
+
+    def __init__(self, width: int, height: int, columns: int, rows: int, band: int, keep: bool = True):
+        self.width, self.height, self.columns, self.rows, self.keep = width, height, columns, rows, keep
+        self.pixels = np.zeros((height, width, 3), dtype=np.uint8)
+        # the pixel rows a band touches: band // rows + 2 (a band may start and end inside a row)
+        self._sums = np.zeros((height if keep else min(height, band // rows + 2), width, 3))
+        self._base = 0  # the pixel row of _sums[0]
+        self._complete = 0  # pixel rows 0 .. _complete - 1 are final
+        self.hits = Hits.empty(width * height) if keep else None
+        self._hit_samples = np.zeros((height, width), dtype=np.uint16)  # spp <= 256 < 2^16
+        self.hit_count = self.iterations_sum = self.iterations_count = self.iterations_max = 0
+
+    @property
+    def linear(self) -> np.ndarray | None:
+        return self._sums if self.keep else None
+
+    def add(self, colour: np.ndarray, first: int, stop: int) -> None:
+        """Add the samples colour ((stop - first) * width * columns, 3) float64 of sample rows
+        first..stop-1 (in order: bands come top to bottom); rows completed are encoded."""
+        lo, hi = first // self.rows, (stop - 1) // self.rows + 1
+        run_chunks(
+            _add_rows,
+            hi - lo,
+            lo,
+            colour,
+            first,
+            stop,
+            self.rows,
+            self.columns,
+            self.width,
+            self._sums,
+            self._base,
+            min_chunk=ROWS_PER_TASK,
+        )
+        done = stop // self.rows
+        if done <= self._complete:
+            return
+        run_chunks(
+            _encode_rows,
+            done - self._complete,
+            self._complete,
+            self._sums,
+            self._base,
+            float(self.rows * self.columns),
+            self.pixels,
+            min_chunk=ROWS_PER_TASK,
+        )
+        self._complete = done
+        if not self.keep:  # keep the partial row (if any) at the top, the rest zero
+            partial = hi - done
+            self._sums[:partial] = self._sums[done - self._base : hi - self._base]
+            self._sums[partial:] = 0.0
+            self._base = done
+
+    def count_hits(self, hit: np.ndarray, first: int, stop: int) -> None:
+        """hit: ((stop - first) * width * columns,) bool, the samples of sample rows first..stop-1."""
+        per_row = hit.reshape(stop - first, self.width, self.columns).sum(axis=2, dtype=np.uint16)
+        np.add.at(self._hit_samples, np.arange(first, stop) // self.rows, per_row)
+
+    @property
+    def coverage(self) -> np.ndarray:
+        return self._hit_samples / float(self.rows * self.columns)
+
+    def put_hits(self, start: int, hits: Hits) -> None:
+        """The pixel-centre rays start .. start + len(hits) - 1 found ``hits``."""
+        if self.keep:
+            self.hits.put(slice(start, start + len(hits)), hits)
+        its = hits.iterations
+        self.hit_count += int(np.count_nonzero(hits.hit))
+        spent = its > 0
+        self.iterations_sum += int(its[spent].sum(dtype=np.int64))
+        self.iterations_count += int(np.count_nonzero(spent))
+        self.iterations_max = max(self.iterations_max, int(its.max()) if its.size else 0)
+
+
+def _add_rows(start, stop, lo, *args):
+    add_samples(lo + start, lo + stop, *args)
+
+
+def _encode_rows(start, stop, first, *args):
+    encode_rows(first + start, first + stop, *args)
