@@ -65,11 +65,7 @@ class FaceError(Exception):
 def _points(original, u, v) -> np.ndarray:
     """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
     value = original.Value
-    coords = [
-        c
-        for p in map(value, np.asarray(u, float).tolist(), np.asarray(v, float).tolist())
-        for c in (p.X(), p.Y(), p.Z())
-    ]
+    coords = [value(a, b).Coord() for a, b in zip(np.asarray(u, float).tolist(), np.asarray(v, float).tolist())]
     return np.array(coords, dtype=np.float64).reshape(-1, 3)
 
 
@@ -345,11 +341,10 @@ def _deviation(original, local: BSplineSurface, pmap: ParamMap) -> float:
     umin, umax, vmin, vmax = pmap.bounds
     fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])
     us, vs = umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin)
-    uu, vv = np.meshgrid(us, vs, indexing="ij")
     # the map is separable: the grid's (x, y) is the grid of f(u) and g(v)
     x = np.clip(pmap.fu(us), *local.domain_u)
     y = np.clip(pmap.fv(vs), *local.domain_v)
-    want = _points(original, uu.ravel(), vv.ravel())
+    want = _points(original, np.repeat(us, vs.size), np.tile(vs, us.size))  # the grid (us[i], vs[j]), i-major
     got = grid_points(local, x, y).reshape(-1, 3)
     return float(np.max(np.linalg.norm(got - want, axis=1)))
 
@@ -363,9 +358,7 @@ def _extract(bs) -> BSplineSurface:
     nu, nv = bs.NbUPoles(), bs.NbVPoles()
     pole, weight = bs.Pole, bs.Weight
     rows, cols = range(1, nu + 1), range(1, nv + 1)
-    points = np.array(
-        [c for i in rows for j in cols for p in (pole(i, j),) for c in (p.X(), p.Y(), p.Z())], dtype=np.float64
-    ).reshape(nu, nv, 3)
+    points = np.array([pole(i, j).Coord() for i in rows for j in cols], dtype=np.float64).reshape(nu, nv, 3)
     if bs.IsURational() or bs.IsVRational():
         weights = np.array([weight(i, j) for i in rows for j in cols], dtype=np.float64).reshape(nu, nv)
     else:
@@ -382,4 +375,4 @@ def _extract(bs) -> BSplineSurface:
 
 def flat_knots(knot, multiplicity, n) -> np.ndarray:
     """(K,) float64: the knots of an OpenCASCADE curve or surface direction, each repeated by its multiplicity."""
-    return np.repeat([knot(i) for i in range(1, n + 1)], [multiplicity(i) for i in range(1, n + 1)]).astype(np.float64)
+    return np.array([x for i in range(1, n + 1) for x in [knot(i)] * multiplicity(i)], dtype=np.float64)
