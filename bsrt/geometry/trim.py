@@ -210,6 +210,8 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
         if not loop.curves:
             raise InputError(f"trim[{i}].curves: a loop needs at least one curve")
         ends = [c.ends() for c in loop.curves]
+        if _loop_fine(loop, ends, gap, (umin - slack, umax + slack, vmin - slack, vmax + slack)):
+            continue
         for j, (curve, e) in enumerate(zip(loop.curves, ends)):
             prev = ends[j - 1][1]
             if np.hypot(*(e[0] - prev)) > gap:
@@ -233,6 +235,19 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
                         f"[{vmin:g}, {vmax:g}] (it passes ({far[0]:g}, {far[1]:g}))"
                     )
     return tuple(loops)
+
+
+def _loop_fine(loop: TrimLoop, ends: list[np.ndarray], gap: float, box) -> bool:
+    """Whether check_loops' tests pass for the whole loop, tested at once (False: the curve by curve
+    tests decide, and name the curve). ends: each curve's (2, 2) ends."""
+    e = np.stack(ends)  # (m, 2, 2)
+    d = e[:, 0] - np.roll(e[:, 1], 1, axis=0)  # each start minus the previous curve's end
+    if (np.hypot(d[:, 0], d[:, 1]) > gap).any():
+        return False
+    pts = np.concatenate([c.points for c in loop.curves]) if len(loop.curves) > 1 else loop.curves[0].points
+    return _all_within(pts, *box) or all(
+        _all_within(c.points, *box) or point_outside(c, box) is None for c in loop.curves
+    )
 
 
 def _all_within(pts: np.ndarray, u0: float, u1: float, v0: float, v1: float) -> bool:
@@ -271,13 +286,13 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
         nets = nets[out.any(axis=1)]
         if nets.shape[0] == 0:
             return None
-        left, right = [nets[:, 0]], [nets[:, -1]]  # de Casteljau at 1/2
+        halves = np.empty((2, nets.shape[0], p + 1, 3))  # de Casteljau at 1/2: the left and right halves
+        halves[0, :, 0], halves[1, :, p] = nets[:, 0], nets[:, -1]
         level = nets
-        for _ in range(p):
+        for r in range(1, p + 1):
             level = 0.5 * (level[:, :-1] + level[:, 1:])
-            left.append(level[:, 0])
-            right.append(level[:, -1])
-        nets = np.concatenate([np.stack(left, axis=1), np.stack(right[::-1], axis=1)])
+            halves[0, :, r], halves[1, :, p - r] = level[:, 0], level[:, -1]
+        nets = halves.reshape(-1, p + 1, 3)
     return None
 
 

@@ -213,11 +213,13 @@ def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
     return out[0], out[1]
 
 
-def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) -> TrimCurve:
+def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
     """The pcurve (original (u, v)) as a curve in the B-spline's (x, y).
 
     tolerance: the largest error allowed in x and in y (a fitted curve's
-    3-D error is at most their sum times the derivative bounds' part).
+    3-D error is at most their sum times the derivative bounds' part), as a
+    pair of floats or a function of no arguments returning them (called only
+    when the curve is fitted).
     """
     fu, fv = pmap.fu, pmap.fv
     if fu.kind == "identity" and fv.kind == "identity":
@@ -245,7 +247,7 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
         values = uv[:, axis]
         lines = _break_lines(fmap, float(values.min()), float(values.max()))
         breaks.append(_crossings(points, axis, lines, t, values))
-    return _fit(points, pmap, np.unique(np.concatenate(breaks)), tolerance)
+    return _fit(points, pmap, np.unique(np.concatenate(breaks)), tolerance() if callable(tolerance) else tolerance)
 
 
 def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:

@@ -31,6 +31,7 @@ becomes one or more :class:`~bsrt.geometry.trim.TrimLoop`, in steps:
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -38,6 +39,7 @@ import numpy as np
 from bsrt.geometry.bspline import BSplineSurface, insert_knot
 from bsrt.geometry.trim import TrimCurve, TrimLoop, point_outside
 from bsrt.io.occt.curves import (
+    FIT_TOLERANCE,
     TrimError,
     derivative_bounds,
     evaluator,
@@ -69,7 +71,8 @@ def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: floa
         edges = wire_edges(wire, face)
         curves = [c for c in (pcurve(e, face) for e in edges) if c is not None]
         if curves:
-            chain, gap = _chained(curves, original, pmap, max(_MEET * size, 2.0 * _tolerance(edges)))
+            meet = functools.cache(lambda edges=edges: max(_MEET * size, 2.0 * _tolerance(edges)))
+            chain, gap = _chained(curves, original, pmap, meet)
             (around if gap is not None else closed).append((chain, gap))
         explorer.Next()
     loops = []
@@ -77,11 +80,13 @@ def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: floa
         loops.extend(_placed(chain, pmap))
     if around:
         loops.extend(_closed_around(around, pmap))
-    lu, lv = derivative_bounds(local)
-    from bsrt.io.occt.curves import FIT_TOLERANCE
 
-    tol = FIT_TOLERANCE * size
-    tolerance = (tol / max(lu, 1e-300), tol / max(lv, 1e-300))
+    @functools.cache
+    def tolerance() -> tuple[float, float]:  # only a fitted pcurve needs it: the bounds are computed once, if at all
+        lu, lv = derivative_bounds(local)
+        tol = FIT_TOLERANCE * size
+        return (tol / max(lu, 1e-300), tol / max(lv, 1e-300))
+
     return [TrimLoop(tuple(_close([map_curve(c, pmap, tolerance) for c in loop], local, size))) for loop in loops]
 
 
@@ -141,10 +146,11 @@ def _space_gap(original, a: np.ndarray, b: np.ndarray) -> float:
     return float(pa.Distance(pb))
 
 
-def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
+def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet):
     """(curves end to end, across the seam; the closing gap (2,) if it goes once round a period, else None).
 
-    meet: how far apart (model units) two ends may be in space and still meet.
+    meet: a function of no arguments giving how far apart (model units) two ends may be in space and
+    still meet (called only where two ends differ in (u, v)).
     """
     periods = _periods(pmap)
     umin, umax, vmin, vmax = pmap.bounds
@@ -161,7 +167,7 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
             if periodic:
                 c = shifted(c, _nearest_shift(c.ends()[0], end, periods))
             start = c.ends()[0]
-            if _hypot(start - end) > snap and _space_gap(original, start, end) > meet:
+            if _hypot(start - end) > snap and _space_gap(original, start, end) > meet():
                 ordered = False  # not in order along the wire: chain the rest greedily
                 left.insert(0, c)
                 continue
@@ -169,7 +175,7 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
             c = _greedy_next(end, left, periods)
             start = c.ends()[0]
         if _hypot(start - end) > snap:
-            if _space_gap(original, start, end) > meet:
+            if _space_gap(original, start, end) > meet():
                 raise TrimError(
                     f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} apart"
                 )
@@ -178,7 +184,7 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
     first, last = out[0].ends()[0], out[-1].ends()[1]
     gap = first - last
     back = _nearest_shift(last, first, periods)
-    if np.hypot(*(gap - back)) <= snap or _space_gap(original, first, last) <= meet:
+    if np.hypot(*(gap - back)) <= snap or _space_gap(original, first, last) <= meet():
         if np.any(back) and np.hypot(*(gap - back)) <= snap:
             return out, back  # ends one period from its start: round the surface
         if np.hypot(*gap) > snap:
