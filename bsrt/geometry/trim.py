@@ -241,7 +241,7 @@ def _loop_fine(loop: TrimLoop, ends: list[np.ndarray], gap: float, box) -> bool:
     """Whether check_loops' tests pass for the whole loop, tested at once (False: the curve by curve
     tests decide, and name the curve). ends: each curve's (2, 2) ends."""
     e = np.stack(ends)  # (m, 2, 2)
-    d = e[:, 0] - np.roll(e[:, 1], 1, axis=0)  # each start minus the previous curve's end
+    d = e[:, 0] - np.concatenate([e[-1:, 1], e[:-1, 1]])  # each start minus the previous curve's end
     if (np.hypot(d[:, 0], d[:, 1]) > gap).any():
         return False
     pts = np.concatenate([c.points for c in loop.curves]) if len(loop.curves) > 1 else loop.curves[0].points
@@ -276,12 +276,12 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
         for _ in range(p - int(np.count_nonzero(knots == x))):
             knots, ctrl = insert_knot(knots, ctrl, p, x)
     nets = np.stack([ctrl[i * p : i * p + p + 1] for i in range((ctrl.shape[0] - 1) // p)])  # (S, p + 1, 3)
+    low, high = np.array([u0, v0], dtype=np.float64), np.array([u1, v1], dtype=np.float64)
     for _ in range(30):
         xy = nets[..., :2] / nets[..., 2:3]
-        out = (xy[..., 0] < u0) | (xy[..., 0] > u1) | (xy[..., 1] < v0) | (xy[..., 1] > v1)
-        ends = out[:, [0, -1]]
-        if ends.any():
-            span, end = np.argwhere(ends)[0]
+        out = ((xy < low) | (xy > high)).any(axis=2)  # (S, p + 1): the control point is outside the box
+        if out[:, 0].any() or out[:, -1].any():
+            span, end = np.argwhere(out[:, [0, -1]])[0]
             return xy[span, 0 if end == 0 else -1].copy()
         nets = nets[out.any(axis=1)]
         if nets.shape[0] == 0:

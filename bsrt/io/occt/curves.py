@@ -53,8 +53,7 @@ def pcurve(edge, face) -> TrimCurve | None:
     if type(curve) is occ.Line:
         # Geom2dConvert makes a line from first to last the degree-1 B-spline through its ends (poles
         # Value(first), Value(last), knots first, first, last, last): built here as it would be
-        a, b = curve.Value(first), curve.Value(last)
-        points = np.array([[a.X(), a.Y()], [b.X(), b.Y()]])
+        points = np.array([curve.Value(first).Coord(), curve.Value(last).Coord()])
         knots = np.array([first, first, last, last], dtype=np.float64)
         if reverse:
             points, knots = points[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
@@ -71,7 +70,7 @@ def pcurve(edge, face) -> TrimCurve | None:
         bc.SetNotPeriodic()
     n = bc.NbPoles()
     pole, weight = bc.Pole, bc.Weight
-    points = np.array([c for p in map(pole, range(1, n + 1)) for c in (p.X(), p.Y())], dtype=np.float64).reshape(n, 2)
+    points = np.array([pole(i).Coord() for i in range(1, n + 1)], dtype=np.float64).reshape(n, 2)
     weights = np.array(list(map(weight, range(1, n + 1))), dtype=np.float64) if bc.IsRational() else np.ones(n)
     knots = flat_knots(bc.Knot, bc.Multiplicity, bc.NbKnots())
     if reverse:

@@ -294,26 +294,38 @@ def _closed_around(around, pmap: ParamMap) -> list[list[TrimCurve]]:
 def _close(curves: list[TrimCurve], surface: BSplineSurface, size: float) -> list[TrimCurve]:
     """Snap the ends of consecutive curves together and cut off their excursions out of the domain."""
     n = len(curves)
-    ends = [c.ends() for c in curves]
-    (a0, a1), (b0, b1) = surface.domain_u, surface.domain_v
+    ends = np.stack([c.ends() for c in curves])  # (n, 2, 2)
+    domain = (*surface.domain_u, *surface.domain_v)
+    mids = 0.5 * (ends[:, 1] + np.concatenate([ends[1:, 0], ends[:1, 0]]))  # where curve i ends and curve i + 1 starts
     pts = [c.points.copy() for c in curves]
     for i in range(n):
-        j = (i + 1) % n
-        mid = 0.5 * (ends[i][1] + ends[j][0])
-        pts[i][-1] = mid
-        pts[j][0] = mid
-    inside = [_inside_domain(TrimCurve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1)) for c, p in zip(curves, pts)]
-    return _off_the_edges(inside, (a0, a1, b0, b1))
+        pts[i][-1] = mids[i]
+        pts[(i + 1) % n][0] = mids[i]
+    boxes = _boxes(pts)
+    snapped = [TrimCurve(c.degree, c.knots, p, c.weights) for c, p in zip(curves, pts)]
+    inside = [_inside_domain(c, domain, box) for c, box in zip(snapped, boxes)]
+    # (a curve _inside_domain returns as it is keeps its box)
+    return _off_the_edges(inside, domain, [box if a is b else None for a, b, box in zip(inside, snapped, boxes)])
 
 
-def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
+def _boxes(pts: list[np.ndarray]) -> list[tuple[list[float], list[float]]]:
+    """Each (n_k, 2) point array's ([x_min, y_min], [x_max, y_max]), all in a few NumPy calls."""
+    if len(pts) == 1:
+        return [(pts[0].min(axis=0).tolist(), pts[0].max(axis=0).tolist())]
+    starts = np.cumsum([0] + [p.shape[0] for p in pts[:-1]])
+    every = np.concatenate(pts)
+    return list(zip(np.minimum.reduceat(every, starts).tolist(), np.maximum.reduceat(every, starts).tolist()))
+
+
+def _off_the_edges(curves: list[TrimCurve], domain, boxes=None) -> list[TrimCurve]:
     """The curves that run along an edge of the domain (a seam, the side of a face that fills its
     bounds) moved just outside it, their neighbours' ends with them.
 
     On the loop itself the even-odd test may go either way, and a hit on a
     seam lies on the domain's edge, where its (u, v) is clamped: a loop a
     rounding error inside would leave a crack one ray wide. Outside the
-    domain there is no surface, so the loop may run there.
+    domain there is no surface, so the loop may run there. boxes: each
+    curve's control points' ([x_min, y_min], [x_max, y_max]) where known, else None.
     """
     a0, a1, b0, b1 = domain
     span = np.array([a1 - a0, b1 - b0])
@@ -323,7 +335,8 @@ def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
     moved = []
     for k, p in enumerate(pts):
         along = False
-        lows, highs = p.min(axis=0).tolist(), p.max(axis=0).tolist()
+        box = boxes[k] if boxes is not None else None
+        lows, highs = box if box is not None else (p.min(axis=0).tolist(), p.max(axis=0).tolist())
         for axis, (lo, hi) in enumerate(((a0, a1), (b0, b1))):
             # every |x - lo| <= near: |x - lo| (rounded too) is largest at the smallest or the largest x
             if abs(lows[axis] - lo) <= near[axis] and abs(highs[axis] - lo) <= near[axis]:
@@ -358,7 +371,7 @@ def _outer(a: np.ndarray, b: np.ndarray, domain) -> np.ndarray:
     return np.where(np.abs(a - mid) >= np.abs(b - mid), a, b)
 
 
-def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
+def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
     """The curve with its excursions out of the surface's domain moved onto the domain's edge.
 
     Only the part inside the domain matters (the surface has nothing
@@ -367,12 +380,13 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     points clipped onto the domain's edge. If the curve still leaves the
     domain (:func:`~bsrt.geometry.trim.point_outside`, exact), it weaves along
     the edge between the samples, by about the file's tolerance: its
-    control points outside are clipped too.
+    control points outside are clipped too. box: the control points'
+    ([x_min, y_min], [x_max, y_max]) if known.
     """
     a0, a1, b0, b1 = domain
     eps = 1e-12 * np.hypot(a1 - a0, b1 - b0)  # a curve along the edge is inside, rounding aside
     p_all = curve.points
-    (x_lo, y_lo), (x_hi, y_hi) = p_all.min(axis=0).tolist(), p_all.max(axis=0).tolist()
+    (x_lo, y_lo), (x_hi, y_hi) = box if box is not None else (p_all.min(axis=0).tolist(), p_all.max(axis=0).tolist())
     if x_lo >= a0 - eps and x_hi <= a1 + eps and y_lo >= b0 - eps and y_hi <= b1 + eps:
         return curve  # the control points are inside: so is the curve (convex hull)
     near = 1e-9 * np.hypot(a1 - a0, b1 - b0)
