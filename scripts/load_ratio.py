@@ -89,9 +89,11 @@ BSRT_CHILD = textwrap.dedent("""
             pass
     try:
         import bsrt.io.occt
+        # every OpenCASCADE module bsrt/io/occt imports (grep for "OCP." there when it changes)
         import OCP.STEPCAFControl, OCP.IGESCAFControl, OCP.XCAFPrs, OCP.XCAFDoc, OCP.XCAFApp, OCP.TDocStd
-        import OCP.BRepTools, OCP.BRepAdaptor, OCP.GeomConvert, OCP.Geom2dConvert, OCP.BRep, OCP.TopExp
-        import OCP.BRepBndLib, OCP.Bnd, OCP.TDataStd, OCP.TDF, OCP.GeomAdaptor, OCP.Geom, OCP.Geom2d
+        import OCP.BRepTools, OCP.GeomConvert, OCP.Geom2dConvert, OCP.BRep, OCP.TopExp, OCP.GeomAbs
+        import OCP.BRepBndLib, OCP.Bnd, OCP.TDataStd, OCP.TDF, OCP.Geom, OCP.Geom2d, OCP.ShapeAnalysis
+        import OCP.IFSelect, OCP.TCollection, OCP.TopAbs, OCP.TopLoc, OCP.TopoDS, OCP.collections, OCP.gp
     except ImportError:
         pass
     kwargs = {"cache": False} if "cache" in inspect.signature(load_model).parameters else {}
@@ -169,9 +171,10 @@ def main(argv=None) -> int:
         help="a bsrt checkout to time, interleaved with the others (repeatable; default: this environment's)",
     )
     args = parser.parse_args(argv)
-    variants = [tuple(v.split("=", 1)) for v in args.variant] or [("", None)]
+    variants = [tuple(v.split("=", 1)) for v in args.variant]
     if any(len(v) != 2 or not v[0] for v in variants):
         parser.error("--variant takes NAME=PYTHONPATH")
+    variants = variants or [("", None)]
     files = collect(args.paths)
     before = os.getloadavg()
     print(f"load average before: {before[0]:.2f} {before[1]:.2f} {before[2]:.2f} ({os.cpu_count()} CPUs)")

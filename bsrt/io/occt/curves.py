@@ -235,7 +235,7 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
             if (steps >= 0).all() or (steps <= 0).all():
                 ends = curve.ends()
                 ends[:, axis] = fixed.mean()
-                return segment(*pmap.map(ends))
+                return TrimCurve(1, _UNIT_KNOTS, pmap.map(ends))  # the segment between the mapped ends
     t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
     points = evaluator(curve)
     uv = points(t)
@@ -310,10 +310,11 @@ def _fit(points, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
             break
         a, b = todo[:, :1], todo[:, 1:]
         nodes = (a + (b - a) * _NODES).ravel()
-        values = pmap.map(points(nodes)).reshape(-1, d + 1, 2)
-        ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
         checks = (a + (b - a) * _CHECKS).ravel()
-        want = pmap.map(points(checks)).reshape(-1, _CHECKS.size, 2)
+        mapped = pmap.map(points(np.concatenate([nodes, checks])))  # (one call each: point by point alike)
+        values = mapped[: nodes.size].reshape(-1, d + 1, 2)
+        ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
+        want = mapped[nodes.size :].reshape(-1, _CHECKS.size, 2)
         got = np.einsum("sk,pkc->psc", _AT_CHECKS, ctrl)
         error = (np.abs(got - want) / tol).max(axis=(1, 2))
         good = (error <= 1.0) | (rounds == _MAX_ROUNDS) | ((b - a)[:, 0] <= 1e-12 * length)

@@ -359,16 +359,15 @@ def _extract(bs) -> BSplineSurface:
     pole, weight = bs.Pole, bs.Weight
     rows, cols = range(1, nu + 1), range(1, nv + 1)
     points = np.array([pole(i, j).Coord() for i in rows for j in cols], dtype=np.float64).reshape(nu, nv, 3)
+    weights = None  # (non-rational)
     if bs.IsURational() or bs.IsVRational():
         weights = np.array([weight(i, j) for i in rows for j in cols], dtype=np.float64).reshape(nu, nv)
-    else:
-        weights = np.ones((nu, nv))
+        if np.all(weights == 1.0):
+            weights = None
     knots_u = flat_knots(bs.UKnot, bs.UMultiplicity, bs.NbUKnots())
     knots_v = flat_knots(bs.VKnot, bs.VMultiplicity, bs.NbVKnots())
     try:
-        return make_surface(
-            (bs.UDegree(), bs.VDegree()), knots_u, knots_v, points, None if np.all(weights == 1.0) else weights
-        )
+        return make_surface((bs.UDegree(), bs.VDegree()), knots_u, knots_v, points, weights)
     except InputError as e:
         raise FaceError(f"the converted surface is invalid ({e})") from None
 

@@ -104,6 +104,8 @@ def wire_edges(wire, face) -> list:
             walker.Next()
     except Exception:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
         edges = []
+    if edges and len(edges) == wire.NbChildren():  # (a wire's children are its edges: all walked)
+        return edges
     stored = []
     explorer = TopExp_Explorer(wire, TopAbs_EDGE)
     while explorer.More():
@@ -158,22 +160,22 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet):
     snap = 1e-6 * scale
     periodic = bool(periods.any())
     out = [curves[0]]
+    first, end = curves[0].ends()  # the chain's start, and its end so far
     left = list(curves[1:])
     ordered = True
     while left:
-        end = out[-1].ends()[1]
         if ordered:
             c = left.pop(0)
             if periodic:
                 c = shifted(c, _nearest_shift(c.ends()[0], end, periods))
-            start = c.ends()[0]
+            start, c_end = c.ends()
             if _hypot(start - end) > snap and _space_gap(original, start, end) > meet():
                 ordered = False  # not in order along the wire: chain the rest greedily
                 left.insert(0, c)
                 continue
         else:
             c = _greedy_next(end, left, periods)
-            start = c.ends()[0]
+            start, c_end = c.ends()
         if _hypot(start - end) > snap:
             if _space_gap(original, start, end) > meet():
                 raise TrimError(
@@ -181,7 +183,8 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet):
                 )
             out.append(segment(end, start))  # a degenerate edge left out (a pole, an apex)
         out.append(c)
-    first, last = out[0].ends()[0], out[-1].ends()[1]
+        end = c_end
+    last = end
     gap = first - last
     back = _nearest_shift(last, first, periods)
     if np.hypot(*(gap - back)) <= snap or _space_gap(original, first, last) <= meet():
@@ -222,6 +225,8 @@ def _placed(chain: list[TrimCurve], pmap: ParamMap) -> list[list[TrimCurve]]:
     """A closed chain moved by whole periods into the face's bounds (and a copy a period over where it
     straddles the end of a direction the face goes all the way round)."""
     periods = _periods(pmap)
+    if not periods.any():  # nothing to move
+        return [list(chain)]
     bounds = np.array(pmap.bounds)
     box = _box(chain)
     move = np.zeros(2)
