@@ -280,10 +280,13 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
     for _ in range(30):
         xy = nets[..., :2] / nets[..., 2:3]
         out = ((xy < low) | (xy > high)).any(axis=2)  # (S, p + 1): the control point is outside the box
-        if out[:, 0].any() or out[:, -1].any():
-            span, end = np.argwhere(out[:, [0, -1]])[0]
+        ends = out[:, ::p]  # (S, 2): the first and the last (points of the curve itself)
+        if ends.any():
+            span, end = np.argwhere(ends)[0]
             return xy[span, 0 if end == 0 else -1].copy()
-        nets = nets[out.any(axis=1)]
+        keep = out.any(axis=1)
+        if not keep.all():
+            nets = nets[keep]
         if nets.shape[0] == 0:
             return None
         halves = np.empty((2, nets.shape[0], p + 1, 3))  # de Casteljau at 1/2: the left and right halves
