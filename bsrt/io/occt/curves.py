@@ -272,15 +272,21 @@ def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.
     a, b = t[k], t[k + 1]
     fa = d[k, j]
     value = lines[j]
-    for _ in range(24):  # to 1e-7 of a sample step: the map is C1 at its breaks, so that is plenty for the fit
-        if a.size == 0:
+    n = a.size
+    for _ in range(12):  # 24 halvings, to 1e-7 of a sample step: the map is C1 at its breaks, plenty for the fit
+        if n == 0:
             break
+        # two halvings per evaluation: the middle c and both middles the next halving may take
         c = 0.5 * (a + b)
-        fc = points(c)[:, axis] - value
+        c_left, c_right = 0.5 * (a + c), 0.5 * (c + b)
+        f = points(np.concatenate([c, c_left, c_right]))[:, axis]
+        fc = f[:n] - value
+        left = (fc < 0) == (fa < 0)  # the sign at c is a's: the crossing is in [c, b]
+        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
+        c = np.where(left, c_right, c_left)  # = 0.5 * (a + b) now
+        fc = np.where(left, f[2 * n :], f[n : 2 * n]) - value
         left = (fc < 0) == (fa < 0)
-        a = np.where(left, c, a)
-        fa = np.where(left, fc, fa)
-        b = np.where(left, b, c)
+        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
     return np.concatenate([0.5 * (a + b), exact])
 
 
