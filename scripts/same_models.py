@@ -7,8 +7,9 @@ STEP, IGES and BREP file (``bsrt.io.load_model(path, cache=False)``, one
 process per checkout for all files), and every array of every surface (degree,
 knots, points, weights, each trim curve's), the names, colours, warnings,
 skipped counts and untrimmed count are compared exactly (floats by their
-bits). Prints one line per file that differs, naming the first field and
-surface, and exits 1 if any does.
+bits; every field of the Model but ``load``). Prints one line per file that
+differs, naming the fields and the first surface that differ, and exits 1 if
+any does.
 """
 
 from __future__ import annotations
@@ -45,8 +46,7 @@ DUMP = textwrap.dedent("""
     for path in sys.argv[2:]:
         try:
             m = load_model(path, cache=False)
-            fields = ("surfaces", "names", "skipped", "warnings", "untrimmed", "colors")
-            out[path] = {f: plain(getattr(m, f)) for f in fields}
+            out[path] = {f: plain(getattr(m, f)) for f in m.__dataclass_fields__ if f != "load"}  # every field
         except Exception as e:  # the same failure is the same result
             out[path] = {"error": repr(e)}
     with open(sys.argv[1], "wb") as f:
