@@ -91,19 +91,23 @@ def _kind(
     """
     s = np.array([0.23, 0.71])
     x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
-    h = np.repeat(breaks[1:] - breaks[:-1], s.size)
-    m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
-    ss = np.tile(s, breaks.size - 1)
-    candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
+
+    def arc() -> np.ndarray:
+        h = np.repeat(breaks[1:] - breaks[:-1], s.size)
+        m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
+        ss = np.tile(s, breaks.size - 1)
+        return m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))
+
+    candidates = {"identity": lambda: x, "arc": arc}  # (each computed only if tested)
     if arc_first:  # (the same tests, the likelier first)
-        candidates = {"arc": candidates["arc"], "identity": x}
+        candidates = {"arc": candidates["arc"], "identity": candidates["identity"]}
     y = np.repeat(others, x.size)
     # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
     got = grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x)
     got = got.reshape(-1, 3)
     tol = EXACT_TOLERANCE * size
     for kind, t in candidates.items():
-        t_all = np.tile(t, others.size)
+        t_all = np.tile(t(), others.size)
         want = _points(original, t_all, y) if axis == 0 else _points(original, y, t_all)
         if np.max(np.linalg.norm(want - got, axis=1)) <= tol:
             return kind
