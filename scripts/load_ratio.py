@@ -1,6 +1,7 @@
 """How much longer bsrt takes to load a CAD file than OpenCASCADE takes to read it.
 
     python scripts/load_ratio.py FILES_OR_FOLDERS... [--repeat 3] [--warm] [--timeout 600] [--json out.json]
+                                 [--variant NAME=PYTHONPATH ...]
 
 For each STEP, IGES or BREP file, ``--repeat`` times, two fresh processes
 back to back (``sys.executable -c ...``), each timing one call after its
@@ -28,6 +29,11 @@ machine, compare ratios measured together, not seconds across runs. The
 ``cpu`` column is the same ratio of the processes' CPU time
 (``time.process_time()``), which a loaded machine disturbs much less than the
 wall clock (both readers run on one thread).
+
+``--variant NAME=PYTHONPATH`` (repeatable) times the bsrt of each named
+checkout (its PYTHONPATH set so) in every round, next to the same
+OpenCASCADE run, interleaved: a before/after comparison sees the same load.
+Each variant gets its own row per file.
 """
 
 from __future__ import annotations
@@ -38,6 +44,7 @@ import os
 import statistics
 import subprocess
 import sys
+import tempfile
 import textwrap
 from pathlib import Path
 
@@ -82,9 +89,11 @@ BSRT_CHILD = textwrap.dedent("""
             pass
     try:
         import bsrt.io.occt
+        # every OpenCASCADE module bsrt/io/occt imports (grep for "OCP." there when it changes)
         import OCP.STEPCAFControl, OCP.IGESCAFControl, OCP.XCAFPrs, OCP.XCAFDoc, OCP.XCAFApp, OCP.TDocStd
-        import OCP.BRepTools, OCP.BRepAdaptor, OCP.GeomConvert, OCP.Geom2dConvert, OCP.BRep, OCP.TopExp
-        import OCP.BRepBndLib, OCP.Bnd, OCP.TDataStd, OCP.TDF, OCP.GeomAdaptor, OCP.Geom, OCP.Geom2d
+        import OCP.BRepTools, OCP.GeomConvert, OCP.Geom2dConvert, OCP.BRep, OCP.TopExp, OCP.GeomAbs
+        import OCP.BRepBndLib, OCP.Bnd, OCP.TDataStd, OCP.TDF, OCP.Geom, OCP.Geom2d, OCP.ShapeAnalysis
+        import OCP.IFSelect, OCP.TCollection, OCP.TopAbs, OCP.TopLoc, OCP.TopoDS, OCP.collections, OCP.gp
     except ImportError:
         pass
     kwargs = {"cache": False} if "cache" in inspect.signature(load_model).parameters else {}
@@ -111,10 +120,20 @@ def collect(args: list[str]) -> list[Path]:
     return files
 
 
-def child(code: str, args: list[str], timeout: float) -> dict:
+def child(code: str, args: list[str], timeout: float, pythonpath: str | None = None) -> dict:
+    env = None
+    if pythonpath is not None:
+        env = dict(os.environ, PYTHONPATH=pythonpath)
     try:
+        # run outside any checkout: ``python -c`` puts the working directory first on sys.path
         proc = subprocess.run(
-            [sys.executable, "-c", code, *args], check=False, capture_output=True, text=True, timeout=timeout
+            [sys.executable, "-c", code, *args],
+            check=False,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=env,
+            cwd=tempfile.gettempdir() if pythonpath is not None else None,
         )
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:g} s"}
@@ -144,7 +163,18 @@ def main(argv=None) -> int:
     parser.add_argument("--warm", action="store_true", help="also time a second load_model in the same process")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds per process (default 600)")
     parser.add_argument("--json", help="write the measurements to this JSON file")
+    parser.add_argument(
+        "--variant",
+        action="append",
+        default=[],
+        metavar="NAME=PYTHONPATH",
+        help="a bsrt checkout to time, interleaved with the others (repeatable; default: this environment's)",
+    )
     args = parser.parse_args(argv)
+    variants = [tuple(v.split("=", 1)) for v in args.variant]
+    if any(len(v) != 2 or not v[0] for v in variants):
+        parser.error("--variant takes NAME=PYTHONPATH")
+    variants = variants or [("", None)]
     files = collect(args.paths)
     before = os.getloadavg()
     print(f"load average before: {before[0]:.2f} {before[1]:.2f} {before[2]:.2f} ({os.cpu_count()} CPUs)")
@@ -155,63 +185,80 @@ def main(argv=None) -> int:
     )
     results = []
     for path in files:
-        occ, ours, warm, info, errors = [], [], [], {}, []
-        occ_cpu, ours_cpu = [], []
+        occ, occ_cpu, occ_errors = [], [], []
+        ours = {name: {"s": [], "cpu": [], "warm": [], "info": {}, "errors": []} for name, _ in variants}
         for _ in range(args.repeat):
             a = child(OCC_CHILD, [str(path)], args.timeout)
-            b = child(BSRT_CHILD, [str(path), "1" if args.warm else "0"], args.timeout)
-            for r, into in ((a, occ), (b, ours)):
-                if "error" in r:
-                    errors.append(r["error"])
-                else:
-                    into.append(r["seconds"])
-            if "cpu" in a and "cpu" in b:
+            if "error" in a:
+                occ_errors.append(a["error"])
+            for name, pythonpath in variants:
+                b = child(BSRT_CHILD, [str(os.path.abspath(path)), "1" if args.warm else "0"], args.timeout, pythonpath)
+                mine = ours[name]
+                if "error" in b:
+                    mine["errors"].append(b["error"])
+                    continue
+                mine["s"].append(b["seconds"])
+                if "cpu" in a and "cpu" in b:
+                    mine["cpu"].append(b["cpu"])
+                if "warm" in b:
+                    mine["warm"].append(b["warm"])
+                mine["info"] = {k: b[k] for k in ("surfaces", "untrimmed", "cache_keyword") if k in b} or mine["info"]
+            if "error" not in a:
+                occ.append(a["seconds"])
                 occ_cpu.append(a["cpu"])
-                ours_cpu.append(b["cpu"])
-            if "warm" in b:
-                warm.append(b["warm"])
-            info = {k: b[k] for k in ("surfaces", "untrimmed", "cache_keyword") if k in b} or info
-        r = {
-            "file": str(path),
-            "occ_s": occ,
-            "bsrt_s": ours,
-            "warm_s": warm,
-            "occ_cpu_s": occ_cpu,
-            "bsrt_cpu_s": ours_cpu,
-            **info,
-        }
-        if errors:
-            r["errors"] = errors
-        name = path.name[:40]
-        if occ and ours:
-            r["occ_median"], r["bsrt_median"] = statistics.median(occ), statistics.median(ours)
-            r["ratio"] = r["bsrt_median"] / max(r["occ_median"], 1e-9)
-            line = f"{name:40} {r['occ_median']:8.3f} {r['bsrt_median']:8.3f} {r['ratio']:7.1f}"
-            if occ_cpu:
-                r["cpu_ratio"] = statistics.median(ours_cpu) / max(statistics.median(occ_cpu), 1e-9)
-                line += f" {r['cpu_ratio']:7.1f}"
+        for name, _ in variants:
+            mine = ours[name]
+            r = {
+                "file": str(path),
+                "occ_s": occ,
+                "bsrt_s": mine["s"],
+                "warm_s": mine["warm"],
+                "occ_cpu_s": occ_cpu,
+                "bsrt_cpu_s": mine["cpu"],
+                **mine["info"],
+            }
+            if name:
+                r["variant"] = name
+            errors = occ_errors + mine["errors"]
+            if errors:
+                r["errors"] = errors
+            label = (f"{name}: " if name else "") + path.name
+            label = label[:40]
+            if occ and mine["s"]:
+                r["occ_median"], r["bsrt_median"] = statistics.median(occ), statistics.median(mine["s"])
+                r["ratio"] = r["bsrt_median"] / max(r["occ_median"], 1e-9)
+                line = f"{label:40} {r['occ_median']:8.3f} {r['bsrt_median']:8.3f} {r['ratio']:7.1f}"
+                if mine["cpu"] and occ_cpu:
+                    r["occ_cpu_median"] = statistics.median(occ_cpu)
+                    r["bsrt_cpu_median"] = statistics.median(mine["cpu"])
+                    r["cpu_ratio"] = r["bsrt_cpu_median"] / max(r["occ_cpu_median"], 1e-9)
+                    line += f" {r['cpu_ratio']:7.1f}"
+                else:
+                    line += f" {'-':>7}"
+                if args.warm:
+                    line += f" {statistics.median(mine['warm']):8.3f}" if mine["warm"] else f" {'-':>8}"
+                print(line + f"  {mine['info'].get('surfaces', '?')}", flush=True)
             else:
-                line += f" {'-':>7}"
-            if args.warm:
-                line += f" {statistics.median(warm):8.3f}" if warm else f" {'-':>8}"
-            print(line + f"  {info.get('surfaces', '?')}", flush=True)
-        else:
-            print(f"{name:40} ERROR {errors[0][:150] if errors else '?'}", flush=True)
-        results.append(r)
+                print(f"{label:40} ERROR {errors[0][:150] if errors else '?'}", flush=True)
+            results.append(r)
     after = os.getloadavg()
     print(f"load average after: {after[0]:.2f} {after[1]:.2f} {after[2]:.2f}")
-    ratios = [r["ratio"] for r in results if "ratio" in r]
-    if ratios:
-        over = [Path(r["file"]).name for r in results if r.get("ratio", 0) > 4]
+    for name, _ in variants:
+        mine = [r for r in results if r.get("variant", "") == name]
+        ratios = [r["ratio"] for r in mine if "ratio" in r]
+        if not ratios:
+            continue
+        head = f"{name}: " if name else ""
+        over = [Path(r["file"]).name for r in mine if r.get("ratio", 0) > 4]
         print(
-            f"ratio median {statistics.median(ratios):.1f}, max {max(ratios):.1f}; over 4x: "
+            f"{head}ratio median {statistics.median(ratios):.1f}, max {max(ratios):.1f}; over 4x: "
             f"{len(over)} of {len(ratios)}" + (f" ({', '.join(over)})" if over else "")
         )
-        cpus = [r["cpu_ratio"] for r in results if "cpu_ratio" in r]
+        cpus = [r["cpu_ratio"] for r in mine if "cpu_ratio" in r]
         if cpus:
-            over = [Path(r["file"]).name for r in results if r.get("cpu_ratio", 0) > 4]
+            over = [Path(r["file"]).name for r in mine if r.get("cpu_ratio", 0) > 4]
             print(
-                f"cpu ratio median {statistics.median(cpus):.1f}, max {max(cpus):.1f}; over 4x: "
+                f"{head}cpu ratio median {statistics.median(cpus):.1f}, max {max(cpus):.1f}; over 4x: "
                 f"{len(over)} of {len(cpus)}" + (f" ({', '.join(over)})" if over else "")
             )
     if args.json:

@@ -96,6 +96,12 @@ class BSplineSurface:
 
 
 def _check_knots(key: str, knots: np.ndarray, n: int, p: int) -> None:
+    if knots.ndim == 1 and knots.size == n + p + 1 and knots[p] < knots[n]:  # the usual case, in a few calls
+        steps = knots[1:] - knots[:-1]
+        if steps.min() >= 0:  # (finite, non-decreasing: NaN or inf fail here, or in the sum below)
+            inner = knots[(knots > knots[p]) & (knots < knots[n])]  # sorted: p + 1 equal values in a row
+            if not (inner.size > p and (inner[p:] == inner[:-p]).any()) and np.isfinite(knots[0] + knots[-1]):
+                return
     if knots.ndim != 1 or knots.size != n + p + 1:
         raise InputError(f"{key}: expected {n + p + 1} values ({n} points + degree {p} + 1), got {knots.size}")
     if not np.all(np.isfinite(knots)):
@@ -225,18 +231,18 @@ def _span_matrices(knots: np.ndarray, n: int, p: int):
     """
     spans = np.flatnonzero(knots[p:n] < knots[p + 1 : n + 1]).astype(np.int64) + p
     a, b = knots[spans, None], knots[spans + 1, None]
-    matrices = np.empty((spans.size, p + 1, p + 1))
+    # all p + 1 Bezier points at once (axis 1): at level r, point k's argument is a if r <= p - k else b
+    ks = np.arange(p + 1)
     unit = np.eye(p + 1)
-    for k in range(p + 1):
-        d = [np.broadcast_to(unit[j], (spans.size, p + 1)) for j in range(p + 1)]  # d[j] ~ P[i - p + j]
-        for r in range(1, p + 1):
-            x = a if r <= p - k else b
-            for j in range(p, r - 1, -1):  # knot index i - p + j
-                lo = knots[spans - p + j, None]
-                hi = knots[spans + j + 1 - r, None]
-                alpha = (x - lo) / (hi - lo)  # hi > lo on a non-empty span
-                d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
-        matrices[:, k] = d[p]
+    d = [np.broadcast_to(unit[j], (spans.size, p + 1, p + 1)) for j in range(p + 1)]  # d[j] ~ P[i - p + j]
+    for r in range(1, p + 1):
+        x = np.where(r <= p - ks, a, b)[:, :, None]  # (S, p + 1, 1)
+        for j in range(p, r - 1, -1):  # knot index i - p + j
+            lo = knots[spans - p + j, None, None]
+            hi = knots[spans + j + 1 - r, None, None]
+            alpha = (x - lo) / (hi - lo)  # hi > lo on a non-empty span
+            d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
+    matrices = np.ascontiguousarray(d[p])
     return matrices, spans
 
 

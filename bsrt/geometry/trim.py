@@ -210,6 +210,8 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
         if not loop.curves:
             raise InputError(f"trim[{i}].curves: a loop needs at least one curve")
         ends = [c.ends() for c in loop.curves]
+        if _loop_fine(loop, ends, gap, (umin - slack, umax + slack, vmin - slack, vmax + slack)):
+            continue
         for j, (curve, e) in enumerate(zip(loop.curves, ends)):
             prev = ends[j - 1][1]
             if np.hypot(*(e[0] - prev)) > gap:
@@ -233,6 +235,19 @@ def check_loops(loops, domain) -> tuple[TrimLoop, ...]:
                         f"[{vmin:g}, {vmax:g}] (it passes ({far[0]:g}, {far[1]:g}))"
                     )
     return tuple(loops)
+
+
+def _loop_fine(loop: TrimLoop, ends: list[np.ndarray], gap: float, box) -> bool:
+    """Whether check_loops' tests pass for the whole loop, tested at once (False: the curve by curve
+    tests decide, and name the curve). ends: each curve's (2, 2) ends."""
+    e = np.stack(ends)  # (m, 2, 2)
+    d = e[:, 0] - np.concatenate([e[-1:, 1], e[:-1, 1]])  # each start minus the previous curve's end
+    if (np.hypot(d[:, 0], d[:, 1]) > gap).any():
+        return False
+    pts = np.concatenate([c.points for c in loop.curves]) if len(loop.curves) > 1 else loop.curves[0].points
+    return _all_within(pts, *box) or all(
+        _all_within(c.points, *box) or point_outside(c, box) is None for c in loop.curves
+    )
 
 
 def _all_within(pts: np.ndarray, u0: float, u1: float, v0: float, v1: float) -> bool:
@@ -261,23 +276,26 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
         for _ in range(p - int(np.count_nonzero(knots == x))):
             knots, ctrl = insert_knot(knots, ctrl, p, x)
     nets = np.stack([ctrl[i * p : i * p + p + 1] for i in range((ctrl.shape[0] - 1) // p)])  # (S, p + 1, 3)
+    low, high = np.array([u0, v0], dtype=np.float64), np.array([u1, v1], dtype=np.float64)
     for _ in range(30):
         xy = nets[..., :2] / nets[..., 2:3]
-        out = (xy[..., 0] < u0) | (xy[..., 0] > u1) | (xy[..., 1] < v0) | (xy[..., 1] > v1)
-        ends = out[:, [0, -1]]
+        out = ((xy < low) | (xy > high)).any(axis=2)  # (S, p + 1): the control point is outside the box
+        ends = out[:, ::p]  # (S, 2): the first and the last (points of the curve itself)
         if ends.any():
             span, end = np.argwhere(ends)[0]
             return xy[span, 0 if end == 0 else -1].copy()
-        nets = nets[out.any(axis=1)]
+        keep = out.any(axis=1)
+        if not keep.all():
+            nets = nets[keep]
         if nets.shape[0] == 0:
             return None
-        left, right = [nets[:, 0]], [nets[:, -1]]  # de Casteljau at 1/2
+        halves = np.empty((2, nets.shape[0], p + 1, 3))  # de Casteljau at 1/2: the left and right halves
+        halves[0, :, 0], halves[1, :, p] = nets[:, 0], nets[:, -1]
         level = nets
-        for _ in range(p):
+        for r in range(1, p + 1):
             level = 0.5 * (level[:, :-1] + level[:, 1:])
-            left.append(level[:, 0])
-            right.append(level[:, -1])
-        nets = np.concatenate([np.stack(left, axis=1), np.stack(right[::-1], axis=1)])
+            halves[0, :, r], halves[1, :, p - r] = level[:, 0], level[:, -1]
+        nets = halves.reshape(-1, p + 1, 3)
     return None
 
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from bsrt.geometry.basis import basis_values
 from bsrt.geometry.bspline import basis_functions, find_span, insert_knot
 
 _KINDS = ("linear", "tan", "tanh")
@@ -190,8 +191,11 @@ def evaluate(c: Curve, t, derivative: bool = False):
     """Points (N, d) at parameters t (N,); with derivative=True also d/dt (N, d)."""
     t = np.atleast_1d(np.asarray(t, float))
     p = c.degree
-    span = find_span(c.knots, p, c.n, t)
-    b, db = basis_functions(c.knots, p, span, t)
+    if not derivative and p >= 2:  # the values alone: the same triangle, without the derivatives' work
+        span, b = basis_values(c.knots, p, c.n, t)
+    else:
+        span = find_span(c.knots, p, c.n, t)
+        b, db = basis_functions(c.knots, p, span, t)
     ctrl = c.homogeneous()[(span - p)[:, None] + np.arange(p + 1)[None, :]]
     h = np.einsum("na,nak->nk", b, ctrl)
     pts = h[:, :-1] / h[:, -1:]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import operator
 import re
 from dataclasses import dataclass
 
@@ -15,6 +16,7 @@ _HOLLERITH = re.compile(r"\s*([0-9]+)H")
 _REAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?")
 _REALS = re.compile(r"(?:[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\n)*")  # newline-terminated
 _INT = re.compile(r"[+-]?[0-9]+")
+_TEXT = operator.itemgetter(0)  # a token's text
 
 
 @dataclass
@@ -68,7 +70,7 @@ class _Params:
     def reals(self, count: int, what: str) -> np.ndarray:
         """(count,) float64; one by one (with the first bad one reported) only if the fast path fails."""
         chunk = self.tokens[self.pos : self.pos + count]
-        text = "".join([t + "\n" for t, _ in chunk])
+        text = "\n".join(map(_TEXT, chunk)) + "\n" if chunk else ""
         if len(chunk) == count and _REALS.fullmatch(text):  # every token a number (none empty)
             if "D" in text or "d" in text:
                 text = text.replace("D", "E").replace("d", "e")
@@ -127,10 +129,12 @@ def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims
     if end >= 0 and "H" not in text[:end] and "h" not in text[:end]:  # no Hollerith string: split at once
         parts = text[:end].split(pdelim)
         if len(lines) == 1:
-            tokens = [(t.strip(), lines[0]) for t in parts]
-        else:
-            starts = itertools.accumulate([len(t) + 1 for t in parts], initial=0)
-            tokens = [(t.strip(), lines[i // 64]) for t, i in zip(parts, starts)]
+            where = itertools.repeat(lines[0])
+        else:  # each token's first column in the joined records, in records: its file line
+            sizes = np.fromiter(map(len, parts), dtype=np.int64, count=len(parts)) + 1
+            starts = np.cumsum(sizes) - sizes
+            where = np.asarray(lines)[starts // 64].tolist()
+        tokens = list(zip(map(str.strip, parts), where))  # (no Python code per token: a B-spline has thousands)
     else:
         tokens = _hollerith_tokens(path, entity, text, [x for x in lines for _ in range(64)], delims)
     if tokens[0][0] != str(entity.type):

@@ -5,6 +5,7 @@ The package docstring (bsrt/io/iges/__init__.py) describes the format and what i
 
 from __future__ import annotations
 
+import operator
 import os
 import re
 
@@ -91,15 +92,15 @@ def _records_fast(lines: list[str]) -> dict[str, list[tuple[int, str]]] | None:
     if not lines or max(map(len, lines)) > 80:
         return None
     recs = [raw if len(raw) == 80 else raw.ljust(80) for raw in lines]
-    letters = "".join(rec[72] for rec in recs)
+    letters = "".join(map(operator.itemgetter(72), recs))
     if letters[:1] == "C" or _ORDER.fullmatch(letters) is None:
         return None
     sections: dict[str, list[tuple[int, str]]] = {}
     start = 0
     for letter in _SECTIONS:
         end = len(letters) - len(letters[start:].lstrip(letter))
-        seqs = [rec[73:80] for rec in recs[start:end]]
-        if seqs != [f"{k:7d}" for k in range(1, end - start + 1)] and (  # not blank-padded: zero-padded?
+        seqs = list(map(operator.itemgetter(slice(73, 80)), recs[start:end]))
+        if seqs != list(map("{:7d}".format, range(1, end - start + 1))) and (  # not blank-padded: zero-padded?
             not all(_SEQ.fullmatch(q) for q in seqs) or list(map(int, seqs)) != list(range(1, end - start + 1))
         ):
             return None

@@ -25,6 +25,7 @@ named in a warning and left out.
 from __future__ import annotations
 
 import importlib.util
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -141,7 +142,7 @@ def _face_bounds(face, surface) -> tuple[float, float, float, float]:
         vmin, vmax = max(vmin, sv0), min(vmax, sv1)
     elif vmax - vmin > surface.VPeriod():
         vmax = vmin + surface.VPeriod()
-    if not (np.isfinite([umin, umax, vmin, vmax]).all() and umin < umax and vmin < vmax):
+    if not (all(map(math.isfinite, (umin, umax, vmin, vmax))) and umin < umax and vmin < vmax):
         raise FaceError("a face has an empty or infinite parameter range")
     return float(umin), float(umax), float(vmin), float(vmax)
 

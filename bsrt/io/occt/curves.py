@@ -53,8 +53,7 @@ def pcurve(edge, face) -> TrimCurve | None:
     if type(curve) is occ.Line:
         # Geom2dConvert makes a line from first to last the degree-1 B-spline through its ends (poles
         # Value(first), Value(last), knots first, first, last, last): built here as it would be
-        a, b = curve.Value(first), curve.Value(last)
-        points = np.array([[a.X(), a.Y()], [b.X(), b.Y()]])
+        points = np.array([curve.Value(first).Coord(), curve.Value(last).Coord()])
         knots = np.array([first, first, last, last], dtype=np.float64)
         if reverse:
             points, knots = points[::-1].copy(), (knots[0] + knots[-1]) - knots[::-1]
@@ -71,7 +70,7 @@ def pcurve(edge, face) -> TrimCurve | None:
         bc.SetNotPeriodic()
     n = bc.NbPoles()
     pole, weight = bc.Pole, bc.Weight
-    points = np.array([c for p in map(pole, range(1, n + 1)) for c in (p.X(), p.Y())], dtype=np.float64).reshape(n, 2)
+    points = np.array([pole(i).Coord() for i in range(1, n + 1)], dtype=np.float64).reshape(n, 2)
     weights = np.array(list(map(weight, range(1, n + 1))), dtype=np.float64) if bc.IsRational() else np.ones(n)
     knots = flat_knots(bc.Knot, bc.Multiplicity, bc.NbKnots())
     if reverse:
@@ -213,11 +212,13 @@ def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
     return out[0], out[1]
 
 
-def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) -> TrimCurve:
+def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
     """The pcurve (original (u, v)) as a curve in the B-spline's (x, y).
 
     tolerance: the largest error allowed in x and in y (a fitted curve's
-    3-D error is at most their sum times the derivative bounds' part).
+    3-D error is at most their sum times the derivative bounds' part), as a
+    pair of floats or a function of no arguments returning them (called only
+    when the curve is fitted).
     """
     fu, fv = pmap.fu, pmap.fv
     if fu.kind == "identity" and fv.kind == "identity":
@@ -234,7 +235,7 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
             if (steps >= 0).all() or (steps <= 0).all():
                 ends = curve.ends()
                 ends[:, axis] = fixed.mean()
-                return segment(*pmap.map(ends))
+                return TrimCurve(1, _UNIT_KNOTS, pmap.map(ends))  # the segment between the mapped ends
     t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
     points = evaluator(curve)
     uv = points(t)
@@ -245,7 +246,7 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance: tuple[float, float]) 
         values = uv[:, axis]
         lines = _break_lines(fmap, float(values.min()), float(values.max()))
         breaks.append(_crossings(points, axis, lines, t, values))
-    return _fit(points, pmap, np.unique(np.concatenate(breaks)), tolerance)
+    return _fit(points, pmap, np.unique(np.concatenate(breaks)), tolerance() if callable(tolerance) else tolerance)
 
 
 def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
@@ -271,15 +272,21 @@ def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.
     a, b = t[k], t[k + 1]
     fa = d[k, j]
     value = lines[j]
-    for _ in range(24):  # to 1e-7 of a sample step: the map is C1 at its breaks, so that is plenty for the fit
-        if a.size == 0:
+    n = a.size
+    for _ in range(12):  # 24 halvings, to 1e-7 of a sample step: the map is C1 at its breaks, plenty for the fit
+        if n == 0:
             break
+        # two halvings per evaluation: the middle c and both middles the next halving may take
         c = 0.5 * (a + b)
-        fc = points(c)[:, axis] - value
+        c_left, c_right = 0.5 * (a + c), 0.5 * (c + b)
+        f = points(np.concatenate([c, c_left, c_right]))[:, axis]
+        fc = f[:n] - value
+        left = (fc < 0) == (fa < 0)  # the sign at c is a's: the crossing is in [c, b]
+        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
+        c = np.where(left, c_right, c_left)  # = 0.5 * (a + b) now
+        fc = np.where(left, f[2 * n :], f[n : 2 * n]) - value
         left = (fc < 0) == (fa < 0)
-        a = np.where(left, c, a)
-        fa = np.where(left, fc, fa)
-        b = np.where(left, b, c)
+        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
     return np.concatenate([0.5 * (a + b), exact])
 
 
@@ -309,10 +316,11 @@ def _fit(points, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
             break
         a, b = todo[:, :1], todo[:, 1:]
         nodes = (a + (b - a) * _NODES).ravel()
-        values = pmap.map(points(nodes)).reshape(-1, d + 1, 2)
-        ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
         checks = (a + (b - a) * _CHECKS).ravel()
-        want = pmap.map(points(checks)).reshape(-1, _CHECKS.size, 2)
+        mapped = pmap.map(points(np.concatenate([nodes, checks])))  # (one call each: point by point alike)
+        values = mapped[: nodes.size].reshape(-1, d + 1, 2)
+        ctrl = np.einsum("kn,pnc->pkc", _SOLVE, values)  # (P, d + 1, 2)
+        want = mapped[nodes.size :].reshape(-1, _CHECKS.size, 2)
         got = np.einsum("sk,pkc->psc", _AT_CHECKS, ctrl)
         error = (np.abs(got - want) / tol).max(axis=(1, 2))
         good = (error <= 1.0) | (rounds == _MAX_ROUNDS) | ((b - a)[:, 0] <= 1e-12 * length)

@@ -38,9 +38,9 @@ class AxisMap:
 
     def __call__(self, t) -> np.ndarray:
         """(N,) x of (N,) t."""
-        t = np.asarray(t, dtype=np.float64) + self.shift
+        t = np.asarray(t, dtype=np.float64) + self.shift  # (a new array)
         if self.kind == "identity":
-            return t.copy()
+            return t
         b = self.breaks
         if self.table is not None:
             ends = self.table[0][:, 0]
@@ -139,4 +139,6 @@ class ParamMap:
 
     def map(self, uv: np.ndarray) -> np.ndarray:
         """(N, 2) original (u, v) -> (N, 2) B-spline (x, y)."""
-        return np.stack([self.fu(uv[:, 0]), self.fv(uv[:, 1])], axis=1)
+        out = np.empty((uv.shape[0], 2))
+        out[:, 0], out[:, 1] = self.fu(uv[:, 0]), self.fv(uv[:, 1])
+        return out

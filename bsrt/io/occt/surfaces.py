@@ -65,11 +65,7 @@ class FaceError(Exception):
 def _points(original, u, v) -> np.ndarray:
     """(N, 3) points of the OpenCASCADE surface at (u[i], v[i])."""
     value = original.Value
-    coords = [
-        c
-        for p in map(value, np.asarray(u, float).tolist(), np.asarray(v, float).tolist())
-        for c in (p.X(), p.Y(), p.Z())
-    ]
+    coords = [value(a, b).Coord() for a, b in zip(np.asarray(u, float).tolist(), np.asarray(v, float).tolist())]
     return np.array(coords, dtype=np.float64).reshape(-1, 3)
 
 
@@ -95,19 +91,23 @@ def _kind(
     """
     s = np.array([0.23, 0.71])
     x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
-    h = np.repeat(breaks[1:] - breaks[:-1], s.size)
-    m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
-    ss = np.tile(s, breaks.size - 1)
-    candidates = {"identity": x, "arc": m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))}
+
+    def arc() -> np.ndarray:
+        h = np.repeat(breaks[1:] - breaks[:-1], s.size)
+        m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
+        ss = np.tile(s, breaks.size - 1)
+        return m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))
+
+    candidates = {"identity": lambda: x, "arc": arc}  # (each computed only if tested)
     if arc_first:  # (the same tests, the likelier first)
-        candidates = {"arc": candidates["arc"], "identity": x}
+        candidates = {"arc": candidates["arc"], "identity": candidates["identity"]}
     y = np.repeat(others, x.size)
     # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
     got = grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x)
     got = got.reshape(-1, 3)
     tol = EXACT_TOLERANCE * size
     for kind, t in candidates.items():
-        t_all = np.tile(t, others.size)
+        t_all = np.tile(t(), others.size)
         want = _points(original, t_all, y) if axis == 0 else _points(original, y, t_all)
         if np.max(np.linalg.norm(want - got, axis=1)) <= tol:
             return kind
@@ -345,11 +345,10 @@ def _deviation(original, local: BSplineSurface, pmap: ParamMap) -> float:
     umin, umax, vmin, vmax = pmap.bounds
     fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])
     us, vs = umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin)
-    uu, vv = np.meshgrid(us, vs, indexing="ij")
     # the map is separable: the grid's (x, y) is the grid of f(u) and g(v)
     x = np.clip(pmap.fu(us), *local.domain_u)
     y = np.clip(pmap.fv(vs), *local.domain_v)
-    want = _points(original, uu.ravel(), vv.ravel())
+    want = _points(original, np.repeat(us, vs.size), np.tile(vs, us.size))  # the grid (us[i], vs[j]), i-major
     got = grid_points(local, x, y).reshape(-1, 3)
     return float(np.max(np.linalg.norm(got - want, axis=1)))
 
@@ -363,23 +362,20 @@ def _extract(bs) -> BSplineSurface:
     nu, nv = bs.NbUPoles(), bs.NbVPoles()
     pole, weight = bs.Pole, bs.Weight
     rows, cols = range(1, nu + 1), range(1, nv + 1)
-    points = np.array(
-        [c for i in rows for j in cols for p in (pole(i, j),) for c in (p.X(), p.Y(), p.Z())], dtype=np.float64
-    ).reshape(nu, nv, 3)
+    points = np.array([pole(i, j).Coord() for i in rows for j in cols], dtype=np.float64).reshape(nu, nv, 3)
+    weights = None  # (non-rational)
     if bs.IsURational() or bs.IsVRational():
         weights = np.array([weight(i, j) for i in rows for j in cols], dtype=np.float64).reshape(nu, nv)
-    else:
-        weights = np.ones((nu, nv))
+        if np.all(weights == 1.0):
+            weights = None
     knots_u = flat_knots(bs.UKnot, bs.UMultiplicity, bs.NbUKnots())
     knots_v = flat_knots(bs.VKnot, bs.VMultiplicity, bs.NbVKnots())
     try:
-        return make_surface(
-            (bs.UDegree(), bs.VDegree()), knots_u, knots_v, points, None if np.all(weights == 1.0) else weights
-        )
+        return make_surface((bs.UDegree(), bs.VDegree()), knots_u, knots_v, points, weights)
     except InputError as e:
         raise FaceError(f"the converted surface is invalid ({e})") from None
 
 
 def flat_knots(knot, multiplicity, n) -> np.ndarray:
     """(K,) float64: the knots of an OpenCASCADE curve or surface direction, each repeated by its multiplicity."""
-    return np.repeat([knot(i) for i in range(1, n + 1)], [multiplicity(i) for i in range(1, n + 1)]).astype(np.float64)
+    return np.array([x for i in range(1, n + 1) for x in [knot(i)] * multiplicity(i)], dtype=np.float64)

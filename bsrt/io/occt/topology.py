@@ -31,6 +31,7 @@ becomes one or more :class:`~bsrt.geometry.trim.TrimLoop`, in steps:
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -38,6 +39,7 @@ import numpy as np
 from bsrt.geometry.bspline import BSplineSurface, insert_knot
 from bsrt.geometry.trim import TrimCurve, TrimLoop, point_outside
 from bsrt.io.occt.curves import (
+    FIT_TOLERANCE,
     TrimError,
     derivative_bounds,
     evaluator,
@@ -69,7 +71,8 @@ def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: floa
         edges = wire_edges(wire, face)
         curves = [c for c in (pcurve(e, face) for e in edges) if c is not None]
         if curves:
-            chain, gap = _chained(curves, original, pmap, max(_MEET * size, 2.0 * _tolerance(edges)))
+            meet = functools.cache(lambda edges=edges: max(_MEET * size, 2.0 * _tolerance(edges)))
+            chain, gap = _chained(curves, original, pmap, meet)
             (around if gap is not None else closed).append((chain, gap))
         explorer.Next()
     loops = []
@@ -77,11 +80,13 @@ def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: floa
         loops.extend(_placed(chain, pmap))
     if around:
         loops.extend(_closed_around(around, pmap))
-    lu, lv = derivative_bounds(local)
-    from bsrt.io.occt.curves import FIT_TOLERANCE
 
-    tol = FIT_TOLERANCE * size
-    tolerance = (tol / max(lu, 1e-300), tol / max(lv, 1e-300))
+    @functools.cache
+    def tolerance() -> tuple[float, float]:  # only a fitted pcurve needs it: the bounds are computed once, if at all
+        lu, lv = derivative_bounds(local)
+        tol = FIT_TOLERANCE * size
+        return (tol / max(lu, 1e-300), tol / max(lv, 1e-300))
+
     return [TrimLoop(tuple(_close([map_curve(c, pmap, tolerance) for c in loop], local, size))) for loop in loops]
 
 
@@ -99,6 +104,8 @@ def wire_edges(wire, face) -> list:
             walker.Next()
     except Exception:  # noqa: BLE001 - OCP raises Standard_Failure subclasses
         edges = []
+    if edges and len(edges) == wire.NbChildren():  # (a wire's children are its edges: all walked)
+        return edges
     stored = []
     explorer = TopExp_Explorer(wire, TopAbs_EDGE)
     while explorer.More():
@@ -141,10 +148,11 @@ def _space_gap(original, a: np.ndarray, b: np.ndarray) -> float:
     return float(pa.Distance(pb))
 
 
-def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
+def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet):
     """(curves end to end, across the seam; the closing gap (2,) if it goes once round a period, else None).
 
-    meet: how far apart (model units) two ends may be in space and still meet.
+    meet: a function of no arguments giving how far apart (model units) two ends may be in space and
+    still meet (called only where two ends differ in (u, v)).
     """
     periods = _periods(pmap)
     umin, umax, vmin, vmax = pmap.bounds
@@ -152,33 +160,34 @@ def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet: float):
     snap = 1e-6 * scale
     periodic = bool(periods.any())
     out = [curves[0]]
+    first, end = curves[0].ends()  # the chain's start, and its end so far
     left = list(curves[1:])
     ordered = True
     while left:
-        end = out[-1].ends()[1]
         if ordered:
             c = left.pop(0)
             if periodic:
                 c = shifted(c, _nearest_shift(c.ends()[0], end, periods))
-            start = c.ends()[0]
-            if _hypot(start - end) > snap and _space_gap(original, start, end) > meet:
+            start, c_end = c.ends()
+            if _hypot(start - end) > snap and _space_gap(original, start, end) > meet():
                 ordered = False  # not in order along the wire: chain the rest greedily
                 left.insert(0, c)
                 continue
         else:
             c = _greedy_next(end, left, periods)
-            start = c.ends()[0]
+            start, c_end = c.ends()
         if _hypot(start - end) > snap:
-            if _space_gap(original, start, end) > meet:
+            if _space_gap(original, start, end) > meet():
                 raise TrimError(
                     f"a wire does not close: consecutive edges are {_space_gap(original, start, end):.3g} apart"
                 )
             out.append(segment(end, start))  # a degenerate edge left out (a pole, an apex)
         out.append(c)
-    first, last = out[0].ends()[0], out[-1].ends()[1]
+        end = c_end
+    last = end
     gap = first - last
     back = _nearest_shift(last, first, periods)
-    if np.hypot(*(gap - back)) <= snap or _space_gap(original, first, last) <= meet:
+    if np.hypot(*(gap - back)) <= snap or _space_gap(original, first, last) <= meet():
         if np.any(back) and np.hypot(*(gap - back)) <= snap:
             return out, back  # ends one period from its start: round the surface
         if np.hypot(*gap) > snap:
@@ -216,6 +225,8 @@ def _placed(chain: list[TrimCurve], pmap: ParamMap) -> list[list[TrimCurve]]:
     """A closed chain moved by whole periods into the face's bounds (and a copy a period over where it
     straddles the end of a direction the face goes all the way round)."""
     periods = _periods(pmap)
+    if not periods.any():  # nothing to move
+        return [list(chain)]
     bounds = np.array(pmap.bounds)
     box = _box(chain)
     move = np.zeros(2)
@@ -288,26 +299,38 @@ def _closed_around(around, pmap: ParamMap) -> list[list[TrimCurve]]:
 def _close(curves: list[TrimCurve], surface: BSplineSurface, size: float) -> list[TrimCurve]:
     """Snap the ends of consecutive curves together and cut off their excursions out of the domain."""
     n = len(curves)
-    ends = [c.ends() for c in curves]
-    (a0, a1), (b0, b1) = surface.domain_u, surface.domain_v
+    ends = np.stack([c.ends() for c in curves])  # (n, 2, 2)
+    domain = (*surface.domain_u, *surface.domain_v)
+    mids = 0.5 * (ends[:, 1] + np.concatenate([ends[1:, 0], ends[:1, 0]]))  # where curve i ends and curve i + 1 starts
     pts = [c.points.copy() for c in curves]
     for i in range(n):
-        j = (i + 1) % n
-        mid = 0.5 * (ends[i][1] + ends[j][0])
-        pts[i][-1] = mid
-        pts[j][0] = mid
-    inside = [_inside_domain(TrimCurve(c.degree, c.knots, p, c.weights), (a0, a1, b0, b1)) for c, p in zip(curves, pts)]
-    return _off_the_edges(inside, (a0, a1, b0, b1))
+        pts[i][-1] = mids[i]
+        pts[(i + 1) % n][0] = mids[i]
+    boxes = _boxes(pts)
+    snapped = [TrimCurve(c.degree, c.knots, p, c.weights) for c, p in zip(curves, pts)]
+    inside = [_inside_domain(c, domain, box) for c, box in zip(snapped, boxes)]
+    # (a curve _inside_domain returns as it is keeps its box)
+    return _off_the_edges(inside, domain, [box if a is b else None for a, b, box in zip(inside, snapped, boxes)])
 
 
-def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
+def _boxes(pts: list[np.ndarray]) -> list[tuple[list[float], list[float]]]:
+    """Each (n_k, 2) point array's ([x_min, y_min], [x_max, y_max]), all in a few NumPy calls."""
+    if len(pts) == 1:
+        return [(pts[0].min(axis=0).tolist(), pts[0].max(axis=0).tolist())]
+    starts = np.cumsum([0] + [p.shape[0] for p in pts[:-1]])
+    every = np.concatenate(pts)
+    return list(zip(np.minimum.reduceat(every, starts).tolist(), np.maximum.reduceat(every, starts).tolist()))
+
+
+def _off_the_edges(curves: list[TrimCurve], domain, boxes=None) -> list[TrimCurve]:
     """The curves that run along an edge of the domain (a seam, the side of a face that fills its
     bounds) moved just outside it, their neighbours' ends with them.
 
     On the loop itself the even-odd test may go either way, and a hit on a
     seam lies on the domain's edge, where its (u, v) is clamped: a loop a
     rounding error inside would leave a crack one ray wide. Outside the
-    domain there is no surface, so the loop may run there.
+    domain there is no surface, so the loop may run there. boxes: each
+    curve's control points' ([x_min, y_min], [x_max, y_max]) where known, else None.
     """
     a0, a1, b0, b1 = domain
     span = np.array([a1 - a0, b1 - b0])
@@ -317,7 +340,8 @@ def _off_the_edges(curves: list[TrimCurve], domain) -> list[TrimCurve]:
     moved = []
     for k, p in enumerate(pts):
         along = False
-        lows, highs = p.min(axis=0).tolist(), p.max(axis=0).tolist()
+        box = boxes[k] if boxes is not None else None
+        lows, highs = box if box is not None else (p.min(axis=0).tolist(), p.max(axis=0).tolist())
         for axis, (lo, hi) in enumerate(((a0, a1), (b0, b1))):
             # every |x - lo| <= near: |x - lo| (rounded too) is largest at the smallest or the largest x
             if abs(lows[axis] - lo) <= near[axis] and abs(highs[axis] - lo) <= near[axis]:
@@ -352,7 +376,7 @@ def _outer(a: np.ndarray, b: np.ndarray, domain) -> np.ndarray:
     return np.where(np.abs(a - mid) >= np.abs(b - mid), a, b)
 
 
-def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
+def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
     """The curve with its excursions out of the surface's domain moved onto the domain's edge.
 
     Only the part inside the domain matters (the surface has nothing
@@ -361,12 +385,13 @@ def _inside_domain(curve: TrimCurve, domain) -> TrimCurve:
     points clipped onto the domain's edge. If the curve still leaves the
     domain (:func:`~bsrt.geometry.trim.point_outside`, exact), it weaves along
     the edge between the samples, by about the file's tolerance: its
-    control points outside are clipped too.
+    control points outside are clipped too. box: the control points'
+    ([x_min, y_min], [x_max, y_max]) if known.
     """
     a0, a1, b0, b1 = domain
     eps = 1e-12 * np.hypot(a1 - a0, b1 - b0)  # a curve along the edge is inside, rounding aside
     p_all = curve.points
-    (x_lo, y_lo), (x_hi, y_hi) = p_all.min(axis=0).tolist(), p_all.max(axis=0).tolist()
+    (x_lo, y_lo), (x_hi, y_hi) = box if box is not None else (p_all.min(axis=0).tolist(), p_all.max(axis=0).tolist())
     if x_lo >= a0 - eps and x_hi <= a1 + eps and y_lo >= b0 - eps and y_hi <= b1 + eps:
         return curve  # the control points are inside: so is the curve (convex hull)
     near = 1e-9 * np.hypot(a1 - a0, b1 - b0)
