@@ -104,7 +104,7 @@ def _cmd_render(args) -> int:
         raise
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
     options = RenderOptions.resolve(scene, **flag_values(args, "render"))
-    _say_if_compiling()
+    _compile_if_cold(progress)
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
@@ -205,14 +205,12 @@ def _cmd_doctor(args) -> int:
     )
     from bsrt.kernels import compile as kernels
 
-    cached = kernels.is_cached()
-    from bsrt.rendering.warm_up import warm_up
-
-    seconds = warm_up()
-    print(
-        f"kernels:         {'loaded from the cache' if cached else 'compiled'} in {seconds:.1f} s "
-        f"(cache: {kernels.cache_folder() or 'none'})"
-    )
+    if args.compile:
+        state, seconds = compile_kernels()
+        print(f"kernels:         {state} in {seconds:.1f} s (cache: {kernels.cache_folder() or 'none'})")
+    else:
+        state = "cached" if kernels.is_cached() else "not compiled yet (bsrt doctor --compile does it now)"
+        print(f"kernels:         {state} (cache: {kernels.cache_folder() or 'none'})")
     from bsrt.io.formats import READERS
 
     for reader in READERS.values():
@@ -222,16 +220,40 @@ def _cmd_doctor(args) -> int:
     return 0
 
 
-def _say_if_compiling() -> None:
-    """On a terminal, say that the first render on this machine compiles the kernels (once)."""
+def _compile_if_cold(progress) -> None:
+    """The first render on a machine compiles the kernels before it starts (said on stderr)."""
     from bsrt.kernels import compile as kernels
 
-    if sys.stderr.isatty() and not kernels.is_cached():
+    if not kernels.is_cached():
+        compile_kernels(progress)
+
+
+def compile_kernels(progress=None) -> tuple[str, float]:
+    """Compile every kernel into the cache if it is not there (announced on stderr, terminal or
+    not), in parallel worker processes, then load (or, without a record, compile) them all here
+    by the warm-up, so that a render that follows compiles nothing. Returns what was done
+    ("loaded from the cache" or "compiled") and the seconds it took. progress: shown the
+    stage "compile" (bsrt/progress.py keeps it out of the render's time left)."""
+    from bsrt.kernels import compile as kernels
+    from bsrt.rendering.warm_up import warm_up
+
+    clock = time.perf_counter()
+    cached = kernels.is_cached()
+    if not cached:
+        if progress:
+            progress.clear()
         print(
-            "bsrt: compiling the ray-tracing kernels for this machine (once; about a minute)...",
+            f"bsrt: compiling bsrt's kernels once for this machine (about {kernels.estimate_seconds():.0f} s)...",
             file=sys.stderr,
             flush=True,
         )
+        if progress:
+            progress("compile", 0.0)
+        kernels.compile_all()
+        if progress:
+            progress("compile", 0.9)
+    warm_up()
+    return ("loaded from the cache" if cached else "compiled"), time.perf_counter() - clock
 
 
 def _cmd_bench(args) -> int:
@@ -255,6 +277,12 @@ def _cmd_bench(args) -> int:
         if args.full:
             print()
             print(bench.format_full(results))
+        if args.startup:
+            scene = (args.scenes or bench.DEFAULT_SCENES)[0]
+            results["startup"] = bench.startup(scene)
+            results["first_run"] = bench.first_run(scene)
+            print()
+            print(bench.format_startup(results))
     if args.json:
         from bsrt.rendering.image import write_text
 
