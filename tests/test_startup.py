@@ -9,11 +9,13 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 from bsrt.kernels import compile as kernels
+from bsrt.kernels import jit, tables
 from bsrt.progress import Progress
 from bsrt.rendering import bench
 
@@ -65,33 +67,53 @@ def test_a_cli_render_imports_no_opencascade_dask_window_or_preview(tmp_path):
     assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
 
 
-def test_the_kernels_cache_in_the_users_cache_folder(tmp_path):
-    """$XDG_CACHE_HOME/bsrt/kernels/<source folder>, not inside the package."""
-    code = "from bsrt.kernels import compile as k; print(k.cache_folder())"
-    env = _env(XDG_CACHE_HOME=tmp_path / "xdg", NUMBA_CACHE_DIR=None)
-    folder = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    folder = Path(folder.stdout.strip())
-    assert folder.parent == tmp_path / "xdg" / "bsrt" / "kernels"
-    assert folder.name.startswith("kernels_")  # numba's naming: the source folder's name and hash
-    assert (folder / "bsrt-kernels-epoch").read_text() == f"{_version()} {_epoch()}\n"
+@pytest.fixture
+def cache_home(tmp_path, monkeypatch):
+    """$XDG_CACHE_HOME in tmp_path, no NUMBA_CACHE_DIR (numba read it at import: its config too)."""
+    import numba
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    monkeypatch.setattr(jit, "_writable", set())
+    monkeypatch.setattr(jit, "_checked", set())
+    return tmp_path / "xdg"
 
 
-def test_an_unwritable_cache_folder_falls_back_to_the_package_folder(tmp_path):
+def test_the_kernels_cache_in_the_users_cache_folder(cache_home):
+    """$XDG_CACHE_HOME/bsrt/kernels/<source folder>, not inside the package; other functions
+    are left to numba's own locators."""
+    from numba.core import caching
+
+    kernel = tables.permute_rows.py_func
+    locator = jit.KernelCacheLocator.from_function(kernel, tables.__file__)
+    folder = Path(locator.get_cache_path())
+    assert folder.parent == cache_home / "bsrt" / "kernels"
+    assert folder.name.startswith("kernels_")  # numba's naming: the source folder's name and a hash of its path
+    assert (folder / "bsrt-kernels-epoch").read_text() == f"{_version()} {jit.CACHE_EPOCH}\n"
+    assert jit.KernelCacheLocator.from_function(_version, __file__) is None
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+    assert impl._locator_classes[:3] == list(jit.LOCATORS)
+
+
+def test_an_unwritable_cache_folder_falls_back_to_the_package_folder(cache_home, monkeypatch, tmp_path):
     """A cache home under a plain file cannot be created (even by root): the package's own
-    __pycache__ takes the machine code instead, as numba would."""
+    __pycache__ takes the machine code instead, and last the temporary folder."""
     blocker = tmp_path / "a-file"
     blocker.write_text("")
-    code = "from bsrt.kernels import compile as k; print(k.cache_folder())"
-    env = _env(XDG_CACHE_HOME=blocker / "cache", NUMBA_CACHE_DIR=None)
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    assert Path(out.stdout.strip()) == ROOT / "bsrt" / "kernels" / "__pycache__"
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker / "cache"))
+    kernel = tables.permute_rows.py_func
+    assert jit.KernelCacheLocator.from_function(kernel, tables.__file__) is None
+    package = jit.PackageCacheLocator.from_function(kernel, tables.__file__)
+    assert Path(package.get_cache_path()) == ROOT / "bsrt" / "kernels" / "__pycache__"
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    last = jit.TemporaryCacheLocator.from_function(kernel, tables.__file__)
+    assert Path(last.get_cache_path()).parent.parent == tmp_path / "tmp"
 
 
 def test_machine_code_of_another_version_is_dropped_once(tmp_path):
     """The stale-cache purge works in the new folder: files under another version's marker go,
     the marker is rewritten, and a second look changes nothing."""
-    from bsrt.kernels import jit
-
     folder = tmp_path / "kernels"
     folder.mkdir()
     (folder / "bsrt-kernels-epoch").write_text("0.0.1 1\n")
@@ -101,14 +123,17 @@ def test_machine_code_of_another_version_is_dropped_once(tmp_path):
     assert sorted(p.name for p in folder.iterdir()) == ["bsrt-kernels-epoch", "notes.txt"]
     assert (folder / "bsrt-kernels-epoch").read_text() == f"{_version()} {jit.CACHE_EPOCH}\n"
     (folder / "b.g-2.py311.nbi").write_text("x")
-    jit._checked.discard(str(folder))
+    jit._checked.discard(str(folder))  # a new process
     jit.drop_stale_machine_code(str(folder))
     assert (folder / "b.g-2.py311.nbi").exists()  # the same version: kept
 
 
-def test_the_compile_is_dealt_longest_first_to_the_least_loaded_worker():
-    # a (10) -> 0; b (6) -> 1; c (5) -> 1 (6 < 10); d (4) -> 0 (10 < 11): loads 14 and 11
-    assert kernels._shares({"d": 4.0, "b": 6.0, "a": 10.0, "c": 5.0}, 2) == [["a", "d"], ["b", "c"]]
+def test_the_compile_is_dealt_by_family_longest_first_to_the_least_loaded_worker():
+    seconds = {"traverse.a": 10.0, "roots.b": 3.0, "flatten.c": 6.0, "flatten.d": 4.0, "prelim.e": 5.0, "x.f": 1.0}
+    # families: hits (traverse, roots) 13, tree (flatten) 10, map (prelim) 5, x.f alone 1
+    # hits -> 0 (13); tree -> 1 (10); map -> 1 (15); x.f -> 0 (14)
+    assert kernels._shares(seconds, 2) == [["traverse.a", "roots.b", "x.f"], ["flatten.c", "flatten.d", "prelim.e"]]
+    assert kernels._shares(seconds, 4) == [["traverse.a", "roots.b"], ["flatten.c", "flatten.d"], ["prelim.e"], ["x.f"]]
 
 
 def test_the_recorded_signatures_cover_every_entry_kernel():
@@ -220,9 +245,3 @@ def _version() -> str:
     from bsrt import __version__
 
     return __version__
-
-
-def _epoch() -> int:
-    from bsrt.kernels.jit import CACHE_EPOCH
-
-    return CACHE_EPOCH

@@ -98,7 +98,10 @@ def estimate_seconds(workers: int | None = None) -> float:
     """The cold compile's expected wall time on this machine's cores (from the record)."""
     record = recorded()
     total = sum(record["seconds"].values()) if record else DEFAULT_SECONDS
-    return total / max(1, min(workers or _cores(), 2 if record else 1))
+    if not record:
+        return total
+    workers = min(workers or _cores(), 4)
+    return max(sum(record["seconds"][n] for n in share) for share in _shares(record["seconds"], workers))
 
 
 def compile_all(workers: int | None = None) -> float:
@@ -128,14 +131,24 @@ def compile_all(workers: int | None = None) -> float:
     return time.perf_counter() - clock
 
 
+# kernels of one family share heavy callees (compiled once per process that needs them): dealt together
+FAMILIES = {"traverse": "hits", "roots": "hits", "patches": "hits", "shading": "hits", "trim": "trims"}
+FAMILIES |= {"trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
+
+
 def _shares(seconds: dict, workers: int) -> list[list[str]]:
-    """The entry kernels dealt to ``workers`` processes, longest first to the least loaded."""
+    """The entry kernels dealt to ``workers`` processes by family (FAMILIES), the longest family
+    first to the least loaded worker."""
+    families: dict[str, list[str]] = {}
+    for name in seconds:
+        families.setdefault(FAMILIES.get(name.split(".")[0], name), []).append(name)
+    cost = {family: sum(seconds[n] for n in names) for family, names in families.items()}
     loads = [0.0] * workers
     shares: list[list[str]] = [[] for _ in range(workers)]
-    for name in sorted(seconds, key=seconds.get, reverse=True):
+    for family in sorted(families, key=cost.get, reverse=True):
         i = loads.index(min(loads))
-        shares[i].append(name)
-        loads[i] += seconds[name]
+        shares[i] += sorted(families[family], key=seconds.get, reverse=True)
+        loads[i] += cost[family]
     return shares
 
 

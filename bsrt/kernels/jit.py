@@ -58,6 +58,7 @@ __all__ = ["CACHE_EPOCH", "KernelCacheLocator", "cache_root", "njit"]
 CACHE_EPOCH = 2
 _PACKAGE = __name__.rsplit(".", 1)[0]  # "bsrt.kernels"
 _checked: set[str] = set()  # folders whose epoch marker was checked in this process
+_writable: set[str] = set()  # folders found writable in this process
 
 
 def cache_root() -> str:
@@ -108,8 +109,11 @@ class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLo
         return self._cache_path
 
     def ensure_cache_path(self):
+        if self._cache_path in _writable:  # checked once per folder (numba writes a file to check, per kernel)
+            return
         super().ensure_cache_path()
         drop_stale_machine_code(self._cache_path)
+        _writable.add(self._cache_path)
 
     @classmethod
     def from_function(cls, py_func, py_file):
