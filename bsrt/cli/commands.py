@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from bsrt import interrupts
+from bsrt.cli.compiling import compile_if_cold, compile_kernels
 from bsrt.errors import InputError, RenderError
 from bsrt.methods import METHODS
 from bsrt.settings import flag_values
@@ -104,7 +105,7 @@ def _cmd_render(args) -> int:
         raise
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
     options = RenderOptions.resolve(scene, **flag_values(args, "render"))
-    _compile_if_cold(progress)
+    compile_if_cold(progress)
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
@@ -220,42 +221,6 @@ def _cmd_doctor(args) -> int:
     return 0
 
 
-def _compile_if_cold(progress) -> None:
-    """The first render on a machine compiles the kernels before it starts (said on stderr)."""
-    from bsrt.kernels import compile as kernels
-
-    if not kernels.is_cached():
-        compile_kernels(progress)
-
-
-def compile_kernels(progress=None) -> tuple[str, float]:
-    """Compile every kernel into the cache if it is not there (announced on stderr, terminal or
-    not), in parallel worker processes, then load (or, without a record, compile) them all here
-    by the warm-up, so that a render that follows compiles nothing. Returns what was done
-    ("loaded from the cache" or "compiled") and the seconds it took. progress: shown the
-    stage "compile" (bsrt/progress.py keeps it out of the render's time left)."""
-    from bsrt.kernels import compile as kernels
-    from bsrt.rendering.warm_up import warm_up
-
-    clock = time.perf_counter()
-    cached = kernels.is_cached()
-    if not cached:
-        if progress:
-            progress.clear()
-        print(
-            f"bsrt: compiling bsrt's kernels once for this machine (about {kernels.estimate_seconds():.0f} s)...",
-            file=sys.stderr,
-            flush=True,
-        )
-        if progress:
-            progress("compile", 0.0)
-        kernels.compile_all()
-        if progress:
-            progress("compile", 0.9)
-    warm_up()
-    return ("loaded from the cache" if cached else "compiled"), time.perf_counter() - clock
-
-
 def _cmd_bench(args) -> int:
     from bsrt.rendering import bench
 
@@ -312,6 +277,7 @@ def _cmd_preview(args) -> int:
         camera=CameraOverrides.from_args(args),
         cache=args.cache,
     )
+    compile_if_cold()  # the first run on a machine: before the window opens
     return preview.run(with_settings(scene, flag_values(args, "preview")), Path(args.scene), options)
 
 
