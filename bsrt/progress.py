@@ -7,7 +7,9 @@ it starts, since loading the kernels can take a while). Before that, the
 model load reports stage "load" with its own fraction, the faces converted
 (:func:`load_reporter` adapts ``bsrt.io.load_model``'s ``progress(done,
 total)``); the render's stages then start again from 0, and the time left
-counts from there. On a terminal it redraws one line in place, at most ten
+counts from there. The first run on a machine compiles the kernels before
+the render, stage "compile", which is likewise a phase of its own (the
+render's time left never counts it). On a terminal it redraws one line in place, at most ten
 times a second::
 
     bsrt: [████████░░░░░░░░░░░░]  41% load 65/160 faces, 0.8 s, about 1.1 s left
@@ -35,6 +37,8 @@ BAR_INTERVAL = 0.1  # seconds between redraws of the bar (at most 10 per second)
 LINE_INTERVAL = 1.0  # seconds between progress lines when not on a terminal
 BAR_CELLS = 20
 LOAD = "load"  # the stage of the model load, before the render's own
+COMPILE = "compile"  # the first run's kernel compile, before the render's own
+BEFORE = (LOAD, COMPILE)  # stages with their own fraction, not counted in the render's time left
 
 _active: Progress | None = None
 
@@ -96,8 +100,8 @@ class Progress:
         """Stage ``stage`` is ``fraction`` done; detail: shown after the stage's name."""
         global _active
         now = self.clock()
-        if self.stage == LOAD and stage != LOAD:  # the load is over: the render starts from 0
-            self.fraction, self.phase_start = 0.0, now
+        if stage != self.stage and (self.stage in BEFORE or stage in BEFORE):  # a phase of its own starts
+            self.fraction, self.phase_start = 0.0, now  # (after a load or a compile the render starts from 0)
         self.fraction = max(self.fraction, min(1.0, max(0.0, float(fraction))))  # never backwards
         self.stage, self.detail = stage, detail
         first_of_stage = stage not in self._stages  # a stage change is always shown (a handful per render)

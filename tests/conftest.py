@@ -256,6 +256,11 @@ SLOW: dict[str, float] = {
     "tests/test_progress.py::test_nothing_on_a_pipe": 1.4,
     "tests/test_progress.py::test_progress_with_aov_names_both_files": 1.2,
     "tests/test_progress.py::test_render_on_a_terminal_shows_the_bar_then_the_summary": 1.6,
+    "tests/test_startup.py::test_a_cli_render_imports_no_opencascade_dask_window_or_preview": 11.6,
+    "tests/test_startup.py::test_a_first_render_with_an_empty_cache_announces_the_compile_and_fills_the_cache": 185.8,
+    "tests/test_startup.py::test_an_unwritable_cache_folder_still_renders": 262.6,
+    "tests/test_startup.py::test_doctor_compile_fills_an_empty_cache": 146.2,
+    "tests/test_startup.py::test_the_command_line_parser_imports_neither_numba_nor_any_extra": 1.5,
     "tests/test_render.py::test_bands_and_a_given_map_give_the_same_hits": 1.2,
     "tests/test_render.py::test_methods_agree_on_every_pixel": 2.9,  # 2 cases
     "tests/test_signals.py::test_a_signal_at_any_moment_leaves_all_outputs_or_none": 31.6,  # 3 cases

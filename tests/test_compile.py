@@ -7,7 +7,9 @@ runs the warm-up (``bsrt doctor``'s) and then renders every bundled scene
 (shadows, mirrors) and a trimmed IGES model with every method; it runs here
 in a new process with an empty numba cache, so that every kernel, called
 from Python or from another kernel, is compiled in front of us (a kernel
-loaded from the cache compiles none of the kernels it calls).
+loaded from the cache compiles none of the kernels it calls). The signatures
+recorded for the parallel first-run compile (``bsrt/kernels/signatures.pickle``)
+must be the ones renders compile.
 """
 
 from __future__ import annotations
@@ -55,6 +57,10 @@ def test_every_kernel_compiles_exactly_one_signature_and_the_warm_up_all_of_them
         name: renders[name] for name, n in counts.items() if n != (0 if name in INLINED else 1)
     }
     assert warm_up == renders  # the warm-up compiled everything: a first render compiles nothing more
+    record = kernels.recorded()  # the parallel first-run compile works from these (bsrt/kernels/compile.py)
+    assert record is not None, "bsrt/kernels/signatures.pickle unreadable: run scripts/record_kernel_signatures.py"
+    recorded = {name: [str(sig) for sig in sigs] for name, sigs in record["signatures"].items()}
+    assert recorded == {name: renders[name] for name in recorded}, "run scripts/record_kernel_signatures.py"
 
 
 def _dispatchers():

@@ -82,10 +82,14 @@ def _reporter(progress):
     return report
 
 
-def _run(command: str, call) -> int:
+def _run(command: str, call, local: bool = True) -> int:
     from bsrt.progress import wanted
 
     progress = wanted(sys.stderr, None)
+    if local:  # workers on this machine: the kernels are compiled once here, not by each at once
+        from bsrt.cli.compiling import compile_if_cold
+
+        compile_if_cold(progress, warm=False)
     if progress:
         progress("starting", 0.0)
     try:
@@ -124,6 +128,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
             report=report,
             cache=args.cache,
         ),
+        local=not args.scheduler,
     )
 
 
@@ -147,4 +152,5 @@ def cmd_animate(args: argparse.Namespace) -> int:
             report=report,
             cache=args.cache,
         ),
+        local=not args.scheduler,
     )

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from bsrt import interrupts
+from bsrt.cli.compiling import compile_if_cold, compile_kernels
 from bsrt.errors import InputError, RenderError
 from bsrt.methods import METHODS
 from bsrt.settings import flag_values
@@ -113,7 +114,7 @@ def _cmd_render(args) -> int:
     _refuse_overwriting([out] + ([aov] if aov else []), scene)
     options = RenderOptions.resolve(scene, **given)
     check_image_path(out, options.transparent, options.bit_depth, f"{scene.path}: film.")  # the scene's own
-    _say_if_compiling()
+    compile_if_cold(progress)
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
@@ -240,14 +241,12 @@ def _cmd_doctor(args) -> int:
     )
     from bsrt.kernels import compile as kernels
 
-    cached = kernels.is_cached()
-    from bsrt.rendering.warm_up import warm_up
-
-    seconds = warm_up()
-    print(
-        f"kernels:         {'loaded from the cache' if cached else 'compiled'} in {seconds:.1f} s "
-        f"(cache: {kernels.cache_folder() or 'none'})"
-    )
+    if args.compile:
+        state, seconds = compile_kernels()
+        print(f"kernels:         {state} in {seconds:.1f} s (cache: {kernels.cache_folder() or 'none'})")
+    else:
+        state = "cached" if kernels.is_cached() else "not compiled yet (bsrt doctor --compile does it now)"
+        print(f"kernels:         {state} (cache: {kernels.cache_folder() or 'none'})")
     from bsrt.io.formats import READERS
 
     for reader in READERS.values():
@@ -305,18 +304,6 @@ def _window_state() -> str:
     return f"ready (glfw {glfw.__version__}, display {os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')})"
 
 
-def _say_if_compiling() -> None:
-    """On a terminal, say that the first render on this machine compiles the kernels (once)."""
-    from bsrt.kernels import compile as kernels
-
-    if sys.stderr.isatty() and not kernels.is_cached():
-        print(
-            "bsrt: compiling the ray-tracing kernels for this machine (once; about a minute)...",
-            file=sys.stderr,
-            flush=True,
-        )
-
-
 def _cmd_bench(args) -> int:
     from bsrt.rendering import bench
 
@@ -338,6 +325,12 @@ def _cmd_bench(args) -> int:
         if args.full:
             print()
             print(bench.format_full(results))
+        if args.startup:
+            scene = (args.scenes or bench.DEFAULT_SCENES)[0]
+            results["startup"] = bench.startup(scene)
+            results["first_run"] = bench.first_run(scene)
+            print()
+            print(bench.format_startup(results))
     if args.json:
         from bsrt.rendering.image import write_text
 
@@ -367,6 +360,7 @@ def _cmd_preview(args) -> int:
         camera=CameraOverrides.from_args(args),
         cache=args.cache,
     )
+    compile_if_cold()  # the first run on a machine: before the window opens
     return preview.run(with_settings(scene, flag_values(args, "preview")), Path(args.scene), options)
 
 

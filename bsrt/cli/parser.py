@@ -30,6 +30,11 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
+    def format_help(self):
+        if callable(self.epilog):  # an epilog whose text needs heavy imports is made only when shown
+            self.epilog = self.epilog()
+        return super().format_help()
+
 
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="bsrt", description="Ray-trace B-spline surfaces directly.")
@@ -85,7 +90,12 @@ def _parser() -> argparse.ArgumentParser:
     i.add_argument("file", help=INPUT_HELP)
     _format_option(i)
 
-    sub.add_parser("doctor", help="check the set-up: OpenGL (EGL devices, renderer), kernels, model readers")
+    d = sub.add_parser("doctor", help="check the set-up: OpenGL (EGL devices, renderer), kernels, model readers")
+    d.add_argument(
+        "--compile",
+        action="store_true",
+        help="also compile the kernels into the cache now (once per machine; the first render does it otherwise)",
+    )
 
     b = sub.add_parser("bench", help="time the methods on the paper's scenes (Tables 1 and 2)")
     b.add_argument("--scenes", nargs="+", help="scene names under scenes/ or paths (default: column water-lily)")
@@ -105,6 +115,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     b.add_argument(
         "--full", action="store_true", help="also show whole renders by stage (shadows, mirrors) and rays per second"
+    )
+    b.add_argument(
+        "--startup",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also time start-up (a 16x16 CLI render minus importing NumPy) and the first run (an empty kernel "
+        "cache) in new processes (default: on)",
     )
 
     _preview_arguments(
@@ -127,12 +144,9 @@ METHODS_HELP = "methods (--method):\n" + "\n".join(f"  {m.name:9} {m.help}" for 
 
 def _preview_arguments(parser) -> None:
     """The options of ``bsrt preview``."""
-    from bsrt.preview.bindings import KEYS_HELP
-    from bsrt.preview.script import SCRIPT_HELP
-
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.description = "An interactive window: a fast GL view while the camera moves, then the exact image."
-    parser.epilog = KEYS_HELP + "\n" + SCRIPT_HELP
+    parser.epilog = _preview_epilog  # the keys and script commands: importing the preview costs glfw and more
     parser.add_argument("scene", help=INPUT_HELP)
     parser.add_argument("--width", type=int, default=800, help="window width in screen coordinates (default 800)")
     parser.add_argument("--height", type=int, default=600, help="window height (default 600)")
@@ -146,6 +160,13 @@ def _preview_arguments(parser) -> None:
     parser.add_argument("--script", metavar="FILE", help="the same commands from a file")
     parser.add_argument("--frame-log", metavar="FILE.json", help="write per-frame timestamps and states as JSON")
     parser.add_argument("--max-fps", type=float, default=60.0, help="frame rate cap (default 60; 0: none)")
+
+
+def _preview_epilog() -> str:
+    from bsrt.preview.bindings import KEYS_HELP
+    from bsrt.preview.script import SCRIPT_HELP
+
+    return KEYS_HELP + "\n" + SCRIPT_HELP
 
 
 def _format_option(parser) -> None:

@@ -1,17 +1,30 @@
-"""Compiling the kernels once per machine, and saying so.
+"""Compiling the kernels once per machine, in parallel, ahead of the first render.
 
-numba compiles each kernel on its first call and caches the machine code on
-disk (``cache=True``): next to the package (``bsrt/kernels/__pycache__``)
-or, where that folder is not writable, in the user's cache folder (numba's
-own fallback; ``NUMBA_CACHE_DIR`` overrides both).
+numba compiles a kernel on its first call and caches the machine code on
+disk (``jit.py`` says where). One compiler runs per process (numba holds a
+global lock), so :func:`compile_all` shares the entry kernels among worker
+processes, each compiling its share from the signatures recorded in
+``signatures.pickle`` (written by ``scripts/record_kernel_signatures.py``;
+``tests/test_compile.py`` checks that it matches what renders compile). The workers write the cache;
+the caller then loads it. Where the recorded signatures cannot be read (a
+numba whose types pickle differently), or with one worker, nothing is done
+here and the first render compiles as it goes.
+
 :func:`bsrt.rendering.warm_up.warm_up` calls every entry kernel on a tiny
-scene so the cost is paid (and timed) up front: ``bsrt doctor`` reports it,
-and the CLI says on a terminal when a first render is about to compile.
+scene (GL included): ``bsrt doctor --compile`` runs both, and ``bsrt
+render`` announces and runs :func:`compile_all` when the cache is cold.
+
+    python -m bsrt.kernels.compile NAME...   # a worker: compile these entry kernels
 """
 
 from __future__ import annotations
 
 import os
+import pickle
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 from bsrt.kernels import film, flatten, lighting, patches, prelim, roots, shading, tables, traverse, trim, trim_pieces
 
@@ -42,20 +55,148 @@ ENTRY_KERNELS = (
     trim_pieces.bezier_spans,
     trim_pieces.monotone_pieces,
 )
+SIGNATURES = Path(__file__).with_name("signatures.pickle")
+DEFAULT_SECONDS = 45.0  # one core's cold compile of everything (2-core machine, measured), before a record exists
+
+
+def name_of(kernel) -> str:
+    """``"module.function"``: the key of a kernel in the record."""
+    return f"{kernel.py_func.__module__.rsplit('.', 1)[1]}.{kernel.py_func.__name__}"
 
 
 def cache_folder() -> str | None:
     """Where the machine code is cached (None if numba cannot cache here)."""
     cache = getattr(roots.solve_items, "_cache", None)
-    path = getattr(getattr(cache, "_cache_file", None), "_cache_path", None)
-    return path
+    return getattr(getattr(cache, "_cache_file", None), "_cache_path", None)
 
 
 def is_cached() -> bool:
-    """Whether every entry kernel has machine code on disk from an earlier run."""
+    """Whether every entry kernel has machine code on disk for its current source (an index
+    written for other source, or by another numba, does not count)."""
     for kernel in ENTRY_KERNELS:
         cache_file = getattr(getattr(kernel, "_cache", None), "_cache_file", None)
-        index = getattr(cache_file, "_index_path", None)
-        if index is None or not os.path.exists(index):
+        if cache_file is None:
+            return False
+        try:
+            if not cache_file._load_index():
+                return False
+        except Exception:  # an unreadable index: numba recompiles, so it is not cached
             return False
     return True
+
+
+def recorded() -> dict | None:
+    """{"signatures": {name: [signature]}, "seconds": {name: s}} from signatures.pickle; None if it
+    cannot be read with this numba."""
+    try:
+        with open(SIGNATURES, "rb") as f:
+            record = pickle.load(f)
+        return record if set(record["signatures"]) >= {name_of(k) for k in ENTRY_KERNELS} else None
+    except Exception:  # missing, or types that do not unpickle with this numba: compile as we go
+        return None
+
+
+def estimate_seconds(workers: int | None = None) -> float:
+    """The cold compile's expected wall time on this machine's cores (from the record)."""
+    record = recorded()
+    total = sum(record["seconds"].values()) if record else DEFAULT_SECONDS
+    if not record:
+        return total
+    workers = min(workers or _cores(), 4)
+    return max(sum(record["seconds"][n] for n in share) for share in _shares(record["seconds"], workers))
+
+
+def compile_all(workers: int | None = None) -> float:
+    """Compile every entry kernel into the cache in ``workers`` processes (default: the cores,
+    at most 4); returns the seconds it took. Does nothing where the record cannot be read or
+    there is one core: the caller's first calls compile then. The workers inherit the
+    environment (NUMBA_CACHE_DIR, XDG_CACHE_HOME), so they fill the cache the caller reads."""
+    clock = time.perf_counter()
+    record = recorded()
+    workers = min(workers or _cores(), 4)
+    if record is None or workers < 2:
+        return time.perf_counter() - clock
+    shares = _shares(record["seconds"], workers)
+    children = [
+        subprocess.Popen([sys.executable, "-m", "bsrt.kernels.compile", *share], stdout=subprocess.DEVNULL)
+        for share in shares
+        if share
+    ]
+    try:
+        for child in children:
+            child.wait()
+    finally:
+        for child in children:  # interrupted: the workers go too (a half-written entry is never renamed in)
+            if child.poll() is None:
+                child.kill()
+                child.wait()
+    return time.perf_counter() - clock
+
+
+# kernels of one family share heavy callees (compiled once per process that needs them): dealt together
+FAMILIES = {"traverse": "hits", "roots": "hits", "patches": "hits", "shading": "hits", "trim": "trims"}
+FAMILIES |= {"trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
+
+
+def _shares(seconds: dict, workers: int) -> list[list[str]]:
+    """The entry kernels dealt to ``workers`` processes by family (FAMILIES), the longest family
+    first to the least loaded worker."""
+    families: dict[str, list[str]] = {}
+    for name in seconds:
+        families.setdefault(FAMILIES.get(name.split(".")[0], name), []).append(name)
+    cost = {family: sum(seconds[n] for n in names) for family, names in families.items()}
+    loads = [0.0] * workers
+    shares: list[list[str]] = [[] for _ in range(workers)]
+    for family in sorted(families, key=cost.get, reverse=True):
+        i = loads.index(min(loads))
+        shares[i] += sorted(families[family], key=seconds.get, reverse=True)
+        loads[i] += cost[family]
+    return shares
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def compile_named(names: list[str], record: dict | None = None) -> dict:
+    """Compile the entry kernels ``names`` for their recorded signatures (a worker's job), in
+    this order; returns {name: CPU seconds} (a kernel's callees compiled by an earlier one are
+    not counted again)."""
+    record = record or recorded()
+    kernels = {name_of(k): k for k in ENTRY_KERNELS}
+    seconds = {}
+    for name in names:
+        clock = time.process_time()
+        for signature in record["signatures"][name]:
+            kernels[name].compile(signature)
+        seconds[name] = round(time.process_time() - clock, 2)
+    return seconds
+
+
+def signatures_now() -> dict:
+    """{name: [signature]} of every entry kernel as compiled (or loaded) in this process."""
+    return {name_of(k): list(k.signatures) for k in ENTRY_KERNELS}
+
+
+def main(argv: list[str]) -> int:
+    """A worker: ``python -m bsrt.kernels.compile NAME...``; with ``--record FILE`` first, the
+    signatures come from FILE (a pickle of {"signatures": ...}) and the seconds are printed
+    as JSON (scripts/record_kernel_signatures.py)."""
+    record = None
+    if argv[:1] == ["--record"]:
+        with open(argv[1], "rb") as f:
+            record = pickle.load(f)
+        argv = argv[2:]
+    seconds = compile_named(argv, record)
+    if record is not None:
+        import json
+
+        print(json.dumps(seconds))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -38,7 +38,8 @@ the piece's size of a point where the normal vanishes.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 # Coefficients shorter than this fraction of the longest are taken for rounding (module doc).
 ROUNDING = 1e-6

@@ -11,7 +11,8 @@ rows they fall in, in the order NumPy's sum over the columns then
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 
 @njit(cache=True, nogil=True, no_cpython_wrapper=True)

@@ -21,7 +21,8 @@ old cone code.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 from .cones import normal_cone_within, scratch
 

@@ -19,9 +19,9 @@ inside the walk too, and the walk skips what trace_one skips.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from bsrt.kernels.flatten import leaf_net
+from bsrt.kernels.jit import njit
 from bsrt.kernels.patches import locate
 from bsrt.kernels.roots import ray_frame
 from bsrt.kernels.shading import radiance, surface_frame

@@ -32,7 +32,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 
 class PatchArrays(NamedTuple):

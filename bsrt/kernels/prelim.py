@@ -10,7 +10,8 @@ Kernels take (start, stop) over flat pixel indices, for ``run_chunks``.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -50,8 +50,8 @@ in a few dozen iterations, whatever max_iterations is.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from bsrt.kernels.jit import njit
 from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 from bsrt.kernels.patches import clamp, frame, inside_patch, locate, point
 

@@ -7,8 +7,8 @@ directional. Everything in linear RGB, float64.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from bsrt.kernels.jit import njit
 from bsrt.kernels.patches import frame
 
 LIGHT_KINDS = {"ambient": 0, "point": 1, "directional": 2}

@@ -9,7 +9,8 @@ nets and coefficients, which NumPy's einsum and fancy indexing would copy).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 
 @njit(cache=True, nogil=True)

@@ -20,9 +20,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
 from bsrt.kernels.flatten import copy_net, leaf_net, split_half
+from bsrt.kernels.jit import njit
 from bsrt.kernels.method_ids import NEWTON
 from bsrt.kernels.patches import frame, locate
 from bsrt.kernels.roots import ray_frame, solve_one

@@ -40,8 +40,8 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 
+from bsrt.kernels.jit import njit
 from bsrt.kernels.threads import run_chunks
 
 

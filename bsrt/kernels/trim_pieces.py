@@ -7,7 +7,8 @@ tests on the pieces are in kernels/trim.py.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bsrt.kernels.jit import njit
 
 MONOTONE_TOL = 64 * 2.220446049250313e-16  # control-polygon steps below this x the magnitude count as flat
 

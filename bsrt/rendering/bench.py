@@ -244,3 +244,100 @@ def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
             f"ratio {row['ratio']:.2f}  ({row['trimmed_surfaces']} trimmed surfaces)"
         )
     return out
+
+
+def _child_seconds(argv: list[str], env: dict) -> tuple[float, float]:
+    """Run ``argv`` in a child; its (wall, CPU user + system) seconds. A failure is an InputError."""
+    import os
+    import subprocess
+
+    before = os.times()
+    clock = time.perf_counter()
+    done = subprocess.run(argv, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - clock
+    after = os.times()
+    if done.returncode != 0:
+        raise InputError(f"{' '.join(argv)}: failed ({done.returncode}): {done.stderr.strip()[-300:]}")
+    return wall, (after.children_user - before.children_user) + (after.children_system - before.children_system)
+
+
+def _tiny_render(scene: str, out: Path) -> list[str]:
+    import sys
+
+    return [sys.executable, "-m", "bsrt", "render", str(scene_path(scene)), "-o", str(out)]
+
+
+def _child_env(**extra) -> dict:
+    """The environment of a child that runs this bsrt (its folder first on PYTHONPATH)."""
+    import os
+
+    root = str(Path(__file__).resolve().parents[2])
+    path = os.environ.get("PYTHONPATH")
+    return {**os.environ, "PYTHONPATH": root + (os.pathsep + path if path else ""), **extra}
+
+
+def startup(scene: str = "column", repeat: int = 5) -> dict:
+    """Start-up: a 16x16 ``bsrt render`` in a new process minus ``python -c "import numpy"``,
+    medians of ``repeat`` alternating runs (wall and CPU seconds), with the load average.
+    The kernels are first compiled (or found) in the cache by one untimed render."""
+    import os
+    import sys
+    import tempfile
+
+    env = _child_env()
+    with tempfile.TemporaryDirectory() as tmp:
+        render_argv = _tiny_render(scene, Path(tmp) / "tiny.png") + ["--width", "16", "--height", "16"]
+        _child_seconds(render_argv, env)  # untimed: the cache
+        numpy, renders = [], []
+        load = os.getloadavg()[0]
+        for _ in range(repeat):
+            numpy.append(_child_seconds([sys.executable, "-c", "import numpy"], env))
+            renders.append(_child_seconds(render_argv, env))
+    med = lambda runs, i: statistics.median(r[i] for r in runs)  # noqa: E731
+    return {
+        "repeat": repeat,
+        "render_wall": med(renders, 0),
+        "render_cpu": med(renders, 1),
+        "numpy_wall": med(numpy, 0),
+        "numpy_cpu": med(numpy, 1),
+        "startup_wall": statistics.median(r[0] - n[0] for r, n in zip(renders, numpy)),
+        "startup_cpu": statistics.median(r[1] - n[1] for r, n in zip(renders, numpy)),
+        "load_average": [load, os.getloadavg()[0]],
+    }
+
+
+def first_run(scene: str = "column") -> dict:
+    """The first render on a machine: a 16x16 ``bsrt render`` in a new process with an empty
+    kernel cache (NUMBA_CACHE_DIR a new temporary folder), wall and CPU seconds (the CPU of
+    the compile's worker processes included), with the load average."""
+    import os
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        env = _child_env(NUMBA_CACHE_DIR=str(Path(tmp) / "kernels"))
+        load = os.getloadavg()[0]
+        wall, cpu = _child_seconds(
+            _tiny_render(scene, Path(tmp) / "first.png") + ["--width", "16", "--height", "16"], env
+        )
+    return {"first_run_wall": wall, "first_run_cpu": cpu, "load_average": [load, os.getloadavg()[0]]}
+
+
+def format_startup(results: dict) -> str:
+    """The start-up and first-run rows (either may be missing)."""
+    lines = []
+    s = results.get("startup")
+    if s:
+        lines.append(
+            f"start-up: 16x16 CLI render {s['render_wall']:.2f} s wall ({s['render_cpu']:.2f} s CPU) - "
+            f"python -c 'import numpy' {s['numpy_wall']:.2f} s ({s['numpy_cpu']:.2f} s) = "
+            f"{s['startup_wall']:.2f} s wall ({s['startup_cpu']:.2f} s CPU), medians of {s['repeat']}, "
+            f"load {s['load_average'][0]:.1f}-{s['load_average'][1]:.1f}"
+        )
+    f = results.get("first_run")
+    if f:
+        lines.append(
+            f"first run (empty kernel cache): 16x16 CLI render {f['first_run_wall']:.1f} s wall "
+            f"({f['first_run_cpu']:.1f} s CPU, compile workers included), "
+            f"load {f['load_average'][0]:.1f}-{f['load_average'][1]:.1f}"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,159 @@
+"""numba's ``njit``, with bsrt's kernels cached in the user's cache folder.
+
+Every kernel module takes ``njit`` from here, so the first kernel module
+imported installs :class:`KernelCacheLocator` in front of numba's own
+locators (it answers only for functions of ``bsrt.kernels``; any other
+numba function in the process is cached as numba would). The machine code
+goes to
+
+    $NUMBA_CACHE_DIR (numba's own setting, when set), else
+    $XDG_CACHE_HOME/bsrt/kernels (default ~/.cache/bsrt/kernels),
+
+in a subfolder per source folder (as numba names them: two checkouts never
+share an index), never inside site-packages, which may be read-only. Where
+that folder cannot be written, the package's ``__pycache__`` is used, and
+last a folder in the temporary directory; where none can be written numba
+raises at import (it cannot cache), which no real system does. No compiler and no network are needed: numba compiles
+with its own LLVM.
+
+When bsrt's version or :data:`CACHE_EPOCH` changes, the machine code in the
+folder used is dropped once (numba's index pickles the argument types of
+each kernel by module path and loads them before it compares the source's
+hash: an index written before such a type moved would fail to load with
+ModuleNotFoundError instead of being recompiled).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+
+
+def _numpy_functions_without_the_blas_probe() -> None:
+    """Import numba's NumPy functions (which the first kernel call would import anyway) while
+    ``scipy.linalg.cython_blas`` reads as absent: numba imports it there only to choose how
+    ``np.convolve``/``np.correlate`` take inner products (which no bsrt kernel uses), and
+    importing scipy.linalg costs 0.2-0.3 s of every start-up. ``np.dot`` and ``np.linalg``
+    still import it when a kernel (anyone's) first uses them. Nothing is done where numba's
+    NumPy functions are already imported."""
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg.cython_blas" in sys.modules:
+        return
+    sys.modules["scipy.linalg.cython_blas"] = None  # an import of it raises ImportError
+    try:
+        import numba.np.arraymath  # noqa: F401
+    finally:
+        if sys.modules.get("scipy.linalg.cython_blas", 0) is None:
+            del sys.modules["scipy.linalg.cython_blas"]
+
+
+_numpy_functions_without_the_blas_probe()
+
+from numba import njit  # noqa: E402
+from numba.core import caching, config  # noqa: E402
+
+__all__ = ["CACHE_EPOCH", "KernelCacheLocator", "cache_root", "njit"]
+
+#: bump when a type the kernels take as an argument (a NamedTuple) moves to another module
+CACHE_EPOCH = 3
+_PACKAGE = __name__.rsplit(".", 1)[0]  # "bsrt.kernels"
+_checked: set[str] = set()  # folders whose epoch marker was checked in this process
+_writable: set[str] = set()  # folders found writable in this process
+
+
+def cache_root() -> str:
+    """The folder under which the kernels' machine code is cached (created on demand):
+    $NUMBA_CACHE_DIR, else $XDG_CACHE_HOME/bsrt/kernels, else ~/.cache/bsrt/kernels."""
+    if config.CACHE_DIR:
+        return config.CACHE_DIR
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "bsrt", "kernels")
+
+
+def drop_stale_machine_code(folder: str) -> None:
+    """Empty ``folder`` of numba cache files once if they were written by another bsrt version
+    or CACHE_EPOCH (a marker file records which); nothing happens where it cannot be written."""
+    if folder in _checked:
+        return
+    _checked.add(folder)
+    from bsrt import __version__
+
+    marker = os.path.join(folder, "bsrt-kernels-epoch")
+    stamp = f"{__version__} {CACHE_EPOCH}\n"
+    try:
+        with open(marker) as f:
+            if f.read() == stamp:
+                return
+    except OSError:
+        pass
+    try:
+        os.makedirs(folder, exist_ok=True)
+        for name in os.listdir(folder):
+            if name.endswith((".nbi", ".nbc")):
+                os.unlink(os.path.join(folder, name))
+        with open(marker, "w") as f:
+            f.write(stamp)
+    except OSError:
+        pass
+
+
+class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+    """numba's cache locator for bsrt's kernels: :func:`cache_root` / <source folder's name and hash>."""
+
+    def __init__(self, py_func, py_file):
+        self._py_file = py_file
+        self._lineno = py_func.__code__.co_firstlineno
+        self._cache_path = os.path.join(cache_root(), self.get_suitable_cache_subpath(py_file))
+
+    def get_cache_path(self):
+        return self._cache_path
+
+    def ensure_cache_path(self):
+        if self._cache_path in _writable:  # checked once per folder (numba writes a file to check, per kernel)
+            return
+        super().ensure_cache_path()
+        drop_stale_machine_code(self._cache_path)
+        _writable.add(self._cache_path)
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not _ours(py_func):
+            return None
+        return super().from_function(py_func, py_file)
+
+
+class PackageCacheLocator(KernelCacheLocator):
+    """Where the user's cache folder cannot be written: the package's own ``__pycache__``."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        self._cache_path = os.path.join(os.path.dirname(py_file), "__pycache__")
+
+
+class TemporaryCacheLocator(KernelCacheLocator):
+    """The last resort: a folder in the temporary directory (per user)."""
+
+    def __init__(self, py_func, py_file):
+        super().__init__(py_func, py_file)
+        user = os.getuid() if hasattr(os, "getuid") else 0
+        folder = os.path.join(tempfile.gettempdir(), f"bsrt-kernels-{user}")
+        self._cache_path = os.path.join(folder, self.get_suitable_cache_subpath(py_file))
+
+
+LOCATORS = (KernelCacheLocator, PackageCacheLocator, TemporaryCacheLocator)  # tried in this order
+
+
+def _ours(py_func) -> bool:
+    module = getattr(py_func, "__module__", "") or ""
+    return module == _PACKAGE or module.startswith(_PACKAGE + ".")
+
+
+def _install() -> None:
+    """Put bsrt's locators in front of numba's own (once)."""
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl  # renamed in numba 0.61
+    classes = impl._locator_classes
+    if KernelCacheLocator not in classes:
+        classes[:0] = LOCATORS
+
+
+_install()

@@ -1,0 +1,247 @@
+"""Start-up and the first run (issue 24): what the render path imports, where the kernels are
+cached, the first run's compile (announced, ahead of the render, in parallel), ``bsrt doctor
+--compile``. Speed itself is measured by ``bsrt bench`` (start-up and first-run rows), never here."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from bsrt.kernels import compile as kernels
+from bsrt.kernels import jit, tables
+from bsrt.progress import Progress
+from bsrt.rendering import bench
+
+ROOT = Path(__file__).resolve().parent.parent
+COLUMN = ROOT / "scenes" / "column.toml"
+HEAVY = ("OCP", "dask", "distributed", "glfw", "bsrt.preview", "bsrt.batches.engine", "scipy.linalg")
+
+
+def _env(**changes) -> dict:
+    """This checkout's bsrt in a child, the kernel cache as ``changes`` say (None: unset)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHONDONTWRITEBYTECODE": "1"}
+    for key, value in changes.items():
+        if value is None:
+            env.pop(key, None)
+        else:
+            env[key] = str(value)
+    return env
+
+
+def _modules_after(code: str, env=None) -> set[str]:
+    """The top names of sys.modules (and bsrt's own modules) after ``code`` runs in a new process."""
+    probe = code + "\nimport sys, json; print(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run(
+        [sys.executable, "-c", probe], env=env or _env(), capture_output=True, text=True, timeout=600, check=True
+    ).stdout
+    return set(json.loads(out.strip().splitlines()[-1]))
+
+
+def test_the_command_line_parser_imports_neither_numba_nor_any_extra():
+    loaded = _modules_after(
+        "from bsrt.cli.parser import _parser; _parser().parse_args(['render', 'x.toml', '-o', 'x.png'])"
+    )
+    assert not loaded & {"numba", "moderngl", *HEAVY}, sorted(loaded & {"numba", "moderngl", *HEAVY})
+
+
+def test_import_bsrt_loads_nothing_heavy():
+    loaded = _modules_after("import bsrt")
+    assert not loaded & {"numpy", "numba", "moderngl", *HEAVY}
+
+
+@pytest.mark.gl
+def test_a_cli_render_imports_no_opencascade_dask_window_or_preview(tmp_path):
+    loaded = _modules_after(
+        f"from bsrt.cli import main\nassert main(['render', {str(COLUMN)!r}, '-o', {str(tmp_path / 'c.png')!r}, "
+        "'--width', '8', '--height', '8']) == 0"
+    )
+    assert (tmp_path / "c.png").stat().st_size > 0
+    assert "numba" in loaded and "moderngl" in loaded  # it did render
+    assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
+
+
+@pytest.fixture
+def cache_home(tmp_path, monkeypatch):
+    """$XDG_CACHE_HOME in tmp_path, no NUMBA_CACHE_DIR (numba read it at import: its config too)."""
+    import numba
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", "")
+    monkeypatch.setattr(jit, "_writable", set())
+    monkeypatch.setattr(jit, "_checked", set())
+    return tmp_path / "xdg"
+
+
+def test_the_kernels_cache_in_the_users_cache_folder(cache_home):
+    """$XDG_CACHE_HOME/bsrt/kernels/<source folder>, not inside the package; other functions
+    are left to numba's own locators."""
+    from numba.core import caching
+
+    kernel = tables.permute_rows.py_func
+    locator = jit.KernelCacheLocator.from_function(kernel, tables.__file__)
+    folder = Path(locator.get_cache_path())
+    assert folder.parent == cache_home / "bsrt" / "kernels"
+    assert folder.name.startswith("kernels_")  # numba's naming: the source folder's name and a hash of its path
+    assert (folder / "bsrt-kernels-epoch").read_text() == f"{_version()} {jit.CACHE_EPOCH}\n"
+    assert jit.KernelCacheLocator.from_function(_version, __file__) is None
+    impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+    assert impl._locator_classes[:3] == list(jit.LOCATORS)
+
+
+def test_an_unwritable_cache_folder_falls_back_to_the_package_folder(cache_home, monkeypatch, tmp_path):
+    """A cache home under a plain file cannot be created (even by root): the package's own
+    __pycache__ takes the machine code instead, and last the temporary folder."""
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker / "cache"))
+    kernel = tables.permute_rows.py_func
+    assert jit.KernelCacheLocator.from_function(kernel, tables.__file__) is None
+    package = jit.PackageCacheLocator.from_function(kernel, tables.__file__)
+    assert Path(package.get_cache_path()) == ROOT / "bsrt" / "kernels" / "__pycache__"
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    last = jit.TemporaryCacheLocator.from_function(kernel, tables.__file__)
+    assert Path(last.get_cache_path()).parent.parent == tmp_path / "tmp"
+
+
+def test_machine_code_of_another_version_is_dropped_once(tmp_path):
+    """The stale-cache purge works in the new folder: files under another version's marker go,
+    the marker is rewritten, and a second look changes nothing."""
+    folder = tmp_path / "kernels"
+    folder.mkdir()
+    (folder / "bsrt-kernels-epoch").write_text("0.0.1 1\n")
+    for name in ("a.f-1.py311.nbi", "a.f-1.py311.1.nbc", "notes.txt"):
+        (folder / name).write_text("x")
+    jit.drop_stale_machine_code(str(folder))
+    assert sorted(p.name for p in folder.iterdir()) == ["bsrt-kernels-epoch", "notes.txt"]
+    assert (folder / "bsrt-kernels-epoch").read_text() == f"{_version()} {jit.CACHE_EPOCH}\n"
+    (folder / "b.g-2.py311.nbi").write_text("x")
+    jit._checked.discard(str(folder))  # a new process
+    jit.drop_stale_machine_code(str(folder))
+    assert (folder / "b.g-2.py311.nbi").exists()  # the same version: kept
+
+
+def test_the_compile_is_dealt_by_family_longest_first_to_the_least_loaded_worker():
+    seconds = {"traverse.a": 10.0, "roots.b": 3.0, "flatten.c": 6.0, "flatten.d": 4.0, "prelim.e": 5.0, "x.f": 1.0}
+    # families: hits (traverse, roots) 13, tree (flatten) 10, map (prelim) 5, x.f alone 1
+    # hits -> 0 (13); tree -> 1 (10); map -> 1 (15); x.f -> 0 (14)
+    assert kernels._shares(seconds, 2) == [["traverse.a", "roots.b", "x.f"], ["flatten.c", "flatten.d", "prelim.e"]]
+    assert kernels._shares(seconds, 4) == [["traverse.a", "roots.b"], ["flatten.c", "flatten.d"], ["prelim.e"], ["x.f"]]
+
+
+def test_the_recorded_signatures_cover_every_entry_kernel():
+    record = kernels.recorded()
+    assert record is not None, "bsrt/kernels/signatures.pickle: run scripts/record_kernel_signatures.py"
+    names = {kernels.name_of(k) for k in kernels.ENTRY_KERNELS}
+    assert set(record["signatures"]) == names == set(record["seconds"])
+    assert all(len(sigs) == 1 for sigs in record["signatures"].values())  # one specialisation each
+
+
+def test_the_render_time_left_does_not_count_the_compile():
+    class Clock:
+        now = 0.0
+
+        def __call__(self):
+            return self.now
+
+    clock, out = Clock(), io.StringIO()
+    bar = Progress(out, lines=True, clock=clock)
+    bar("compile", 0.0)
+    clock.now = 30.0  # 30 s of compiling
+    bar("setup", 0.0)
+    clock.now = 32.0
+    bar("map", 0.5)  # 2 s of render for half of it: 2 s left (counting the compile would say 32 s)
+    assert out.getvalue().splitlines()[-1] == "bsrt:  50% map, 32 s, about 2.0 s left"
+
+
+def test_the_startup_rows_of_bench():
+    text = bench.format_startup(
+        {
+            "startup": {
+                "repeat": 5,
+                "render_wall": 1.25,
+                "render_cpu": 1.0,
+                "numpy_wall": 0.25,
+                "numpy_cpu": 0.125,
+                "startup_wall": 1.0,
+                "startup_cpu": 0.875,
+                "load_average": [2.0, 3.0],
+            },
+            "first_run": {"first_run_wall": 21.5, "first_run_cpu": 40.25, "load_average": [1.0, 2.5]},
+        }
+    )
+    assert text.splitlines() == [
+        "start-up: 16x16 CLI render 1.25 s wall (1.00 s CPU) - python -c 'import numpy' 0.25 s (0.12 s) = "
+        "1.00 s wall (0.88 s CPU), medians of 5, load 2.0-3.0",
+        "first run (empty kernel cache): 16x16 CLI render 21.5 s wall (40.2 s CPU, compile workers included), "
+        "load 1.0-2.5",
+    ]
+
+
+@pytest.mark.gl
+def test_a_first_render_with_an_empty_cache_announces_the_compile_and_fills_the_cache(tmp_path):
+    """stderr is a pipe here, not a terminal: the compile is still announced, once."""
+    env = _env(XDG_CACHE_HOME=tmp_path / "xdg", NUMBA_CACHE_DIR=None)
+    argv = [sys.executable, "-m", "bsrt", "render", str(COLUMN), "-o", str(tmp_path / "c.png")]
+    argv += ["--width", "8", "--height", "8"]
+    first = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=1800)
+    assert first.returncode == 0, first.stderr
+    assert first.stderr.startswith("bsrt: compiling bsrt's kernels once for this machine (about ")
+    assert first.stderr.count("\n") == 1
+    assert (tmp_path / "c.png").stat().st_size > 0
+    folder = _folder(env)
+    assert folder.parent == tmp_path / "xdg" / "bsrt" / "kernels"
+    assert len(list(folder.glob("*.nbi"))) >= len(kernels.ENTRY_KERNELS)
+    again = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0 and again.stderr == ""
+
+
+@pytest.mark.gl
+def test_doctor_compile_fills_an_empty_cache(tmp_path):
+    env = _env(XDG_CACHE_HOME=tmp_path / "xdg", NUMBA_CACHE_DIR=None)
+    before = subprocess.run([sys.executable, "-m", "bsrt", "doctor"], env=env, capture_output=True, text=True)
+    assert "kernels:         not compiled yet (bsrt doctor --compile does it now)" in before.stdout
+    doctor = subprocess.run(
+        [sys.executable, "-m", "bsrt", "doctor", "--compile"], env=env, capture_output=True, text=True, timeout=1800
+    )
+    assert doctor.returncode == 0, doctor.stderr
+    assert "kernels:         compiled in " in doctor.stdout
+    code = "from bsrt.kernels import compile as k; print(k.is_cached())"
+    assert subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True).stdout == "True\n"
+    after = subprocess.run([sys.executable, "-m", "bsrt", "doctor"], env=env, capture_output=True, text=True)
+    assert "kernels:         cached (cache: " in after.stdout
+
+
+@pytest.mark.gl
+def test_an_unwritable_cache_folder_still_renders(tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    env = _env(XDG_CACHE_HOME=blocker / "cache", NUMBA_CACHE_DIR=None)
+    done = subprocess.run(
+        [sys.executable, "-m", "bsrt", "render", str(COLUMN), "-o", str(tmp_path / "c.png"), "--width", "8"]
+        + ["--height", "8"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "c.png").stat().st_size > 0
+
+
+def _folder(env) -> Path:
+    code = "from bsrt.kernels import compile as k; print(k.cache_folder())"
+    return Path(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True).stdout.strip())
+
+
+def _version() -> str:
+    from bsrt import __version__
+
+    return __version__
