@@ -4,7 +4,10 @@ Runs the preview (in a subprocess, on $DISPLAY) with a script that orbits,
 waits for the exact image, and repeats; reads its ``--frame-log`` and prints,
 per run, each settle-to-exact latency (the first "exact" frame's time minus
 the last "moving" frame's time before it) and the frame gaps while refining
-(median and max, ms). Usage:
+(median and max, ms); from the log's refinement timeline, per stop, the time
+to the first (coarse) exact image and the solver's wall and CPU seconds per
+level; and the load average and the CPU seconds of each whole run (the
+window and its solver processes). Usage:
 
     python scripts/preview_latency.py [SCENE] [--size 800x600] [--runs 3] [--moves 2]
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -35,6 +39,36 @@ def latencies(log: dict) -> list[float]:
     return out
 
 
+def timeline(log: dict) -> list[dict]:
+    """Per camera stop after the first: seconds from the last "moving" frame
+    to each level shown (``first``: the coarsest, ``exact``), the full
+    level's map time (first band to submitted), and the solver's seconds and
+    CPU seconds per level divisor."""
+    moving = [f["t"] for f in log["frames"] if f["state"] == "moving"]
+    by_generation: dict[int, list[dict]] = {}
+    for entry in log.get("levels", []):
+        by_generation.setdefault(entry["generation"], []).append(entry)
+    out = []
+    for entries in by_generation.values():
+        if not entries or "shown" not in entries[-1] or entries[-1].get("verdict") != "exact":
+            continue
+        started = entries[0]["map"]
+        before = [t for t in moving if t <= started]
+        if not before:
+            continue
+        last = before[-1]
+        shown = [e for e in entries if "shown" in e]
+        out.append(
+            {
+                "first": shown[0]["shown"] - last,
+                "exact": entries[-1]["shown"] - last,
+                "map": entries[-1].get("submitted", entries[-1]["map"]) - entries[-1]["map"],
+                "solve": {e["divisor"]: (e.get("seconds"), e.get("cpu_seconds")) for e in entries},
+            }
+        )
+    return out[1:]  # the first stop follows start-up
+
+
 def gaps_ms(log: dict) -> list[float]:
     """Gaps (ms) after each frame drawn in the "refining" state."""
     frames = log["frames"]
@@ -50,8 +84,10 @@ def main() -> int:
     a = p.parse_args()
     width, height = a.size.split("x")
     events = "wait; " + "; ".join(["orbit 15 0 5; wait"] * a.moves) + "; quit"
-    all_lat, all_gaps = [], []
+    all_lat, all_gaps, all_steps = [], [], []
+    print(f"load average at start: {Path('/proc/loadavg').read_text().split()[:3]}", flush=True)
     for run in range(a.runs):
+        cpu = resource.getrusage(resource.RUSAGE_CHILDREN)
         with tempfile.TemporaryDirectory() as tmp:
             log_path = Path(tmp) / "log.json"
             cmd = [
@@ -74,19 +110,41 @@ def main() -> int:
                 print(result.stderr, file=sys.stderr)
                 return 1
             log = json.loads(log_path.read_text())
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        run_cpu = after.ru_utime + after.ru_stime - cpu.ru_utime - cpu.ru_stime
         lat = latencies(log)[1:]  # the first "exact" follows start-up, not a camera stop
         gaps = gaps_ms(log)
+        steps = timeline(log)
         all_lat += lat
         all_gaps += gaps
+        all_steps += steps
         print(
             f"run {run + 1}: settle-to-exact {[round(x, 3) for x in lat]} s; refining gaps median "
-            f"{statistics.median(gaps):.1f} ms, max {max(gaps):.1f} ms ({len(gaps)} frames)",
+            f"{statistics.median(gaps):.1f} ms, max {max(gaps):.1f} ms ({len(gaps)} frames); "
+            f"CPU of the whole run {run_cpu:.1f} s",
             flush=True,
         )
+        for step in steps:
+            solves = ", ".join(
+                f"1/{d}: {w:.3f} s wall {c:.3f} s CPU" for d, (w, c) in step["solve"].items() if w is not None
+            )
+            print(
+                f"  first image {step['first']:.3f} s, exact {step['exact']:.3f} s, full map {step['map']:.3f} s; "
+                f"solver {solves}",
+                flush=True,
+            )
     print(
         f"median settle-to-exact {statistics.median(all_lat):.3f} s over {len(all_lat)}; "
         f"refining gaps median {statistics.median(all_gaps):.1f} ms, max {max(all_gaps):.1f} ms"
     )
+    if all_steps:
+        first = statistics.median(s["first"] for s in all_steps)
+        cpu_exact = [s["solve"][1][1] for s in all_steps if 1 in s["solve"] and s["solve"][1][1] is not None]
+        print(
+            f"median settle-to-first-image {first:.3f} s; median solver CPU of the exact level "
+            f"{statistics.median(cpu_exact) if cpu_exact else float('nan'):.3f} s"
+        )
+    print(f"load average at end: {Path('/proc/loadavg').read_text().split()[:3]}")
     return 0
 
 

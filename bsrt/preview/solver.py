@@ -63,7 +63,8 @@ class Outcome:
     job: Job  # without its map
     pixels: np.ndarray | None = None  # (H, W, 3) uint8 sRGB; None: failed or abandoned
     error: str | None = None
-    seconds: float = 0.0
+    seconds: float = 0.0  # wall-clock seconds of the solve
+    cpu_seconds: float = 0.0  # CPU seconds of the solver process (all its threads) during the solve
 
 
 def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
@@ -74,7 +75,7 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
         if job.generation < generation.value:
             raise _Cancelled
 
-    clock = time.perf_counter()
+    clock, cpu = time.perf_counter(), time.process_time()
     outcome = Outcome(replace(job, prelim=None))
     try:
         options = RenderOptions.resolve(
@@ -96,6 +97,7 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     except Exception as exc:  # shown in the title and on stderr; the window keeps running
         outcome.error = f"{type(exc).__name__}: {exc}"
     outcome.seconds = time.perf_counter() - clock
+    outcome.cpu_seconds = time.process_time() - cpu
     return outcome
 
 
