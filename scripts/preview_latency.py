@@ -40,30 +40,38 @@ def latencies(log: dict) -> list[float]:
 
 
 def timeline(log: dict) -> list[dict]:
-    """Per camera stop after the first: seconds from the last "moving" frame
-    to each level shown (``first``: the coarsest, ``exact``), the full
-    level's map time (first band to submitted), and the solver's seconds and
-    CPU seconds per level divisor."""
+    """Per camera stop after the first, in seconds: from the last "moving" frame
+    to each level shown (``first``: the coarsest, ``exact``), the same from the
+    camera's last change (``changed_first``, ``changed_exact``: the settle
+    time included), and for the exact level: ``map`` (first map band to
+    submitted), ``waited`` (submitted to the solve's start: the queue, the
+    map's transfer, the coarser level before it), ``back`` (the solve's end to
+    shown: the image's transfer, texture upload, the next frame); ``solve``:
+    divisor -> (wall, CPU) seconds of the solver per level."""
     moving = [f["t"] for f in log["frames"] if f["state"] == "moving"]
     by_generation: dict[int, list[dict]] = {}
     for entry in log.get("levels", []):
         by_generation.setdefault(entry["generation"], []).append(entry)
     out = []
     for entries in by_generation.values():
-        if not entries or "shown" not in entries[-1] or entries[-1].get("verdict") != "exact":
+        exact = entries[-1]
+        if exact.get("verdict") != "exact":
             continue
-        started = entries[0]["map"]
-        before = [t for t in moving if t <= started]
+        before = [t for t in moving if t <= entries[0]["map"]]
         if not before:
             continue
-        last = before[-1]
+        last, changed = before[-1], entries[0].get("changed", before[-1])
         shown = [e for e in entries if "shown" in e]
         out.append(
             {
                 "first": shown[0]["shown"] - last,
-                "exact": entries[-1]["shown"] - last,
-                "map": entries[-1].get("submitted", entries[-1]["map"]) - entries[-1]["map"],
-                "solve": {e["divisor"]: (e.get("seconds"), e.get("cpu_seconds")) for e in entries},
+                "exact": exact["shown"] - last,
+                "changed_first": shown[0]["shown"] - changed,
+                "changed_exact": exact["shown"] - changed,
+                "map": exact["submitted"] - exact["map"],
+                "waited": exact["waited"],
+                "back": exact["shown"] - exact["submitted"] - exact["waited"] - exact["seconds"],
+                "solve": {e["divisor"]: (e["seconds"], e["cpu_seconds"]) for e in shown},
             }
         )
     return out[1:]  # the first stop follows start-up
@@ -125,12 +133,11 @@ def main() -> int:
             flush=True,
         )
         for step in steps:
-            solves = ", ".join(
-                f"1/{d}: {w:.3f} s wall {c:.3f} s CPU" for d, (w, c) in step["solve"].items() if w is not None
-            )
+            solves = ", ".join(f"1/{d} {w:.3f} s ({c:.3f} s CPU)" for d, (w, c) in step["solve"].items())
             print(
-                f"  first image {step['first']:.3f} s, exact {step['exact']:.3f} s, full map {step['map']:.3f} s; "
-                f"solver {solves}",
+                f"  first image {step['first']:.3f} s, exact {step['exact']:.3f} s (from the last change "
+                f"{step['changed_first']:.3f}, {step['changed_exact']:.3f}); exact level: map {step['map']:.3f} s, "
+                f"waited {step['waited']:.3f} s, back {step['back']:.3f} s; solves {solves}",
                 flush=True,
             )
     print(
@@ -138,11 +145,16 @@ def main() -> int:
         f"refining gaps median {statistics.median(all_gaps):.1f} ms, max {max(all_gaps):.1f} ms"
     )
     if all_steps:
-        first = statistics.median(s["first"] for s in all_steps)
-        cpu_exact = [s["solve"][1][1] for s in all_steps if 1 in s["solve"] and s["solve"][1][1] is not None]
+
+        def median(key):
+            return statistics.median(s[key] for s in all_steps)
+
+        cpu_exact = statistics.median(s["solve"][1][1] for s in all_steps)
         print(
-            f"median settle-to-first-image {first:.3f} s; median solver CPU of the exact level "
-            f"{statistics.median(cpu_exact) if cpu_exact else float('nan'):.3f} s"
+            f"medians: settle-to-first-image {median('first'):.3f} s, settle-to-exact {median('exact'):.3f} s; "
+            f"from the last change {median('changed_first'):.3f} s and {median('changed_exact'):.3f} s; "
+            f"exact level map {median('map'):.3f} s, waited {median('waited'):.3f} s, back {median('back'):.3f} s, "
+            f"solver CPU {cpu_exact:.3f} s"
         )
     print(f"load average at end: {Path('/proc/loadavg').read_text().split()[:3]}")
     return 0

@@ -248,7 +248,8 @@ class Preview:
         from bsrt.rendering.prelim import render_map
 
         width, height = self.refine.size(level, self.fb_size)
-        entry = self.log.level(self.refine.generation, level, self.refine.levels[level], (width, height))
+        divisor, changed = self.refine.levels[level], self.refine.last_change
+        entry = self.log.level(self.refine.generation, level, divisor, (width, height), changed)
         prelim = None
         if self.method != "martin" or self.show_map:
             rows, count = self.refine.next_band(width, height)
@@ -269,7 +270,8 @@ class Preview:
                 self.map_tex, self.map_level = self.view.texture(prelim.picture), level
             # render() needs the seeds only; the picture stays here for key M
             prelim = replace(prelim, picture=np.zeros((0, 0, 3), dtype=np.uint8))
-        self.solver.submit(Job(self.refine.generation, level, self.method, self.camera, width, height, prelim))
+        job = Job(self.refine.generation, level, self.method, self.camera, width, height, prelim, time.time())
+        self.solver.submit(job)
         self.refine.submitted()
         entry["submitted"] = self.log.now()
 
@@ -287,7 +289,7 @@ class Preview:
                     job.generation, job.level, self.refine.levels[job.level], (job.width, job.height)
                 )
                 entry.update(shown=self.log.now(), verdict=verdict, seconds=round(outcome.seconds, 4))
-                entry["cpu_seconds"] = round(outcome.cpu_seconds, 4)
+                entry.update(cpu_seconds=round(outcome.cpu_seconds, 4), waited=round(outcome.waited, 4))
             if verdict == "failed":
                 print(f"bsrt preview: {error}", file=sys.stderr)
             elif verdict in ("shown", "exact"):

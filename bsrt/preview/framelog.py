@@ -6,6 +6,7 @@ frame loop started."""
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,8 +18,9 @@ import numpy as np
 class FrameLog:
     """Per-frame times (seconds since the window opened) and states; ``levels``:
     one dict per refinement level started (generation, level, divisor, size,
-    and the times "map" (its first map band), "submitted", "shown", with the
-    solver's "seconds" and "cpu_seconds" once it came back)."""
+    and the times "changed" (the camera's last change), "map" (its first map
+    band), "submitted", "shown", with the solver's "waited" (submitted to
+    solve start), "seconds" and "cpu_seconds" once it came back)."""
 
     times: list = field(default_factory=list)
     states: list = field(default_factory=list)
@@ -31,13 +33,16 @@ class FrameLog:
         self.states.append(state)
         self.work.append(work)
 
-    def level(self, generation: int, level: int, divisor: int, size: tuple[int, int]) -> dict:
-        """The entry of a level (made, with its "map" time, when first asked for)."""
+    def level(self, generation: int, level: int, divisor: int, size: tuple[int, int], changed=None) -> dict:
+        """The entry of a level (made, with its "map" time, when first asked for).
+        changed: time.perf_counter() of the generation's last camera change (None: not known)."""
         for entry in reversed(self.levels):
             if entry["generation"] == generation and entry["level"] == level:
                 return entry
         entry = {"generation": generation, "level": level, "divisor": divisor, "size": list(size)}
         entry["map"] = self.now()
+        if changed is not None and math.isfinite(changed):
+            entry["changed"] = round(changed - self.start, 6)
         self.levels.append(entry)
         return entry
 

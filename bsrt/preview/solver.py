@@ -56,6 +56,7 @@ class Job:
     width: int
     height: int
     prelim: object  # PrelimMap or None (only on the way there)
+    sent: float = 0.0  # time.time() when the window submitted it
 
 
 @dataclass
@@ -65,6 +66,7 @@ class Outcome:
     error: str | None = None
     seconds: float = 0.0  # wall-clock seconds of the solve
     cpu_seconds: float = 0.0  # CPU seconds of the solver process (all its threads) during the solve
+    waited: float = 0.0  # seconds from submitted to the solve's start (queue, transfer, an earlier job)
 
 
 def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
@@ -76,7 +78,7 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
             raise _Cancelled
 
     clock, cpu = time.perf_counter(), time.process_time()
-    outcome = Outcome(replace(job, prelim=None))
+    outcome = Outcome(replace(job, prelim=None), waited=time.time() - job.sent if job.sent else 0.0)
     try:
         options = RenderOptions.resolve(
             scene,
