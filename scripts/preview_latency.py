@@ -6,7 +6,8 @@ per run, each settle-to-exact latency (the first "exact" frame's time minus
 the last "moving" frame's time before it) and the frame gaps while refining
 (median and max, ms); from the log's refinement timeline, per stop, the time
 to the first (coarse) exact image and the solver's wall and CPU seconds per
-level; and the load average and the CPU seconds of each whole run (the
+level (bsrt.rendering.bench.preview_timeline, also behind ``bsrt bench
+--preview``); and the load average and the CPU seconds of each whole run (the
 window and its solver processes). Usage:
 
     python scripts/preview_latency.py [SCENE] [--size 800x600] [--runs 3] [--moves 2]
@@ -25,6 +26,9 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bsrt.rendering.bench import preview_timeline  # noqa: E402
 
 
 def latencies(log: dict) -> list[float]:
@@ -37,44 +41,6 @@ def latencies(log: dict) -> list[float]:
             out.append(frame["t"] - last_moving)
             last_moving = None
     return out
-
-
-def timeline(log: dict) -> list[dict]:
-    """Per camera stop after the first, in seconds: from the last "moving" frame
-    to each level shown (``first``: the coarsest, ``exact``), the same from the
-    camera's last change (``changed_first``, ``changed_exact``: the settle
-    time included), and for the exact level: ``map`` (first map band to
-    submitted), ``waited`` (submitted to the solve's start: the queue, the
-    map's transfer, the coarser level before it), ``back`` (the solve's end to
-    shown: the image's transfer, texture upload, the next frame); ``solve``:
-    divisor -> (wall, CPU) seconds of the solver per level."""
-    moving = [f["t"] for f in log["frames"] if f["state"] == "moving"]
-    by_generation: dict[int, list[dict]] = {}
-    for entry in log.get("levels", []):
-        by_generation.setdefault(entry["generation"], []).append(entry)
-    out = []
-    for entries in by_generation.values():
-        exact = entries[-1]
-        if exact.get("verdict") != "exact":
-            continue
-        before = [t for t in moving if t <= entries[0]["map"]]
-        if not before:
-            continue
-        last, changed = before[-1], entries[0].get("changed", before[-1])
-        shown = [e for e in entries if "shown" in e]
-        out.append(
-            {
-                "first": shown[0]["shown"] - last,
-                "exact": exact["shown"] - last,
-                "changed_first": shown[0]["shown"] - changed,
-                "changed_exact": exact["shown"] - changed,
-                "map": exact["submitted"] - exact["map"],
-                "waited": exact["waited"],
-                "back": exact["shown"] - exact["submitted"] - exact["waited"] - exact["seconds"],
-                "solve": {e["divisor"]: (e["seconds"], e["cpu_seconds"]) for e in shown},
-            }
-        )
-    return out[1:]  # the first stop follows start-up
 
 
 def gaps_ms(log: dict) -> list[float]:
@@ -122,7 +88,7 @@ def main() -> int:
         run_cpu = after.ru_utime + after.ru_stime - cpu.ru_utime - cpu.ru_stime
         lat = latencies(log)[1:]  # the first "exact" follows start-up, not a camera stop
         gaps = gaps_ms(log)
-        steps = timeline(log)
+        steps = preview_timeline(log)
         all_lat += lat
         all_gaps += gaps
         all_steps += steps

@@ -8,11 +8,14 @@ adaptive anti-aliasing off)."""
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 import time
 
 import numpy as np
 import pytest
-from test_preview import SCENES, display  # noqa: F401  (display: the X display fixture)
+from test_preview import ROOT, SCENES, display  # noqa: F401  (display: the X display fixture)
 
 from bsrt import preview
 from bsrt.preview.refine import LEVELS
@@ -93,3 +96,55 @@ def test_coarse_then_exact_cancelled_by_a_resize_while_refining(display, monkeyp
     geometry = Geometry(scene)
     _same(coarse, _render(scene, geometry, camera, (120, 90)), "the 1/4 level")
     _same(exact, _render(scene, geometry, final_camera, (320, 240)), "the exact image")
+
+
+def test_preview_timeline_of_a_frame_log():
+    """bsrt bench --preview's reading of a frame log, on a log written by hand: the start-up's
+    stop is left out, a cancelled generation (no exact level) too."""
+    from bsrt.rendering.bench import preview_timeline
+
+    states = [(0.0, "moving"), (1.0, "refining"), (2.0, "exact"), (2.5, "moving"), (3.0, "moving")]
+    states += [(3.2, "moving"), (3.4, "refining"), (5.0, "exact")]
+
+    def level(generation, divisor, **times):
+        return {"generation": generation, "level": int(divisor == 1), "divisor": divisor, "size": [1, 1], **times}
+
+    solved = dict(waited=0.01, seconds=0.2, cpu_seconds=0.25)
+    log = {
+        "frames": [{"t": t, "state": s, "ms": {}} for t, s in states],
+        "levels": [
+            level(1, 4, map=0.05, submitted=0.06, shown=0.5, verdict="shown", **solved),
+            level(1, 1, map=0.1, submitted=0.2, shown=2.0, verdict="exact", waited=0.2, seconds=1.5, cpu_seconds=2.0),
+            level(2, 4, changed=2.5, map=2.6, submitted=2.61, shown=2.9, verdict="shown", **solved),
+            level(2, 1, changed=2.5, map=2.7),  # cancelled by the next move
+            level(3, 4, changed=3.1, map=3.35, submitted=3.36, shown=3.6, verdict="shown", **solved),
+            level(
+                3,
+                1,
+                changed=3.1,
+                map=3.4,
+                submitted=3.5,
+                shown=4.9,
+                verdict="exact",
+                waited=0.3,
+                seconds=1.0,
+                cpu_seconds=1.8,
+            ),
+        ],
+    }
+    (stop,) = preview_timeline(log)
+    assert stop.pop("solve") == {4: (0.2, 0.25), 1: (1.0, 1.8)}
+    want = dict(first=0.4, exact=1.7, changed_first=0.5, changed_exact=1.8, map=0.1, waited=0.3, back=0.1)
+    assert stop == pytest.approx(want, abs=1e-12)
+
+
+def test_bench_preview_without_a_display_is_refused_before_benchmarking(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    argv = [sys.executable, "-m", "bsrt", "bench", "--preview", "--json", "out.json"]
+    run = subprocess.run(argv, capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert run.returncode == 2 and run.stdout == ""
+    assert run.stderr.splitlines() == [
+        "bsrt: error: bench --preview: needs an X display (set DISPLAY, or run it under xvfb-run)"
+    ]
+    assert list(tmp_path.iterdir()) == []

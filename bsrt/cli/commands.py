@@ -328,6 +328,8 @@ def _cmd_bench(args) -> int:
         raise InputError(f"--methods: names no method (expected a comma-separated list of {', '.join(METHODS)})")
     if args.json:
         _check_output(args.json, ".json")
+    if args.preview:
+        bench.check_preview_display()  # before the long part
     log = lambda text: print(text, flush=True)  # noqa: E731
     if args.models:
         results = bench.trim_cost(args.models, args.size, args.repeat, log=log)
@@ -338,6 +340,10 @@ def _cmd_bench(args) -> int:
         if args.full:
             print()
             print(bench.format_full(results))
+        if args.preview:
+            results["preview"] = bench.preview_latency(*(args.scenes or ["water-lily"])[:1])
+            print()
+            print(bench.format_preview(results["preview"]))
     if args.json:
         from bsrt.rendering.image import write_text
 

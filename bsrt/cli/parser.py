@@ -106,6 +106,12 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument(
         "--full", action="store_true", help="also show whole renders by stage (shadows, mirrors) and rays per second"
     )
+    b.add_argument(
+        "--preview",
+        action="store_true",
+        help="also the preview's latency: bsrt preview 800x600 (water-lily, or the first of --scenes), orbiting, "
+        "until each exact image (needs DISPLAY)",
+    )
 
     _preview_arguments(
         sub.add_parser("preview", help="interactive window: orbit, pan, zoom; refines to the exact image")
