@@ -1,9 +1,10 @@
 """The preview's coarse-to-fine refinement in a real glfw window (Xvfb, GLX on
 llvmpipe), driven frame by frame in this process: the 1/4 level is shown
 first, a real X event (a resize) is handled while the solver works and
-cancels the refinement under way, and the sequence ends with the exact image
-that render() gives for the same camera and size (bsrt render's pipeline,
-adaptive anti-aliasing off)."""
+cancels the refinement under way, so does a camera move, and the sequence
+ends with the exact image that render() gives for the same camera and size
+(bsrt render's pipeline, adaptive anti-aliasing off); and bsrt bench
+--preview's reading of the frame log."""
 
 from __future__ import annotations
 
@@ -52,28 +53,37 @@ def _render(scene, geometry, camera, size) -> np.ndarray:
 
 @pytest.mark.window
 @pytest.mark.gl
-def test_coarse_then_exact_cancelled_by_a_resize_while_refining(display, monkeypatch):  # noqa: F811
+def test_coarse_then_exact_cancelled_by_a_resize_and_a_move_while_refining(display, monkeypatch):  # noqa: F811
     monkeypatch.setenv("DISPLAY", display)
     path = SCENES / "column.toml"
     scene = load_scene(path)
     window = preview.Preview(scene, path, preview.WindowOptions(480, 360))
     window.open()
+
+    def coarse_shown(what):
+        """Frames until the 1/4 level of the newest camera is shown, the exact one not yet."""
+        _frames(window, lambda: refine.shown == 0 or refine.complete or refine.failed is not None, what)
+        assert refine.shown == 0 and not refine.complete, f"{what}: the exact level came first ({refine.failed})"
+        assert window.state() == "refining" and window.image_tex is not None
+
     try:
         refine, log = window.refine, window.log
         assert LEVELS == refine.levels and refine.levels[0] == 4
         first_size = window.fb_size
-        # the 1/4 level is shown while the exact level is still being solved
-        _frames(window, lambda: refine.shown == 0 or refine.complete, "the 1/4 level")
-        assert refine.shown == 0 and not refine.complete, "the exact level came before the 1/4 level was shown"
-        assert window.state() == "refining" and window.image_tex is not None
+        coarse_shown("the 1/4 level")
         coarse = window.view.screenshot(window.image_tex.size, window.image_tex, window.camera)
-        generation, camera = refine.generation, window.camera
+        first, camera = refine.generation, window.camera
         # a real X event while the solver works: the window takes a new size (glfw's callback
         # from the X server), which restarts the refinement at the new framebuffer size
         window.window.set_size(320, 240)
         frames = _frames(window, lambda: window.fb_size != first_size, "the resize event")
         assert frames <= 20, f"the resize took {frames} frames to be handled"
-        assert refine.generation > generation and not refine.complete
+        assert refine.generation > first and not refine.complete
+        # the camera moves (the left arrow key) while that size's exact level is being solved
+        coarse_shown("the resized 1/4 level")
+        resized = refine.generation
+        window.press("left")
+        assert refine.generation == resized + 1 and window.state() == "moving"
         _frames(window, lambda: refine.complete or refine.failed is not None, "the exact image")
         assert refine.failed is None, refine.failed
         exact, final_camera, final_size = refine.exact, window.camera, window.fb_size
@@ -81,11 +91,12 @@ def test_coarse_then_exact_cancelled_by_a_resize_while_refining(display, monkeyp
     finally:
         window.close()
     assert window.gl_error == "GL_NO_ERROR" and not window.view.owned
-    assert final_size == (320, 240) and np.array_equal(final_camera.eye, camera.eye)
-    # the cancelled generation's exact level was never shown
-    old = [e for e in log.levels if e["generation"] == generation]
-    assert old[0]["divisor"] == 4 and old[0]["verdict"] == "shown"
-    assert [e.get("verdict") for e in old[1:]] in ([], [None])
+    assert final_size == (320, 240) and not np.allclose(final_camera.eye, camera.eye)
+    # the cancelled generations' exact levels were never shown
+    for generation in (first, resized):
+        old = [e for e in log.levels if e["generation"] == generation]
+        assert old[0]["divisor"] == 4 and old[0]["verdict"] == "shown"
+        assert [e.get("verdict") for e in old[1:]] in ([], [None])
     # the last generation: 1/4 shown, then the exact image, in that order
     last = [e for e in log.levels if e["generation"] == refine.generation]
     assert [(e["divisor"], e["size"], e.get("verdict")) for e in last] == [
