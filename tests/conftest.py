@@ -251,6 +251,8 @@ SLOW: dict[str, float] = {
     "tests/test_preview.py::test_scripted_orbit_changes_the_image": 0.0,  # shares the scripted preview session
     "tests/test_preview.py::test_session_exits_cleanly": 9.8,
     "tests/test_preview.py::test_solver_abandons_a_stale_job_at_once": 8.7,
+    "tests/test_preview_refine.py::test_bench_preview_without_a_display_is_refused_before_benchmarking": 2.1,
+    "tests/test_preview_refine.py::test_coarse_then_exact_cancelled_by_a_resize_and_a_move_while_refining": 36.5,  # 28-36 s
     "tests/test_progress.py::test_a_failure_after_the_bar_started_gets_a_clean_line": 1.4,
     "tests/test_progress.py::test_no_progress_on_a_terminal": 1.4,
     "tests/test_progress.py::test_nothing_on_a_pipe": 1.4,

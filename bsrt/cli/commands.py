@@ -315,6 +315,8 @@ def _cmd_bench(args) -> int:
         raise InputError(f"--methods: names no method (expected a comma-separated list of {', '.join(METHODS)})")
     if args.json:
         _check_output(args.json, ".json")
+    if args.preview:
+        bench.check_preview_display()  # before the long part
     log = lambda text: print(text, flush=True)  # noqa: E731
     if args.models:
         results = bench.trim_cost(args.models, args.size, args.repeat, log=log)
@@ -331,6 +333,10 @@ def _cmd_bench(args) -> int:
             results["first_run"] = bench.first_run(scene)
             print()
             print(bench.format_startup(results))
+        if args.preview:
+            results["preview"] = bench.preview_latency(*(args.scenes or ["water-lily"])[:1])
+            print()
+            print(bench.format_preview(results["preview"]))
     if args.json:
         from bsrt.rendering.image import write_text
 

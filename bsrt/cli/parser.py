@@ -123,6 +123,12 @@ def _parser() -> argparse.ArgumentParser:
         help="also time start-up (a 16x16 CLI render minus importing NumPy) and the first run (an empty kernel "
         "cache) in new processes (default: on)",
     )
+    b.add_argument(
+        "--preview",
+        action="store_true",
+        help="also the preview's latency: bsrt preview 800x600 (water-lily, or the first of --scenes), orbiting, "
+        "until each exact image (needs DISPLAY)",
+    )
 
     _preview_arguments(
         sub.add_parser("preview", help="interactive window: orbit, pan, zoom; refines to the exact image")

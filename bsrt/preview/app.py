@@ -12,10 +12,9 @@ the same application. The window traces one sample per pixel (spp = 1).
 from __future__ import annotations
 
 import collections
-import json
 import sys
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ import numpy as np
 from bsrt.errors import InputError, RenderError
 from bsrt.preview import script
 from bsrt.preview.bindings import BINDINGS, ORBIT_DEGREES_PER_PIXEL
+from bsrt.preview.framelog import FrameLog
 from bsrt.preview.refine import MAP_BAND_PIXELS, Refinement
 from bsrt.preview.solver import Job, Solver
 from bsrt.preview.view import View
@@ -77,46 +77,6 @@ def script_commands(events: str | None, script_file: str | None) -> tuple:
     if events:
         commands += script.parse_script(events, "--events")
     return tuple(commands)
-
-
-@dataclass
-class FrameLog:
-    """Per-frame times (seconds since the window opened) and states."""
-
-    times: list = field(default_factory=list)
-    states: list = field(default_factory=list)
-    work: list = field(default_factory=list)  # per frame: {step: milliseconds} of the main thread
-
-    def add(self, t: float, state: str, work: dict) -> None:
-        self.times.append(t)
-        self.states.append(state)
-        self.work.append(work)
-
-    def summary(self) -> dict:
-        t = np.array(self.times)
-        gaps = np.diff(t) if t.size > 1 else np.zeros(0)
-        prev = np.array(self.states[:-1])
-        refining = gaps[prev == "refining"] if gaps.size else gaps
-        moving = gaps[prev == "moving"] if gaps.size else gaps
-        return {
-            "frames": int(t.size),
-            "seconds": float(t[-1] - t[0]) if t.size > 1 else 0.0,
-            "max_gap_ms": float(gaps.max() * 1e3) if gaps.size else 0.0,
-            "max_gap_refining_ms": float(refining.max() * 1e3) if refining.size else 0.0,
-            "p99_gap_refining_ms": float(np.percentile(refining, 99) * 1e3) if refining.size else 0.0,
-            "refining_frames": int(refining.size),
-            "fps_moving": float(moving.size / moving.sum()) if moving.size and moving.sum() > 0 else None,
-            "moving_frames": int(moving.size),
-        }
-
-    def write(self, path: Path, extra: dict) -> None:
-        doc = dict(extra)
-        doc["summary"] = self.summary()
-        doc["frames"] = [
-            {"t": round(t, 6), "state": s, "ms": {k: round(v, 2) for k, v in w.items()}}
-            for t, s, w in zip(self.times, self.states, self.work)
-        ]
-        path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
 
 
 class Preview:
@@ -288,6 +248,8 @@ class Preview:
         from bsrt.rendering.prelim import render_map
 
         width, height = self.refine.size(level, self.fb_size)
+        divisor, changed = self.refine.levels[level], self.refine.last_change
+        entry = self.log.level(self.refine.generation, level, divisor, (width, height), changed)
         prelim = None
         if self.method != "martin" or self.show_map:
             rows, count = self.refine.next_band(width, height)
@@ -308,8 +270,10 @@ class Preview:
                 self.map_tex, self.map_level = self.view.texture(prelim.picture), level
             # render() needs the seeds only; the picture stays here for key M
             prelim = replace(prelim, picture=np.zeros((0, 0, 3), dtype=np.uint8))
-        self.solver.submit(Job(self.refine.generation, level, self.method, self.camera, width, height, prelim))
+        job = Job(self.refine.generation, level, self.method, self.camera, width, height, prelim, time.time())
+        self.solver.submit(job)
         self.refine.submitted()
+        entry["submitted"] = self.log.now()
 
     def _collect(self) -> None:
         for outcome in self.solver.outcomes():
@@ -320,6 +284,12 @@ class Preview:
                 continue
             error = None if outcome.error is None else f"{job.method} failed: {outcome.error}"
             verdict = self.refine.accept(job.generation, job.level, outcome.pixels, error, outcome.seconds)
+            if verdict != "stale":
+                entry = self.log.level(
+                    job.generation, job.level, self.refine.levels[job.level], (job.width, job.height)
+                )
+                entry.update(shown=self.log.now(), verdict=verdict, seconds=round(outcome.seconds, 4))
+                entry.update(cpu_seconds=round(outcome.cpu_seconds, 4), waited=round(outcome.waited, 4))
             if verdict == "failed":
                 print(f"bsrt preview: {error}", file=sys.stderr)
             elif verdict in ("shown", "exact"):
@@ -401,7 +371,9 @@ class Preview:
     def run(self) -> None:
         """The frame loop: script, solver outcomes, refinement, drawing, input;
         paced by --max-fps, idle until input once exact."""
-        start = time.perf_counter()
+        if not self.log.times:
+            self.log.start = time.perf_counter()
+        start = self.log.start
         frame_seconds = 1.0 / self.options.max_fps if self.options.max_fps > 0 else 0.0
         next_frame = start
         limit = self.options.frames

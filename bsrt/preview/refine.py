@@ -17,11 +17,13 @@ from dataclasses import fields
 import numpy as np
 
 # Refinement levels: the framebuffer divided by these, coarse to fine. While
-# the camera moves (and until the exact image comes) the fast GL view shows
-# the shaded surfaces, so once the camera stops the solver goes straight to
-# the exact image: coarser levels would only delay it (1/4 and 1/2 cost 10%
-# and 33% of the exact level's time on water-lily at 800x600).
-LEVELS = (1,)
+# the camera moves the fast GL view shows the shaded surfaces; once it stops
+# the 1/4 level comes first: the exact surfaces, trims, shadows and mirrors
+# within about a tenth of the exact level's time (7% of its CPU on water-lily
+# at 800x600), solved while the window still rasterises the full level's map
+# band by band, so it delays the exact image by little (measured with
+# scripts/preview_latency.py, see docs/usage.md).
+LEVELS = (4, 1)
 SETTLE_SECONDS = 0.15  # the camera counts as stopped after this long without a change
 # The window rasterises a level's map in bands of about this many pixels, one
 # band per frame: a whole 800x600 map blocks the window for ~80 ms on llvmpipe.

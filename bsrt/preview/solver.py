@@ -56,6 +56,7 @@ class Job:
     width: int
     height: int
     prelim: object  # PrelimMap or None (only on the way there)
+    sent: float = 0.0  # time.time() when the window submitted it
 
 
 @dataclass
@@ -63,7 +64,9 @@ class Outcome:
     job: Job  # without its map
     pixels: np.ndarray | None = None  # (H, W, 3) uint8 sRGB; None: failed or abandoned
     error: str | None = None
-    seconds: float = 0.0
+    seconds: float = 0.0  # wall-clock seconds of the solve
+    cpu_seconds: float = 0.0  # CPU seconds of the solver process (all its threads) during the solve
+    waited: float = 0.0  # seconds from submitted to the solve's start (queue, transfer, an earlier job)
 
 
 def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
@@ -74,8 +77,8 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
         if job.generation < generation.value:
             raise _Cancelled
 
-    clock = time.perf_counter()
-    outcome = Outcome(replace(job, prelim=None))
+    clock, cpu = time.perf_counter(), time.process_time()
+    outcome = Outcome(replace(job, prelim=None), waited=time.time() - job.sent if job.sent else 0.0)
     try:
         options = RenderOptions.resolve(
             scene,
@@ -96,6 +99,7 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     except Exception as exc:  # shown in the title and on stderr; the window keeps running
         outcome.error = f"{type(exc).__name__}: {exc}"
     outcome.seconds = time.perf_counter() - clock
+    outcome.cpu_seconds = time.process_time() - cpu
     return outcome
 
 

@@ -209,6 +209,96 @@ def format_full(results: dict) -> str:
     return "\n".join(lines)
 
 
+def preview_timeline(log: dict) -> list[dict]:
+    """A ``bsrt preview --frame-log`` (bsrt/preview/framelog.py) per camera stop after the first,
+    in seconds: from the last frame drawn "moving" to the first level shown (``first``: the
+    coarsest) and to the exact one (``exact``); the same from the camera's last change
+    (``changed_first``, ``changed_exact``: the settle time included); for the exact level
+    ``map`` (first map band to submitted), ``waited`` (submitted to the solve's start: queue,
+    the map's transfer, the coarser level), ``back`` (the solve's end to shown); ``solve``:
+    divisor -> (wall, CPU) seconds of the solver per level shown."""
+    moving = [f["t"] for f in log["frames"] if f["state"] == "moving"]
+    by_generation: dict[int, list[dict]] = {}
+    for entry in log.get("levels", []):
+        by_generation.setdefault(entry["generation"], []).append(entry)
+    out = []
+    for entries in by_generation.values():
+        exact = entries[-1]
+        before = [t for t in moving if t <= entries[0]["map"]]
+        if exact.get("verdict") != "exact" or not before:
+            continue
+        last, changed = before[-1], entries[0].get("changed", before[-1])
+        shown = [e for e in entries if "shown" in e]
+        out.append(
+            {
+                "first": shown[0]["shown"] - last,
+                "exact": exact["shown"] - last,
+                "changed_first": shown[0]["shown"] - changed,
+                "changed_exact": exact["shown"] - changed,
+                "map": exact["submitted"] - exact["map"],
+                "waited": exact["waited"],
+                "back": exact["shown"] - exact["submitted"] - exact["waited"] - exact["seconds"],
+                "solve": {e["divisor"]: (e["seconds"], e["cpu_seconds"]) for e in shown},
+            }
+        )
+    return out[1:]  # the first stop follows the window's start-up
+
+
+def check_preview_display() -> None:
+    """InputError unless there is an X display for bench --preview's window."""
+    import os
+
+    if not os.environ.get("DISPLAY"):
+        raise InputError("bench --preview: needs an X display (set DISPLAY, or run it under xvfb-run)")
+
+
+def preview_latency(scene: str = "water-lily", width: int = 800, height: int = 600, moves: int = 5) -> dict:
+    """The preview's latency: ``bsrt preview`` in a child on $DISPLAY, orbiting 15 degrees
+    ``moves`` times and waiting for the exact image each time; medians over the stops of
+    preview_timeline's times, the exact level's solver CPU seconds, the child's CPU seconds
+    (window and solvers) and the load average before and after. InputError without a display."""
+    import json
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    check_preview_display()
+    events = "wait; " + "; ".join(["orbit 15 0 5; wait"] * moves) + "; quit"
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        log_path = Path(tmp) / "log.json"
+        argv = [sys.executable, "-m", "bsrt", "preview", str(scene_path(scene)), "--width", str(width)]
+        argv += ["--height", str(height), "--events", events, "--frame-log", str(log_path)]
+        before = os.times()
+        done = subprocess.run(argv, capture_output=True, text=True)
+        after = os.times()
+        if done.returncode != 0:
+            raise InputError(f"bench --preview: bsrt preview failed ({done.returncode}): {done.stderr.strip()[-300:]}")
+        stops = preview_timeline(json.loads(log_path.read_text()))
+    out = {"scene": scene, "size": [width, height], "stops": len(stops)}
+    for key in ("first", "exact", "changed_first", "changed_exact", "map", "waited", "back"):
+        out[key] = statistics.median(s[key] for s in stops)
+    out["solve_wall"] = statistics.median(s["solve"][1][0] for s in stops)
+    out["solve_cpu"] = statistics.median(s["solve"][1][1] for s in stops)
+    out["child_cpu"] = (after.children_user - before.children_user) + (after.children_system - before.children_system)
+    out["load_average"] = [load, os.getloadavg()[0]]
+    return out
+
+
+def format_preview(results: dict) -> str:
+    """preview_latency's medians as lines."""
+    r = results
+    return (
+        f"preview {r['scene']} {r['size'][0]}x{r['size'][1]}, {r['stops']} stops (medians; load "
+        f"{r['load_average'][0]:.1f} -> {r['load_average'][1]:.1f}):\n"
+        f"  first image {r['first']:.3f} s, exact image {r['exact']:.3f} s after the camera stops "
+        f"({r['changed_first']:.3f} s, {r['changed_exact']:.3f} s after its last change)\n"
+        f"  exact level: map {r['map']:.3f} s, waited {r['waited']:.3f} s, solve {r['solve_wall']:.3f} s "
+        f"({r['solve_cpu']:.3f} s CPU), back {r['back']:.3f} s; CPU of the whole run {r['child_cpu']:.1f} s"
+    )
+
+
 def trim_cost(paths, size=512, repeat=3, log=print) -> dict:
     """Each model rendered as it is and with its trims ignored (same camera: the trimmed model's), medians.
 
