@@ -1,0 +1,207 @@
+"""The GPU path: the seeded root finder as an OpenGL compute shader in float64.
+
+``choose_device`` turns the ``device`` setting ("auto", "cpu", "gpu") and a
+context into the device that runs the solve; ``find_roots_gpu`` is
+:func:`bsrt.rendering.solve.find_roots` run by ``shaders/solve.glsl`` (the
+same loop as ``kernels/roots.py``, the reference) on the patch table
+uploaded as storage buffers (``shaders/patches.glsl``). The trims are then
+applied to the converged roots on the CPU (``kernels/trim.py``), as
+find_roots does; the items the GPU does not settle go on to the CPU repair
+exactly as the CPU solve's do (rendering/trace.py, hard_pixels.py).
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from bsrt.errors import InputError
+from bsrt.geometry.patches import PatchSet
+from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
+from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
+from bsrt.methods import METHODS, REFERENCE_METHOD
+from bsrt.rendering import gl
+from bsrt.rendering.solve import Rays, RootResult, apply_trims
+
+DEVICES = ("auto", "cpu", "gpu")
+GROUP = 64  # local_size_x of shaders/solve.glsl
+MAX_GROUPS = 65535  # groups per dispatch (the least every OpenGL 4.3+ context allows)
+DEFINES = (
+    f"GRADIENT {GRADIENT}",
+    f"FAST {FAST}",
+    f"NEWTON {NEWTON}",
+    f"MAX_HALVINGS {MAX_HALVINGS}",
+    f"STALL_STEPS {STALL_STEPS}",
+)
+REAL_ARRAYS = ("coef", "bounds", "inv_size", "domain", "breaks_u", "breaks_v")
+INT_ARRAYS = ("coef_start", "degree", "dim", "break_start_u", "break_start_v", "grid_start", "patch_grid")
+
+
+def compute_context(ctx=None) -> moderngl.Context:
+    """The context that runs compute shaders: ctx when it is a moderngl
+    context (the map's), else the process's headless one (the preview's
+    solver process has no map context)."""
+    return ctx if isinstance(ctx, moderngl.Context) else gl.headless_context()
+
+
+def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]:
+    """(device, context) for the ``device`` setting: ("cpu", None) or ("gpu", a context).
+
+    auto: the GPU where the context is a hardware one with OpenGL 4.5, compute
+    shaders and float64 (on llvmpipe the CPU kernels are as fast); cpu: the
+    CPU; gpu: the compute shader on any context that has them (llvmpipe
+    included), else an InputError naming what the context lacks."""
+    if setting not in DEVICES:
+        raise InputError(f"render.device: expected one of {', '.join(DEVICES)}, got {setting!r}")
+    if setting == "cpu":
+        return "cpu", None
+    context = compute_context(ctx)
+    caps = gl.capabilities(context)
+    if setting == "auto":
+        return ("gpu", context) if caps.hardware and not caps.missing else ("cpu", None)
+    if caps.missing:
+        raise InputError(
+            f"render.device: gpu needs {', '.join(caps.missing)}, which the OpenGL context "
+            f'({caps.renderer}, {caps.version_string}) lacks; use device = "cpu" or "auto"'
+        )
+    return "gpu", context
+
+
+def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """The patch table as shaders/patches.glsl reads it: (reals (R,) float64,
+    ints (I,) int32, offsets name -> first element of that array)."""
+    arrays, offsets = patches.arrays, {}
+    reals, ints = [], []
+    at = 0
+    for name in REAL_ARRAYS:
+        a = np.ascontiguousarray(getattr(arrays, name), dtype=np.float64).ravel()
+        offsets[name], at = at, at + a.size
+        reals.append(a)
+    at = 0
+    for name in INT_ARRAYS:
+        a = np.asarray(getattr(arrays, name)).ravel()
+        if a.size and (a.max() > np.iinfo(np.int32).max or a.min() < np.iinfo(np.int32).min):
+            raise InputError(f'the scene\'s patch table is too large for the GPU path ({name}); use device = "cpu"')
+        offsets[name], at = at, at + a.size
+        ints.append(a.astype(np.int32))
+    reals.append(np.zeros(1))  # never an empty buffer
+    ints.append(np.zeros(1, dtype=np.int32))
+    return np.concatenate(reals), np.concatenate(ints), offsets
+
+
+class _UploadedPatches:
+    """The packed patch table of one PatchSet in two storage buffers on ctx."""
+
+    def __init__(self, ctx: moderngl.Context, patches: PatchSet):
+        reals, ints, self.offsets = pack_patches(patches)
+        self.patches = patches
+        self.reals = ctx.buffer(reals.tobytes())
+        try:
+            self.ints = ctx.buffer(ints.tobytes())
+        except BaseException:
+            self.reals.release()
+            raise
+
+    def release(self) -> None:
+        self.reals.release()
+        self.ints.release()
+
+
+def _uploaded(ctx: moderngl.Context, patches: PatchSet) -> _UploadedPatches:
+    """The patch table of patches on ctx, uploaded once per PatchSet (the last
+    one is kept on the context; gl.release_cached releases it)."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    kept = ctx.extra.get("bsrt_gpu_patches")
+    if kept is not None and kept.patches is patches:
+        return kept
+    if kept is not None:
+        kept.release()
+        ctx.extra.pop("bsrt_gpu_patches")
+    ctx.extra["bsrt_gpu_patches"] = made = _UploadedPatches(ctx, patches)
+    return made
+
+
+def find_roots_gpu(
+    ctx: moderngl.Context,
+    patches: PatchSet,
+    rays: Rays,
+    ray: np.ndarray,
+    surface: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    method: str = REFERENCE_METHOD,
+    tolerance: float = 1e-9,
+    max_iterations: int = 64,
+    stop_on_growth: bool = False,
+) -> RootResult:
+    """find_roots (same arguments and result: M items, ray (M,) int into
+    rays, surface (M,) int, u, v (M,) float64 starts) solved by
+    shaders/solve.glsl on ctx (a context with OpenGL 4.5 and float64:
+    choose_device), the trims then applied on the CPU."""
+    kernel_id = METHODS[method].kernel_id if method in METHODS else None
+    if kernel_id is None:
+        raise ValueError(f"not a seeded method: {method!r}")
+    m = int(np.shape(ray)[0])
+    out = RootResult(
+        converged=np.zeros(m, dtype=bool),
+        trimmed=np.zeros(m, dtype=bool),
+        u=np.empty(m),
+        v=np.empty(m),
+        patch=np.empty(m, dtype=np.int64),
+        t=np.empty(m),
+        residual=np.empty(m),
+        iterations=np.zeros(m, dtype=np.int32),
+    )
+    if m == 0:
+        return out
+    ray = np.asarray(ray, dtype=np.int64)
+    items = np.empty((m, 8))
+    items[:, 0:3] = rays.origin[ray]
+    items[:, 3:6] = rays.direction[ray]
+    items[:, 6] = u
+    items[:, 7] = v
+    surface32 = np.ascontiguousarray(surface, dtype=np.int32)
+    with ctx:  # current on this thread for the duration
+        shader = gl.program(ctx, "solve", DEFINES, compute=True)
+        table = _uploaded(ctx, patches)
+        for name, offset in table.offsets.items():
+            _set(shader, f"off_{name}", offset)
+        _set(shader, "item_count", m)
+        _set(shader, "method", kernel_id)
+        _set(shader, "max_iterations", int(max_iterations))
+        _set(shader, "stop_on_growth", int(bool(stop_on_growth)))
+        _set(shader, "tol2", float(tolerance) * float(tolerance))
+        buffers = []
+        try:
+            for data in (items, surface32):
+                buffers.append(ctx.buffer(data.tobytes()))
+            buffers.append(ctx.buffer(reserve=m * 4 * 8))
+            buffers.append(ctx.buffer(reserve=m * 3 * 4))
+            table.reals.bind_to_storage_buffer(0)
+            table.ints.bind_to_storage_buffer(1)
+            for binding, buffer in enumerate(buffers, start=2):
+                buffer.bind_to_storage_buffer(binding)
+            per_dispatch = GROUP * MAX_GROUPS
+            for first in range(0, m, per_dispatch):
+                _set(shader, "first_item", first)
+                shader.run(group_x=-(-min(per_dispatch, m - first) // GROUP))
+            reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(m, 4)
+            ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(m, 3)
+        finally:
+            for buffer in buffers:
+                buffer.release()
+    out.u[:], out.v[:], out.t[:], out.residual[:] = reals.T
+    out.converged[:] = ints[:, 0] != 0
+    out.patch[:] = ints[:, 1]
+    out.iterations[:] = ints[:, 2]
+    apply_trims(patches, surface, out)
+    return out
+
+
+def _set(shader, name: str, value) -> None:
+    """Set a uniform the compiler kept (an unused one is optimised away)."""
+    try:
+        shader[name].value = value
+    except KeyError:
+        pass
