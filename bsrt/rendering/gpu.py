@@ -22,8 +22,8 @@ from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
 from bsrt.methods import METHODS, REFERENCE_METHOD
 from bsrt.rendering import gl
 from bsrt.rendering.solve import Rays, RootResult, apply_trims
+from bsrt.settings import DEVICES
 
-DEVICES = ("auto", "cpu", "gpu")
 GROUP = 64  # local_size_x of shaders/solve.glsl
 MAX_GROUPS = 65535  # groups per dispatch (the least every OpenGL 4.3+ context allows)
 DEFINES = (
