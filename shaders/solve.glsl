@@ -4,17 +4,20 @@
 // (newton, gradient, fast; its docstring describes the methods), on the
 // patch table of patches.glsl. bsrt/rendering/gpu.py uploads the items and
 // dispatches it; GRADIENT, FAST, NEWTON, MAX_HALVINGS and STALL_STEPS are
-// #defined there from the kernels' constants. Kept in step with roots.py:
+// #defined there from the kernels' constants; the variant with TRIM_TEST
+// #defined applies the trims to converged roots (trim64.glsl), as
+// rendering/solve.py's apply_trims does on the CPU. Kept in step with roots.py:
 // the CPU kernel is the reference the tests hold this shader to.
 
 #include "patches.glsl"
+#include "trim64.glsl"
 
 layout(local_size_x = 64) in;
 
 layout(std430, binding = 2) readonly buffer Items { double items[]; };        // 8 per item: origin, direction (unit), u0, v0
 layout(std430, binding = 3) readonly buffer ItemSurface { int item_surface[]; }; // 1 per item: the start's surface
 layout(std430, binding = 4) writeonly buffer OutReals { double out_reals[]; };  // 4 per item: u, v, t, residual
-layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };       // 3 per item: converged, patch, iterations
+layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };       // 4 per item: converged, patch, iterations, trimmed
 
 uniform int first_item;  // this dispatch's first item (dispatches of at most 65535 groups)
 uniform int item_count;
@@ -155,11 +158,19 @@ void main() {
         t = d.x * (S.x - o.x) + d.y * (S.y - o.y) + d.z * (S.z - o.z);
         w = wa;
     }
+    bool trimmed = false;
+#ifdef TRIM_TEST
+    if (converged && !trim_kept(m, u, v)) {  // solve.apply_trims: a root the trims remove
+        converged = false;
+        trimmed = true;
+    }
+#endif
     out_reals[4 * i] = u;
     out_reals[4 * i + 1] = v;
     out_reals[4 * i + 2] = t;
     out_reals[4 * i + 3] = sqrt(w);
-    out_ints[3 * i] = converged ? 1 : 0;
-    out_ints[3 * i + 1] = k;
-    out_ints[3 * i + 2] = iterations;
+    out_ints[4 * i] = converged ? 1 : 0;
+    out_ints[4 * i + 1] = k;
+    out_ints[4 * i + 2] = iterations;
+    out_ints[4 * i + 3] = trimmed ? 1 : 0;
 }

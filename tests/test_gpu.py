@@ -126,6 +126,41 @@ def test_the_shader_agrees_with_the_cpu_kernels(method):
     assert (cpu.patch[both] != on_gpu.patch[both]).sum() <= n // 200
 
 
+IGES_TRIMMED = [
+    ROOT / "tests" / "data" / "iges" / name
+    for name in (
+        "box_brep.igs",
+        "cone_194.igs",
+        "cylinder_192.igs",
+        "plane_143.igs",
+        "plane_circle_144.igs",
+        "sphere_torus.igs",
+        "surfaces_misc.igs",
+    )
+]
+
+
+@pytest.mark.parametrize("path", IGES_TRIMMED, ids=lambda p: p.stem)
+def test_the_float64_trim_test_agrees_with_the_kernels(path):
+    """shaders/trim64.glsl against kernels/trim.py's point_kept on random (u, v)
+    over each trimmed surface's domain (and a margin outside): both float64,
+    the same steps, so the same answer at every point."""
+    from bsrt.io import load_model
+    from bsrt.kernels.trim import kept_many
+
+    patches = PatchSet(load_model(path).surfaces)
+    assert patches.trimmed
+    rng = np.random.default_rng(6)
+    n = 20000
+    m = rng.integers(0, len(patches.surfaces), n)
+    d = patches.domain[m]
+    u = d[:, 0] + (d[:, 1] - d[:, 0]) * rng.uniform(-0.05, 1.05, n)
+    v = d[:, 2] + (d[:, 3] - d[:, 2]) * rng.uniform(-0.05, 1.05, n)
+    want = kept_many(patches.trims, m, u, v)
+    assert 0 < want.sum() < n  # both answers occur
+    np.testing.assert_array_equal(gpu.kept_gpu(_context(), patches, m, u, v), want)
+
+
 def _away_from_silhouettes(hit: np.ndarray, surface: np.ndarray) -> np.ndarray:
     """(H, W) bool: pixels whose 8 neighbours have the same hit and surface as they do."""
     key = np.where(hit, surface, -1)

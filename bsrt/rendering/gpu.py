@@ -4,10 +4,11 @@
 context into the device that runs the solve; ``find_roots_gpu`` is
 :func:`bsrt.rendering.solve.find_roots` run by ``shaders/solve.glsl`` (the
 same loop as ``kernels/roots.py``, the reference) on the patch table
-uploaded as storage buffers (``shaders/patches.glsl``). The trims are then
-applied to the converged roots on the CPU (``kernels/trim.py``), as
-find_roots does; the items the GPU does not settle go on to the CPU repair
-exactly as the CPU solve's do (rendering/trace.py, hard_pixels.py).
+uploaded as storage buffers (``shaders/patches.glsl``), the trims tested
+there too in float64 (``shaders/trim64.glsl``, a port of
+``kernels/trim.py``'s point_kept); the items the GPU does not settle go on
+to the CPU repair exactly as the CPU solve's do (rendering/trace.py,
+hard_pixels.py).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
 from bsrt.methods import METHODS, REFERENCE_METHOD
 from bsrt.rendering import gl
-from bsrt.rendering.solve import Rays, RootResult, apply_trims
+from bsrt.rendering.solve import Rays, RootResult
 from bsrt.settings import DEVICES
 
 GROUP = 64  # local_size_x of shaders/solve.glsl
@@ -35,6 +36,8 @@ DEFINES = (
 )
 REAL_ARRAYS = ("coef", "bounds", "inv_size", "domain", "breaks_u", "breaks_v")
 INT_ARRAYS = ("coef_start", "degree", "dim", "break_start_u", "break_start_v", "grid_start", "patch_grid")
+TRIM_REAL_ARRAYS = ("band_v0", "band_scale", "coef", "ends", "entry_box")  # kernels/trim.py's TrimTable
+TRIM_INT_ARRAYS = ("trimmed", "band_first", "band_count", "degree", "band_start", "entry_piece")
 
 
 def compute_context(ctx=None) -> moderngl.Context:
@@ -68,22 +71,28 @@ def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]
 
 
 def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """The patch table as shaders/patches.glsl reads it: (reals (R,) float64,
-    ints (I,) int32, offsets name -> first element of that array)."""
-    arrays, offsets = patches.arrays, {}
+    """The patch table (and, for a trimmed scene, its trim table, the names
+    prefixed "trim_") as shaders/patches.glsl and trim64.glsl read them:
+    (reals (R,) float64, ints (I,) int32, offsets name -> first element of
+    that array; "trim_coef_rows": the trim pieces' largest degree + 1)."""
+    tables = [(patches.arrays, "", REAL_ARRAYS, INT_ARRAYS)]
+    offsets = {}
+    if patches.trimmed:
+        tables.append((patches.trims, "trim_", TRIM_REAL_ARRAYS, TRIM_INT_ARRAYS))
+        offsets["trim_coef_rows"] = int(patches.trims.coef.shape[1])
     reals, ints = [], []
-    at = 0
-    for name in REAL_ARRAYS:
-        a = np.ascontiguousarray(getattr(arrays, name), dtype=np.float64).ravel()
-        offsets[name], at = at, at + a.size
-        reals.append(a)
-    at = 0
-    for name in INT_ARRAYS:
-        a = np.asarray(getattr(arrays, name)).ravel()
-        if a.size and (a.max() > np.iinfo(np.int32).max or a.min() < np.iinfo(np.int32).min):
-            raise InputError(f'the scene\'s patch table is too large for the GPU path ({name}); use device = "cpu"')
-        offsets[name], at = at, at + a.size
-        ints.append(a.astype(np.int32))
+    real_at = int_at = 0
+    for table, prefix, real_names, int_names in tables:
+        for name in real_names:
+            a = np.ascontiguousarray(getattr(table, name), dtype=np.float64).ravel()
+            offsets[prefix + name], real_at = real_at, real_at + a.size
+            reals.append(a)
+        for name in int_names:
+            a = np.asarray(getattr(table, name)).ravel().astype(np.int64)
+            if a.size and (a.max() > np.iinfo(np.int32).max or a.min() < np.iinfo(np.int32).min):
+                raise InputError(f'the scene is too large for the GPU path ({prefix}{name}); use device = "cpu"')
+            offsets[prefix + name], int_at = int_at, int_at + a.size
+            ints.append(a.astype(np.int32))
     reals.append(np.zeros(1))  # never an empty buffer
     ints.append(np.zeros(1, dtype=np.int32))
     return np.concatenate(reals), np.concatenate(ints), offsets
@@ -138,7 +147,7 @@ def find_roots_gpu(
     """find_roots (same arguments and result: M items, ray (M,) int into
     rays, surface (M,) int, u, v (M,) float64 starts) solved by
     shaders/solve.glsl on ctx (a context with OpenGL 4.5 and float64:
-    choose_device), the trims then applied on the CPU."""
+    choose_device), the trims applied there too (trim64.glsl)."""
     kernel_id = METHODS[method].kernel_id if method in METHODS else None
     if kernel_id is None:
         raise ValueError(f"not a seeded method: {method!r}")
@@ -163,10 +172,10 @@ def find_roots_gpu(
     items[:, 7] = v
     surface32 = np.ascontiguousarray(surface, dtype=np.int32)
     with ctx:  # current on this thread for the duration
-        shader = gl.program(ctx, "solve", DEFINES, compute=True)
+        shader = gl.program(ctx, "solve", DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
         table = _uploaded(ctx, patches)
         for name, offset in table.offsets.items():
-            _set(shader, f"off_{name}", offset)
+            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
         _set(shader, "item_count", m)
         _set(shader, "method", kernel_id)
         _set(shader, "max_iterations", int(max_iterations))
@@ -177,7 +186,7 @@ def find_roots_gpu(
             for data in (items, surface32):
                 buffers.append(ctx.buffer(data.tobytes()))
             buffers.append(ctx.buffer(reserve=m * 4 * 8))
-            buffers.append(ctx.buffer(reserve=m * 3 * 4))
+            buffers.append(ctx.buffer(reserve=m * 4 * 4))
             table.reals.bind_to_storage_buffer(0)
             table.ints.bind_to_storage_buffer(1)
             for binding, buffer in enumerate(buffers, start=2):
@@ -187,7 +196,7 @@ def find_roots_gpu(
                 _set(shader, "first_item", first)
                 shader.run(group_x=-(-min(per_dispatch, m - first) // GROUP))
             reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(m, 4)
-            ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(m, 3)
+            ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(m, 4)
         finally:
             for buffer in buffers:
                 buffer.release()
@@ -195,7 +204,7 @@ def find_roots_gpu(
     out.converged[:] = ints[:, 0] != 0
     out.patch[:] = ints[:, 1]
     out.iterations[:] = ints[:, 2]
-    apply_trims(patches, surface, out)
+    out.trimmed[:] = ints[:, 3] != 0
     return out
 
 
@@ -205,3 +214,33 @@ def _set(shader, name: str, value) -> None:
         shader[name].value = value
     except KeyError:
         pass
+
+
+def kept_gpu(ctx: moderngl.Context, patches: PatchSet, surface, u, v) -> np.ndarray:
+    """(N,) bool: shaders/trim64.glsl's answer (the GPU solve's trim test) for
+    each (surface[i], u[i], v[i]) (surface: (N,) int, u, v: (N,) float64);
+    what kernels.trim.kept_many answers on the CPU. ctx: a context with
+    OpenGL 4.5 and float64 (choose_device)."""
+    surface, u, v = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a)).ravel() for a in (surface, u, v)))
+    n = u.size
+    if n == 0 or not patches.trimmed:
+        return np.ones(n, dtype=bool)
+    points = np.stack([surface.astype(np.float64), u, v], axis=1)
+    with ctx:
+        shader = gl.program(ctx, "trim_probe64", compute=True)
+        table = _uploaded(ctx, patches)
+        for name, offset in table.offsets.items():
+            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
+        _set(shader, "point_count", n)
+        buffers = [ctx.buffer(points.tobytes())]
+        try:
+            buffers.append(ctx.buffer(reserve=4 * n))
+            table.reals.bind_to_storage_buffer(0)
+            table.ints.bind_to_storage_buffer(1)
+            buffers[0].bind_to_storage_buffer(2)
+            buffers[1].bind_to_storage_buffer(3)
+            shader.run(group_x=-(-n // GROUP))  # tests' sizes: one dispatch
+            return np.frombuffer(buffers[1].read(), dtype=np.int32) != 0
+        finally:
+            for buffer in buffers:
+                buffer.release()
