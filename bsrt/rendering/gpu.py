@@ -16,7 +16,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from bsrt.errors import InputError
+from bsrt.errors import InputError, RenderError
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
@@ -58,7 +58,12 @@ def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]
         raise InputError(f"render.device: expected one of {', '.join(DEVICES)}, got {setting!r}")
     if setting == "cpu":
         return "cpu", None
-    context = compute_context(ctx)
+    try:
+        context = compute_context(ctx)
+    except RenderError:  # no OpenGL here (the preview's solver process may have none): the CPU, or say why not
+        if setting == "auto":
+            return "cpu", None
+        raise
     caps = gl.capabilities(context)
     if setting == "auto":
         return ("gpu", context) if caps.hardware and not caps.missing else ("cpu", None)
