@@ -377,7 +377,12 @@ def _cmd_preview(args) -> int:
         camera=CameraOverrides.from_args(args),
         cache=args.cache,
     )
-    return preview.run(with_settings(scene, flag_values(args, "preview")), Path(args.scene), options)
+    scene = with_settings(scene, flag_values(args, "preview"))
+    if scene.render.device == "gpu":  # the solver process needs a compute context: say now, before the window, if not
+        from bsrt.rendering.gpu import check_gpu
+
+        check_gpu()
+    return preview.run(scene, Path(args.scene), options)
 
 
 def _cmd_batch(args) -> int:

@@ -68,11 +68,35 @@ def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]
     if setting == "auto":
         return ("gpu", context) if caps.hardware and not caps.missing else ("cpu", None)
     if caps.missing:
-        raise InputError(
-            f"render.device: gpu needs {', '.join(caps.missing)}, which the OpenGL context "
-            f'({caps.renderer}, {caps.version_string}) lacks; use device = "cpu" or "auto"'
-        )
+        raise InputError(_missing_message(caps))
     return "gpu", context
+
+
+def check_gpu() -> None:
+    """Raise choose_device("gpu")'s InputError if this machine's headless
+    context cannot run the GPU solve, probed in a child process: for a
+    process that will open a window (the preview), where a standalone EGL
+    context, even released again, stops the window's GLX one."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        message = pool.submit(_probe_message).result()
+    if message:
+        raise InputError(message)
+
+
+def _probe_message() -> str:
+    """check_gpu's child: "" when the GPU solve can run here, else the error message."""
+    caps = gl.capabilities(gl.headless_context())
+    return _missing_message(caps) if caps.missing else ""
+
+
+def _missing_message(caps: gl.Capabilities) -> str:
+    return (
+        f"render.device: gpu needs {', '.join(caps.missing)}, which the OpenGL context "
+        f'({caps.renderer}, {caps.version_string}) lacks; use device = "cpu" or "auto"'
+    )
 
 
 def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
