@@ -242,3 +242,17 @@ def test_egl_devices_are_named():
     assert gl._describe_device(mesa.get) == "software (Mesa llvmpipe)"
     assert gl._describe_device({}.get) == "unknown device"
     assert all(name != "unknown device" for name in gl.egl_devices())
+
+
+@pytest.mark.dask
+@pytest.mark.parametrize("command", ["batch", "animate"])
+def test_batch_and_animate_refuse_gpu_without_opengl_4_5_before_any_item(tmp_path, command):
+    args = [sys.executable, "-m", "bsrt", command, str(ROOT / "scenes" / "quad.toml"), "--out", str(tmp_path / "out")]
+    args += ["--frames", "2"] if command == "animate" else []
+    out = subprocess.run(
+        args + ["--device", "gpu", "--width", "16", "--height", "16"],
+        capture_output=True, text=True, env={**ENV, "MESA_GL_VERSION_OVERRIDE": "3.3"}, cwd=tmp_path,
+    )  # fmt: skip
+    assert out.returncode == 2, out.stderr
+    assert "render.device: gpu needs OpenGL 4.5" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "out").exists()
