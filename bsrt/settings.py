@@ -200,15 +200,6 @@ SETTINGS: tuple[Setting, ...] = (
         commands=("render", "map", "preview"),
     ),
     Setting(
-        "device",
-        "render",
-        "choice",
-        "auto",
-        "where the seeded root finder runs: gpu (an OpenGL 4.5 compute shader in float64), cpu, or auto "
-        "(gpu on a hardware OpenGL context with compute shaders and float64, else cpu)",
-        choices=DEVICES,
-    ),
-    Setting(
         "tolerance",
         "render",
         "float",
@@ -255,6 +246,15 @@ SETTINGS: tuple[Setting, ...] = (
         False,
         "a ground plane under the model (traced exactly: the lights' shadows fall on it) with a contact shadow",
         commands=("render",),
+    ),
+    Setting(
+        "device",
+        "render",
+        "choice",
+        "auto",
+        "where the seeded root finder runs: gpu (an OpenGL 4.5 compute shader in float64), cpu, or auto "
+        "(gpu on a hardware OpenGL context with compute shaders and float64, else cpu)",
+        choices=DEVICES,
     ),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}

@@ -64,7 +64,8 @@ def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]
         if setting == "auto":
             return "cpu", None
         raise
-    caps = gl.capabilities(context)
+    with context:  # current on this thread while probed
+        caps = gl.capabilities(context)
     if setting == "auto":
         return ("gpu", context) if caps.hardware and not caps.missing else ("cpu", None)
     if caps.missing:
