@@ -19,7 +19,7 @@ layout(std430, binding = 3) readonly buffer ItemSurface { int item_surface[]; };
 layout(std430, binding = 4) writeonly buffer OutReals { double out_reals[]; };  // 4 per item: u, v, t, residual
 layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };       // 4 per item: converged, patch, iterations, trimmed
 
-uniform int first_item;  // this dispatch's first item (dispatches of at most 65535 groups)
+uniform int first_item;  // this dispatch's first item (gpu.py dispatches the items in slices)
 uniform int item_count;
 uniform int method;
 uniform int max_iterations;

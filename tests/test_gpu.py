@@ -126,6 +126,24 @@ def test_the_shader_agrees_with_the_cpu_kernels(method):
     assert (cpu.patch[both] != on_gpu.patch[both]).sum() <= n // 200
 
 
+def test_dispatches_in_slices_give_the_same_answers(monkeypatch):
+    """Items solved in slices of 128 (16 dispatches, first_item moving on) equal one dispatch's."""
+    plane = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[-1, -1, 0], [-1, 1, 0]], [[1, -1, 0], [1, 1, 0]]])
+    patches = PatchSet([plane])
+    rng = np.random.default_rng(8)
+    n = 2000
+    target = np.stack([rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), np.zeros(n)], axis=1)
+    rays = Rays.from_arrays(np.array([[0.0, 0.0, 2.0]]), target - [0.0, 0.0, 2.0])
+    args = (patches, rays, np.arange(n), np.zeros(n, dtype=np.int64), rng.uniform(0, 1, n), rng.uniform(0, 1, n))
+    whole = gpu.find_roots_gpu(_context(), *args, tolerance=1e-12)
+    monkeypatch.setattr(gpu, "SLICE", 128)
+    sliced = gpu.find_roots_gpu(_context(), *args, tolerance=1e-12)
+    assert whole.converged.all()
+    np.testing.assert_array_equal(sliced.t, whole.t)
+    np.testing.assert_array_equal(sliced.u, whole.u)
+    np.testing.assert_array_equal(sliced.iterations, whole.iterations)
+
+
 IGES_TRIMMED = [
     ROOT / "tests" / "data" / "iges" / name
     for name in (

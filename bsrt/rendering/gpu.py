@@ -16,6 +16,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from bsrt import interrupts
 from bsrt.errors import InputError, RenderError
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
@@ -26,7 +27,8 @@ from bsrt.rendering.solve import Rays, RootResult
 from bsrt.settings import DEVICES
 
 GROUP = 64  # local_size_x of shaders/solve.glsl
-MAX_GROUPS = 65535  # groups per dispatch (the least every OpenGL 4.3+ context allows)
+SLICE = GROUP * 4096  # items per dispatch (at most 65535 groups on every OpenGL 4.3+ context): SIGINT and
+# SIGTERM are acted on between dispatches (bsrt.interrupts), so one takes well under a second
 DEFINES = (
     f"GRADIENT {GRADIENT}",
     f"FAST {FAST}",
@@ -221,10 +223,11 @@ def find_roots_gpu(
             table.ints.bind_to_storage_buffer(1)
             for binding, buffer in enumerate(buffers, start=2):
                 buffer.bind_to_storage_buffer(binding)
-            per_dispatch = GROUP * MAX_GROUPS
-            for first in range(0, m, per_dispatch):
+            for first in range(0, m, SLICE):
                 _set(shader, "first_item", first)
-                shader.run(group_x=-(-min(per_dispatch, m - first) // GROUP))
+                shader.run(group_x=-(-min(SLICE, m - first) // GROUP))
+                ctx.finish()  # this slice done: a waiting signal is taken between slices
+                interrupts.safe_point()
             reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(m, 4)
             ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(m, 4)
         finally:
