@@ -3,7 +3,7 @@
 through the process's EGL context), on the preliminary map's seeds of a
 scene, with the time of each and how far apart their answers are.
 
-    python scripts/gpu_solve.py [scenes/column.toml ...] [--size 512] [--method newton] [--repeat 3]
+    python scripts/gpu_solve.py [scenes/column.toml model.igs ...] [--size 512] [--method newton] [--repeat 3]
 
 Prints one row per scene and method: items (covered pixels), the median
 seconds of each device (the solve alone: find_roots vs find_roots_gpu,
@@ -36,13 +36,13 @@ from bsrt.rendering.options import RenderOptions  # noqa: E402
 from bsrt.rendering.pipeline import Geometry  # noqa: E402
 from bsrt.rendering.prelim import render_map  # noqa: E402
 from bsrt.rendering.solve import Rays, find_roots  # noqa: E402
-from bsrt.scene import load_scene  # noqa: E402
 from bsrt.scene.camera import pixel_rays  # noqa: E402
+from bsrt.scene.loading import load_input  # noqa: E402
 
 
 def compare(path, size, method, repeat):
     """One scene: the row's numbers as a dict."""
-    scene = load_scene(path)
+    scene = load_input(path, width=size, height=size)  # a scene file, or a model file framed automatically
     options = RenderOptions.resolve(scene, width=size, height=size, method=method)
     geometry = Geometry(scene)
     patches = geometry.patches
