@@ -19,15 +19,14 @@ layout(std430, binding = 3) readonly buffer ItemSurface { int item_surface[]; };
 layout(std430, binding = 4) writeonly buffer OutReals { double out_reals[]; };  // 4 per item: u, v, t, residual
 layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };       // 4 per item: converged, patch, iterations, trimmed
 
-uniform int first_item;  // this dispatch's first item (gpu.py dispatches the items in slices)
-uniform int item_count;
+uniform int item_count;  // in this dispatch (gpu.py dispatches the items in slices, each with its buffers)
 uniform int method;
 uniform int max_iterations;
 uniform int stop_on_growth;
 uniform double tol2;  // the tolerance squared
 
 void main() {
-    int i = first_item + int(gl_GlobalInvocationID.x);
+    int i = int(gl_GlobalInvocationID.x);
     if (i >= item_count) return;
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
     dvec3 o = dvec3(items[8 * i], items[8 * i + 1], items[8 * i + 2]);

@@ -127,7 +127,7 @@ def test_the_shader_agrees_with_the_cpu_kernels(method):
 
 
 def test_dispatches_in_slices_give_the_same_answers(monkeypatch):
-    """Items solved in slices of 128 (16 dispatches, first_item moving on) equal one dispatch's."""
+    """Items solved in slices of 128 (16 dispatches, each with its own buffers) equal one dispatch's."""
     plane = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], [[[-1, -1, 0], [-1, 1, 0]], [[1, -1, 0], [1, 1, 0]]])
     patches = PatchSet([plane])
     rng = np.random.default_rng(8)

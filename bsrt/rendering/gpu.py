@@ -27,8 +27,8 @@ from bsrt.rendering.solve import Rays, RootResult
 from bsrt.settings import DEVICES
 
 GROUP = 64  # local_size_x of shaders/solve.glsl
-SLICE = GROUP * 4096  # items per dispatch (at most 65535 groups on every OpenGL 4.3+ context): SIGINT and
-# SIGTERM are acted on between dispatches (bsrt.interrupts), so one takes well under a second
+SLICE = GROUP * 4096  # items per dispatch (at most 65535 groups on every OpenGL 4.3+ context; 32 MiB of
+# buffers): SIGINT and SIGTERM are acted on between dispatches (bsrt.interrupts), a fraction of a second
 DEFINES = (
     f"GRADIENT {GRADIENT}",
     f"FAST {FAST}",
@@ -135,6 +135,12 @@ class _UploadedPatches:
 
     def __init__(self, ctx: moderngl.Context, patches: PatchSet):
         reals, ints, self.offsets = pack_patches(patches)
+        limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
+        if limit and max(reals.nbytes, ints.nbytes) > limit:
+            raise InputError(
+                f"render.device: the scene's patch table ({reals.nbytes / 2**20:.0f} MiB) is larger than the "
+                f'OpenGL context\'s storage buffers hold ({limit / 2**20:.0f} MiB); use device = "cpu"'
+            )
         self.patches = patches
         self.reals = ctx.buffer(reals.tobytes())
         try:
@@ -197,48 +203,52 @@ def find_roots_gpu(
     if m == 0:
         return out
     ray = np.asarray(ray, dtype=np.int64)
-    items = np.empty((m, 8))
-    items[:, 0:3] = rays.origin[ray]
-    items[:, 3:6] = rays.direction[ray]
-    items[:, 6] = u
-    items[:, 7] = v
-    surface32 = np.ascontiguousarray(surface, dtype=np.int32)
+    surface = np.asarray(surface)
     with ctx:  # current on this thread for the duration
         shader = gl.program(ctx, "solve", DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
         table = _uploaded(ctx, patches)
         for name, offset in table.offsets.items():
             _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
-        _set(shader, "item_count", m)
         _set(shader, "method", kernel_id)
         _set(shader, "max_iterations", int(max_iterations))
         _set(shader, "stop_on_growth", int(bool(stop_on_growth)))
         _set(shader, "tol2", float(tolerance) * float(tolerance))
-        buffers = []
-        try:
-            for data in (items, surface32):
-                buffers.append(ctx.buffer(data.tobytes()))
-            buffers.append(ctx.buffer(reserve=m * 4 * 8))
-            buffers.append(ctx.buffer(reserve=m * 4 * 4))
-            table.reals.bind_to_storage_buffer(0)
-            table.ints.bind_to_storage_buffer(1)
-            for binding, buffer in enumerate(buffers, start=2):
-                buffer.bind_to_storage_buffer(binding)
-            for first in range(0, m, SLICE):
-                _set(shader, "first_item", first)
-                shader.run(group_x=-(-min(SLICE, m - first) // GROUP))
-                ctx.finish()  # this slice done: a waiting signal is taken between slices
-                interrupts.safe_point()
-            reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(m, 4)
-            ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(m, 4)
-        finally:
-            for buffer in buffers:
-                buffer.release()
-    out.u[:], out.v[:], out.t[:], out.residual[:] = reals.T
-    out.converged[:] = ints[:, 0] != 0
-    out.patch[:] = ints[:, 1]
-    out.iterations[:] = ints[:, 2]
-    out.trimmed[:] = ints[:, 3] != 0
+        table.reals.bind_to_storage_buffer(0)
+        table.ints.bind_to_storage_buffer(1)
+        for first in range(0, m, SLICE):  # buffers of one slice at a time: bounded, whatever m
+            _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + SLICE)), out)
+            interrupts.safe_point()  # this slice done: a waiting signal is taken between slices
     return out
+
+
+def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: RootResult) -> None:
+    """Items part of find_roots_gpu's (ray, surface, u, v) (M,) through the shader, into out."""
+    n = part.stop - part.start
+    items = np.empty((n, 8))
+    items[:, 0:3] = rays.origin[ray[part]]
+    items[:, 3:6] = rays.direction[ray[part]]
+    items[:, 6] = u[part]
+    items[:, 7] = v[part]
+    _set(shader, "item_count", n)
+    buffers = []
+    try:
+        buffers.append(ctx.buffer(items.tobytes()))
+        buffers.append(ctx.buffer(np.ascontiguousarray(surface[part], dtype=np.int32).tobytes()))
+        buffers.append(ctx.buffer(reserve=n * 4 * 8))
+        buffers.append(ctx.buffer(reserve=n * 4 * 4))
+        for binding, buffer in enumerate(buffers, start=2):
+            buffer.bind_to_storage_buffer(binding)
+        shader.run(group_x=-(-n // GROUP))
+        reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(n, 4)
+        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(n, 4)
+    finally:
+        for buffer in buffers:
+            buffer.release()
+    out.u[part], out.v[part], out.t[part], out.residual[part] = reals.T
+    out.converged[part] = ints[:, 0] != 0
+    out.patch[part] = ints[:, 1]
+    out.iterations[part] = ints[:, 2]
+    out.trimmed[part] = ints[:, 3] != 0
 
 
 def _set(shader, name: str, value) -> None:
