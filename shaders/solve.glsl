@@ -6,7 +6,7 @@
 // dispatches it; GRADIENT, FAST, NEWTON, MAX_HALVINGS and STALL_STEPS are
 // #defined there from the kernels' constants; the variant with TRIM_TEST
 // #defined applies the trims to converged roots (trim64.glsl), as
-// rendering/solve.py's apply_trims does on the CPU. Kept in step with roots.py:
+// rendering/solve.py's find_roots does on the CPU. Kept in step with roots.py:
 // the CPU kernel is the reference the tests hold this shader to.
 
 #include "patches.glsl"
@@ -159,7 +159,7 @@ void main() {
     }
     bool trimmed = false;
 #ifdef TRIM_TEST
-    if (converged && !trim_kept(m, u, v)) {  // solve.apply_trims: a root the trims remove
+    if (converged && !trim_kept(m, u, v)) {  // as find_roots: a root the trims remove
         converged = false;
         trimmed = true;
     }

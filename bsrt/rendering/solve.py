@@ -139,15 +139,9 @@ def find_roots(
         out.residual,
         out.iterations,
     )
-    apply_trims(patches, surface, out)
-    return out
-
-
-def apply_trims(patches: PatchSet, surface: np.ndarray, out: RootResult) -> None:
-    """Mark out's converged roots that their surface's trims remove (surface:
-    (M,) int, each item's surface) as trimmed and not converged, in place."""
     if patches.trimmed:
         done = np.flatnonzero(out.converged)
         kept = kept_many(patches.trims, np.ascontiguousarray(surface, dtype=np.int64)[done], out.u[done], out.v[done])
         out.trimmed[done[~kept]] = True
         out.converged[done[~kept]] = False
+    return out
