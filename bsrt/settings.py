@@ -31,6 +31,7 @@ from bsrt.errors import InputError
 from bsrt.methods import DEFAULT_METHOD, METHODS
 
 MAP_MODES = ("float", "rgba8")
+DEVICES = ("auto", "cpu", "gpu")  # where the seeded solve runs: bsrt/rendering/gpu.py
 
 #: name -> (direction from the model to the eye, the camera's up), in the frame (X, Y, Z = up) of
 #: :func:`bsrt.scene.auto.view_frame`; "default" is bsrt's three-quarter view from above
@@ -245,6 +246,15 @@ SETTINGS: tuple[Setting, ...] = (
         False,
         "a ground plane under the model (traced exactly: the lights' shadows fall on it) with a contact shadow",
         commands=("render",),
+    ),
+    Setting(
+        "device",
+        "render",
+        "choice",
+        "auto",
+        "where the seeded root finder runs: gpu (an OpenGL 4.5 compute shader in float64), cpu, or auto "
+        "(gpu on a hardware OpenGL context with compute shaders and float64, else cpu)",
+        choices=DEVICES,
     ),
 )
 BY_NAME: dict[str, Setting] = {s.name: s for s in SETTINGS}

@@ -201,6 +201,17 @@ SLOW: dict[str, float] = {
     "tests/test_fuzz.py::test_short_cli_fuzz_pass_keeps_every_promise": 126.7,
     "tests/test_golden.py::test_golden_image[column-96-spp1-edges]": 2.6,
     "tests/test_golden.py::test_golden_image[water-lily-128-spp1-adaptive]": 2.2,
+    "tests/test_gpu.py::test_device_gpu_renders_as_the_cpu[iges-trimmed]": 8.3,  # at load 9
+    "tests/test_gpu.py::test_device_gpu_renders_as_the_cpu[column]": 3.0,
+    "tests/test_gpu.py::test_device_gpu_renders_as_the_cpu[water-lily]": 1.2,
+    "tests/test_gpu.py::test_device_gpu_renders_as_the_cpu[bench-64]": 1.2,
+    "tests/test_gpu.py::test_stats_say_which_device_solved": 3.6,
+    "tests/test_gpu.py::test_gpu_on_a_context_without_opengl_4_5_is_one_error_exit_2": 3.2,
+    "tests/test_gpu.py::test_an_unknown_device_is_one_error": 2.8,
+    "tests/test_gpu.py::test_plane_hits_are_exact": 1.4,  # the first compute shader compiled
+    "tests/test_gpu.py::test_batch_and_animate_refuse_gpu_without_opengl_4_5_before_any_item": 4.6,  # 2 cases
+    "tests/test_preview.py::test_device_gpu_refines_to_the_cpu_render": 6.7,
+    "tests/test_preview.py::test_device_gpu_without_opengl_4_5_exits_2_before_opening_a_window": 1.3,
     "tests/test_iges_occt_hits.py::test_shared_iges_hits_agree_with_opencascade_or_are_nearer_on_the_shape": 11.7,  # 2 cases
     "tests/test_intersect.py::test_sphere_nearest_hit_point_normal_and_parameters": 2.1,  # the first: loads the kernels
     "tests/test_intersect_cad.py::test_against_opencascade_on_a_trimmed_step_part": 4.0,

@@ -564,3 +564,34 @@ def test_every_binding_names_an_action_of_the_application():
     # every key the window names is bound (Shift+arrows included)
     assert set(KEY_NAMES.values()) <= set(BINDINGS)
     assert {f"shift+{k}" for k in ("left", "right", "up", "down")} <= set(BINDINGS)
+
+
+@pytest.mark.gl
+def test_device_gpu_refines_to_the_cpu_render(display, tmp_path):
+    """--device gpu: the solver process runs the seeded solve as a compute shader
+    (on its own headless context; llvmpipe here) and the refined picture is the
+    CPU's render, as with the default device."""
+    scene = tmp_path / "column.toml"
+    shutil.copy(SCENES / "column.toml", scene)
+    script = tmp_path / "script.txt"
+    script.write_text("wait\nkey c; save a.png\nquit\n")
+    result = run_preview(
+        display, scene, "--width", 120, "--height", 90, "--device", "gpu", "--script", script, cwd=tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    (camera,) = cameras_printed(result.stdout)
+    loaded = load_scene(scene)
+    options = RenderOptions.resolve(loaded, camera=camera, width=120, height=90, spp=1, adaptive_spp=0, device="cpu")
+    assert_same_image(read_png(tmp_path / "a.png"), render(loaded, options).pixels, "a.png")
+
+
+@pytest.mark.gl
+def test_device_gpu_without_opengl_4_5_exits_2_before_opening_a_window(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MESA_GL_VERSION_OVERRIDE": "3.3"}
+    env.pop("DISPLAY", None)  # no window is opened: the check comes first
+    result = subprocess.run(
+        [sys.executable, "-m", "bsrt", "preview", str(SCENES / "quad.toml"), "--device", "gpu"],
+        capture_output=True, text=True, timeout=TIMEOUT, env=env, cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 2, result.stderr
+    assert "render.device: gpu needs OpenGL 4.5" in result.stderr and "Traceback" not in result.stderr

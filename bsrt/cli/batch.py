@@ -106,10 +106,20 @@ def _run(command: str, call, local: bool = True) -> int:
     return summary.exit_code
 
 
+def _check_device(args: argparse.Namespace) -> None:
+    """--device gpu where this machine's OpenGL cannot run the GPU solve: one
+    InputError (exit 2) before any item starts, not a failure per item."""
+    if flag_values(args, "render").get("device") == "gpu":
+        from bsrt.rendering.gpu import check_gpu
+
+        check_gpu()
+
+
 def cmd_batch(args: argparse.Namespace) -> int:
     from bsrt.batches import engine as batching
 
     require_dask("batch")
+    _check_device(args)
     paths = batching.discover(args.inputs)
     for note in batching.output_names(paths)[1]:
         print(f"bsrt: note: {note}", file=sys.stderr)
@@ -134,6 +144,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
 
 def cmd_animate(args: argparse.Namespace) -> int:
     require_dask("animate")
+    _check_device(args)
     return _run(
         "animate",
         lambda progress, report: animate(

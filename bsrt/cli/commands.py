@@ -235,6 +235,16 @@ def _cmd_doctor(args) -> int:
     print(f"OpenGL renderer: {ctx.info['GL_RENDERER']}")
     print(f"OpenGL version:  {ctx.info['GL_VERSION']}")
     print(f"OpenGL vendor:   {ctx.info['GL_VENDOR']}")
+    caps = gl.capabilities(ctx)
+    print(
+        f"GPU solve:       compute shaders {'yes' if caps.compute else 'no'}, float64 {'yes' if caps.fp64 else 'no'}, "
+        f"{'hardware' if caps.hardware else 'software'} context: "
+        + (
+            f"--device gpu cannot run (needs {', '.join(caps.missing)})"
+            if caps.missing
+            else f"--device auto uses the {'GPU' if caps.hardware else 'CPU (llvmpipe is no faster)'}"
+        )
+    )
     chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
     print(
         f"device chosen:   {chosen if chosen is not None else 'first that works'} (set GLCONTEXT_DEVICE_INDEX=N to pick)"
@@ -366,8 +376,13 @@ def _cmd_preview(args) -> int:
         camera=CameraOverrides.from_args(args),
         cache=args.cache,
     )
+    scene = with_settings(scene, flag_values(args, "preview"))
+    if scene.render.device == "gpu":  # the solver process needs a compute context: say now, before the window, if not
+        from bsrt.rendering.gpu import check_gpu
+
+        check_gpu()
     compile_if_cold()  # the first run on a machine: before the window opens
-    return preview.run(with_settings(scene, flag_values(args, "preview")), Path(args.scene), options)
+    return preview.run(scene, Path(args.scene), options)
 
 
 def _cmd_batch(args) -> int:

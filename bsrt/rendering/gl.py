@@ -11,6 +11,7 @@ import ctypes
 import ctypes.util
 import os
 import re
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
@@ -18,7 +19,8 @@ import moderngl
 
 from bsrt.errors import RenderError
 
-GL_VERSION = 330
+GL_VERSION = 330  # what the map needs
+GL_COMPUTE_VERSION = 450  # compute shaders and GL_ARB_gpu_shader_fp64 (the GPU solve, rendering/gpu.py)
 FIX_HINT = (
     "install Mesa's EGL and OpenGL drivers (Debian/Ubuntu: apt-get install libegl1 libgl1 "
     "libegl-mesa0 libgl1-mesa-dri), or pick a device with GLCONTEXT_DEVICE_INDEX=N; "
@@ -54,22 +56,39 @@ def egl_devices() -> list[str]:
         return []
     devices = (ctypes.c_void_p * count.value)()
     query(count.value, devices, ctypes.byref(count))
-    egl_extensions, egl_drm_device_file = 0x3055, 0x3233
     out = []
     for dev in devices[: count.value]:
-        ext = (device_string(dev, egl_extensions) or b"").decode(errors="replace")
-        drm = device_string(dev, egl_drm_device_file) if "EGL_EXT_device_drm" in ext else None
-        if drm:
-            out.append(drm.decode(errors="replace"))
-        elif "EGL_MESA_device_software" in ext:
-            out.append("software (Mesa llvmpipe)")
-        else:
-            out.append("unknown device")
+        out.append(_describe_device(lambda name: device_string(dev, name)))
     return out
 
 
+def _describe_device(query) -> str:
+    """One EGL device in words from query(name) -> bytes or None (eglQueryDeviceStringEXT):
+    its vendor and renderer where EGL_EXT_device_query_name gives them, NVIDIA's
+    devices named by EGL_NV_device_cuda, and the DRM node where there is one."""
+    egl_extensions, egl_vendor, egl_renderer, egl_drm_device_file = 0x3055, 0x3053, 0x335F, 0x3233
+
+    def text(name: int) -> str:
+        value = query(name)
+        return value.decode(errors="replace").strip() if value else ""
+
+    ext = text(egl_extensions)
+    drm = text(egl_drm_device_file) if "EGL_EXT_device_drm" in ext else ""
+    name = ""
+    if "EGL_EXT_device_query_name" in ext:
+        name = " ".join(x for x in (text(egl_vendor), text(egl_renderer)) if x)
+    if not name and "EGL_NV_device_cuda" in ext:
+        name = "NVIDIA (CUDA device)"
+    if not name and "EGL_MESA_device_software" in ext:
+        name = "software (Mesa llvmpipe)"
+    if name and drm:
+        return f"{name} ({drm})"
+    return name or drm or "unknown device"
+
+
 def create_headless_context() -> moderngl.Context:
-    """A standalone OpenGL 3.3 core context through EGL.
+    """A standalone OpenGL context through EGL: 4.5 core where the device
+    offers it (compute shaders, the GPU solve), else 3.3 core (the map alone).
 
     Tries the device named by GLCONTEXT_DEVICE_INDEX / BSRT_EGL_DEVICE, else
     each device in turn. Raises RenderError with a fix when none works.
@@ -81,12 +100,12 @@ def create_headless_context() -> moderngl.Context:
         candidates = list(range(max(1, len(egl_devices()))))
     errors = []
     for index in candidates:
-        try:
-            ctx = moderngl.create_context(standalone=True, backend="egl", require=GL_VERSION, device_index=index)
-        except Exception as exc:  # glcontext raises plain Exception subclasses
-            errors.append(f"device {index}: {exc}")
-            continue
-        return ctx
+        for version in (GL_COMPUTE_VERSION, GL_VERSION):
+            try:
+                return moderngl.create_context(standalone=True, backend="egl", require=version, device_index=index)
+            except Exception as exc:  # glcontext raises plain Exception subclasses
+                if version == GL_VERSION:
+                    errors.append(f"device {index}: {exc}")
     raise RenderError("no OpenGL context through EGL (" + "; ".join(errors) + "); " + FIX_HINT)
 
 
@@ -148,6 +167,58 @@ def load_program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()
     return ctx.program(vertex_shader=stage("VERTEX_SHADER"), fragment_shader=stage("FRAGMENT_SHADER"))
 
 
+def load_compute(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.ComputeShader:
+    """Compile shaders/NAME.glsl as a compute shader (COMPUTE_SHADER and
+    each of defines #defined), as load_program does for drawing programs."""
+    version, _, body = shader_source(name).partition("\n")
+    extra = "".join(f"#define {d}\n" for d in defines)
+    return ctx.compute_shader(f"{version}\n#define COMPUTE_SHADER\n{extra}#line 2\n{body}")
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a context offers: version (e.g. 450), its GL_VERSION and GL_RENDERER
+    strings, compute shaders, float64 in shaders (GL_ARB_gpu_shader_fp64), and
+    whether it is a hardware context (not Mesa's llvmpipe, softpipe or swrast)."""
+
+    version: int
+    version_string: str
+    renderer: str
+    compute: bool
+    fp64: bool
+    hardware: bool
+
+    @property
+    def missing(self) -> list[str]:
+        """What the GPU solve needs and this context lacks, in words ([]: nothing)."""
+        out = []
+        if self.version < GL_COMPUTE_VERSION:
+            out.append(f"OpenGL 4.5 (the context is {self.version // 100}.{self.version % 100 // 10})")
+        if not self.compute:
+            out.append("compute shaders")
+        if not self.fp64:
+            out.append("float64 in shaders (GL_ARB_gpu_shader_fp64)")
+        return out
+
+
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast", "software rasterizer")
+
+
+def capabilities(ctx: moderngl.Context) -> Capabilities:
+    """Probe ctx (cheap: strings and the extension list)."""
+    version = int(ctx.version_code)
+    extensions = ctx.extensions
+    renderer = str(ctx.info.get("GL_RENDERER", ""))
+    return Capabilities(
+        version=version,
+        version_string=str(ctx.info.get("GL_VERSION", "")),
+        renderer=renderer,
+        compute=version >= 430 or "GL_ARB_compute_shader" in extensions,
+        fp64=version >= 400 or "GL_ARB_gpu_shader_fp64" in extensions,
+        hardware=not any(word in renderer.lower() for word in SOFTWARE_RENDERERS),
+    )
+
+
 _headless: moderngl.Context | None = None
 
 
@@ -159,15 +230,16 @@ def headless_context() -> moderngl.Context:
     return _headless
 
 
-def program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
-    """The compiled program NAME (the variant with defines, as load_program),
-    cached on the context (released with it)."""
+def program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = (), compute: bool = False):
+    """The compiled program NAME (the variant with defines, as load_program;
+    compute: a compute shader, load_compute), cached on the context
+    (released with it)."""
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     programs = ctx.extra.setdefault("bsrt_programs", {})
-    key = (name, tuple(defines)) if defines else name
+    key = (name, tuple(defines), compute) if defines or compute else name
     if key not in programs:
-        programs[key] = load_program(ctx, name, tuple(defines))
+        programs[key] = (load_compute if compute else load_program)(ctx, name, tuple(defines))
     return programs[key]
 
 
@@ -226,6 +298,8 @@ def release_cached(ctx: moderngl.Context) -> int:
     if not isinstance(ctx.extra, dict):
         return 0
     objects = list(ctx.extra.pop("bsrt_programs", {}).values()) + list(ctx.extra.pop("bsrt_kept", {}).values())
+    if "bsrt_gpu_patches" in ctx.extra:  # rendering/gpu.py's patch table
+        objects.append(ctx.extra.pop("bsrt_gpu_patches"))
     if objects:
         bind_default_framebuffer(ctx)  # a kept framebuffer may be bound
     for obj in objects:

@@ -13,12 +13,14 @@ hierarchy): they do not start at the eye, so no map can seed them.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from bsrt.kernels.prelim import seeded_hits
 from bsrt.kernels.threads import run_chunks
 from bsrt.methods import METHODS
-from bsrt.rendering import hard_pixels
+from bsrt.rendering import gpu, hard_pixels
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap, render_map
@@ -36,6 +38,7 @@ class HierarchyTracer:
         self.last_map = None
         _count_repairs(stats)
         stats.fields["covered_by_map"] = None  # no map
+        stats.fields["solve_device"] = "cpu"  # the hierarchy is traversed on the CPU only
 
     def trace(self, width: int, height: int, rows: tuple[int, int], prelim=None, done: float = 0.0):
         """Nearest hits of the pixel-centre rays of film rows rows[0]..rows[1]-1:
@@ -56,6 +59,10 @@ class MapTracer:
         self.last_map: PrelimMap | None = None
         _count_repairs(stats)
         stats.add("covered_by_map", 0)
+        # the seeded solve's device (rendering/gpu.py); the repair of what it does not settle stays on the CPU
+        device, compute_ctx = gpu.choose_device(options.device, ctx)
+        stats.fields["solve_device"] = device
+        self.find_roots = find_roots if device == "cpu" else partial(gpu.find_roots_gpu, compute_ctx)
 
     def trace(self, width: int, height: int, rows: tuple[int, int], prelim: PrelimMap | None = None, done: float = 0.0):
         """As HierarchyTracer.trace. The map is rasterised (and solved) with one
@@ -86,7 +93,7 @@ class MapTracer:
         patches, options, stats = self.geometry.patches, self.options, self.stats
         seed = prelim.surface.ravel()
         covered = np.flatnonzero(seed >= 0)
-        res = find_roots(
+        res = self.find_roots(
             patches,
             rays,
             covered,

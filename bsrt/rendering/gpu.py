@@ -1,0 +1,289 @@
+"""The GPU path: the seeded root finder as an OpenGL compute shader in float64.
+
+``choose_device`` turns the ``device`` setting ("auto", "cpu", "gpu") and a
+context into the device that runs the solve; ``find_roots_gpu`` is
+:func:`bsrt.rendering.solve.find_roots` run by ``shaders/solve.glsl`` (the
+same loop as ``kernels/roots.py``, the reference) on the patch table
+uploaded as storage buffers (``shaders/patches.glsl``), the trims tested
+there too in float64 (``shaders/trim64.glsl``, a port of
+``kernels/trim.py``'s point_kept); the items the GPU does not settle go on
+to the CPU repair exactly as the CPU solve's do (rendering/trace.py,
+hard_pixels.py).
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from bsrt import interrupts
+from bsrt.errors import InputError, RenderError
+from bsrt.geometry.patches import PatchSet
+from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
+from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
+from bsrt.methods import METHODS, REFERENCE_METHOD
+from bsrt.rendering import gl
+from bsrt.rendering.solve import Rays, RootResult
+from bsrt.settings import DEVICES
+
+GROUP = 64  # local_size_x of shaders/solve.glsl
+SLICE = GROUP * 4096  # items per dispatch (at most 65535 groups on every OpenGL 4.3+ context; 32 MiB of
+# buffers): SIGINT and SIGTERM are acted on between dispatches (bsrt.interrupts), a fraction of a second
+DEFINES = (
+    f"GRADIENT {GRADIENT}",
+    f"FAST {FAST}",
+    f"NEWTON {NEWTON}",
+    f"MAX_HALVINGS {MAX_HALVINGS}",
+    f"STALL_STEPS {STALL_STEPS}",
+)
+REAL_ARRAYS = ("coef", "bounds", "inv_size", "domain", "breaks_u", "breaks_v")
+INT_ARRAYS = ("coef_start", "degree", "dim", "break_start_u", "break_start_v", "grid_start", "patch_grid")
+TRIM_REAL_ARRAYS = ("band_v0", "band_scale", "coef", "ends", "entry_box")  # kernels/trim.py's TrimTable
+TRIM_INT_ARRAYS = ("trimmed", "band_first", "band_count", "degree", "band_start", "entry_piece")
+
+
+def compute_context(ctx=None) -> moderngl.Context:
+    """The context that runs compute shaders: ctx when it is a moderngl
+    context (the map's), else the process's headless one (the preview's
+    solver process has no map context)."""
+    return ctx if isinstance(ctx, moderngl.Context) else gl.headless_context()
+
+
+def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]:
+    """(device, context) for the ``device`` setting: ("cpu", None) or ("gpu", a context).
+
+    auto: the GPU where the context is a hardware one with OpenGL 4.5, compute
+    shaders and float64 (on llvmpipe the CPU kernels are as fast); cpu: the
+    CPU; gpu: the compute shader on any context that has them (llvmpipe
+    included), else an InputError naming what the context lacks."""
+    if setting not in DEVICES:
+        raise InputError(f"render.device: expected one of {', '.join(DEVICES)}, got {setting!r}")
+    if setting == "cpu":
+        return "cpu", None
+    try:
+        context = compute_context(ctx)
+    except RenderError:  # no OpenGL here (the preview's solver process may have none): the CPU, or say why not
+        if setting == "auto":
+            return "cpu", None
+        raise
+    with context:  # current on this thread while probed
+        caps = gl.capabilities(context)
+    if setting == "auto":
+        return ("gpu", context) if caps.hardware and not caps.missing else ("cpu", None)
+    if caps.missing:
+        raise InputError(_missing_message(caps))
+    return "gpu", context
+
+
+def check_gpu() -> None:
+    """Raise choose_device("gpu")'s InputError if this machine's headless
+    context cannot run the GPU solve, probed in a child process: for a
+    process that will open a window (the preview), where a standalone EGL
+    context, even released again, stops the window's GLX one."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        message = pool.submit(_probe_message).result()
+    if message:
+        raise InputError(message)
+
+
+def _probe_message() -> str:
+    """check_gpu's child: "" when the GPU solve can run here, else the error message."""
+    caps = gl.capabilities(gl.headless_context())
+    return _missing_message(caps) if caps.missing else ""
+
+
+def _missing_message(caps: gl.Capabilities) -> str:
+    return (
+        f"render.device: gpu needs {', '.join(caps.missing)}, which the OpenGL context "
+        f'({caps.renderer}, {caps.version_string}) lacks; use device = "cpu" or "auto"'
+    )
+
+
+def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """The patch table (and, for a trimmed scene, its trim table, the names
+    prefixed "trim_") as shaders/patches.glsl and trim64.glsl read them:
+    (reals (R,) float64, ints (I,) int32, offsets name -> first element of
+    that array; "trim_coef_rows": the trim pieces' largest degree + 1)."""
+    tables = [(patches.arrays, "", REAL_ARRAYS, INT_ARRAYS)]
+    offsets = {}
+    if patches.trimmed:
+        tables.append((patches.trims, "trim_", TRIM_REAL_ARRAYS, TRIM_INT_ARRAYS))
+        offsets["trim_coef_rows"] = int(patches.trims.coef.shape[1])
+    reals, ints = [], []
+    real_at = int_at = 0
+    for table, prefix, real_names, int_names in tables:
+        for name in real_names:
+            a = np.ascontiguousarray(getattr(table, name), dtype=np.float64).ravel()
+            offsets[prefix + name], real_at = real_at, real_at + a.size
+            reals.append(a)
+        for name in int_names:
+            a = np.asarray(getattr(table, name)).ravel().astype(np.int64)
+            if a.size and (a.max() > np.iinfo(np.int32).max or a.min() < np.iinfo(np.int32).min):
+                raise InputError(f'the scene is too large for the GPU path ({prefix}{name}); use device = "cpu"')
+            offsets[prefix + name], int_at = int_at, int_at + a.size
+            ints.append(a.astype(np.int32))
+    reals.append(np.zeros(1))  # never an empty buffer
+    ints.append(np.zeros(1, dtype=np.int32))
+    return np.concatenate(reals), np.concatenate(ints), offsets
+
+
+class _UploadedPatches:
+    """The packed patch table of one PatchSet in two storage buffers on ctx."""
+
+    def __init__(self, ctx: moderngl.Context, patches: PatchSet):
+        reals, ints, self.offsets = pack_patches(patches)
+        limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
+        if limit and max(reals.nbytes, ints.nbytes) > limit:
+            raise InputError(
+                f"render.device: the scene's patch table ({reals.nbytes / 2**20:.0f} MiB) is larger than the "
+                f'OpenGL context\'s storage buffers hold ({limit / 2**20:.0f} MiB); use device = "cpu"'
+            )
+        self.patches = patches
+        self.reals = ctx.buffer(reals.tobytes())
+        try:
+            self.ints = ctx.buffer(ints.tobytes())
+        except BaseException:
+            self.reals.release()
+            raise
+
+    def release(self) -> None:
+        self.reals.release()
+        self.ints.release()
+
+
+def _uploaded(ctx: moderngl.Context, patches: PatchSet) -> _UploadedPatches:
+    """The patch table of patches on ctx, uploaded once per PatchSet (the last
+    one is kept on the context; gl.release_cached releases it)."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    kept = ctx.extra.get("bsrt_gpu_patches")
+    if kept is not None and kept.patches is patches:
+        return kept
+    if kept is not None:
+        kept.release()
+        ctx.extra.pop("bsrt_gpu_patches")
+    ctx.extra["bsrt_gpu_patches"] = made = _UploadedPatches(ctx, patches)
+    return made
+
+
+def find_roots_gpu(
+    ctx: moderngl.Context,
+    patches: PatchSet,
+    rays: Rays,
+    ray: np.ndarray,
+    surface: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    method: str = REFERENCE_METHOD,
+    tolerance: float = 1e-9,
+    max_iterations: int = 64,
+    stop_on_growth: bool = False,
+) -> RootResult:
+    """find_roots (same arguments and result: M items, ray (M,) int into
+    rays, surface (M,) int, u, v (M,) float64 starts) solved by
+    shaders/solve.glsl on ctx (a context with OpenGL 4.5 and float64:
+    choose_device), the trims applied there too (trim64.glsl)."""
+    kernel_id = METHODS[method].kernel_id if method in METHODS else None
+    if kernel_id is None:
+        raise ValueError(f"not a seeded method: {method!r}")
+    m = int(np.shape(ray)[0])
+    out = RootResult(
+        converged=np.zeros(m, dtype=bool),
+        trimmed=np.zeros(m, dtype=bool),
+        u=np.empty(m),
+        v=np.empty(m),
+        patch=np.empty(m, dtype=np.int64),
+        t=np.empty(m),
+        residual=np.empty(m),
+        iterations=np.zeros(m, dtype=np.int32),
+    )
+    if m == 0:
+        return out
+    ray = np.asarray(ray, dtype=np.int64)
+    surface = np.asarray(surface)
+    with ctx:  # current on this thread for the duration
+        shader = gl.program(ctx, "solve", DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
+        table = _uploaded(ctx, patches)
+        for name, offset in table.offsets.items():
+            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
+        _set(shader, "method", kernel_id)
+        _set(shader, "max_iterations", int(max_iterations))
+        _set(shader, "stop_on_growth", int(bool(stop_on_growth)))
+        _set(shader, "tol2", float(tolerance) * float(tolerance))
+        table.reals.bind_to_storage_buffer(0)
+        table.ints.bind_to_storage_buffer(1)
+        for first in range(0, m, SLICE):  # buffers of one slice at a time: bounded, whatever m
+            _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + SLICE)), out)
+            interrupts.safe_point()  # this slice done: a waiting signal is taken between slices
+    return out
+
+
+def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: RootResult) -> None:
+    """Items part of find_roots_gpu's (ray, surface, u, v) (M,) through the shader, into out."""
+    n = part.stop - part.start
+    items = np.empty((n, 8))
+    items[:, 0:3] = rays.origin[ray[part]]
+    items[:, 3:6] = rays.direction[ray[part]]
+    items[:, 6] = u[part]
+    items[:, 7] = v[part]
+    _set(shader, "item_count", n)
+    buffers = []
+    try:
+        buffers.append(ctx.buffer(items.tobytes()))
+        buffers.append(ctx.buffer(np.ascontiguousarray(surface[part], dtype=np.int32).tobytes()))
+        buffers.append(ctx.buffer(reserve=n * 4 * 8))
+        buffers.append(ctx.buffer(reserve=n * 4 * 4))
+        for binding, buffer in enumerate(buffers, start=2):
+            buffer.bind_to_storage_buffer(binding)
+        shader.run(group_x=-(-n // GROUP))
+        reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(n, 4)
+        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(n, 4)
+    finally:
+        for buffer in buffers:
+            buffer.release()
+    out.u[part], out.v[part], out.t[part], out.residual[part] = reals.T
+    out.converged[part] = ints[:, 0] != 0
+    out.patch[part] = ints[:, 1]
+    out.iterations[part] = ints[:, 2]
+    out.trimmed[part] = ints[:, 3] != 0
+
+
+def _set(shader, name: str, value) -> None:
+    """Set a uniform the compiler kept (an unused one is optimised away)."""
+    try:
+        shader[name].value = value
+    except KeyError:
+        pass
+
+
+def kept_gpu(ctx: moderngl.Context, patches: PatchSet, surface, u, v) -> np.ndarray:
+    """(N,) bool: shaders/trim64.glsl's answer (the GPU solve's trim test) for
+    each (surface[i], u[i], v[i]) (surface: (N,) int, u, v: (N,) float64);
+    what kernels.trim.kept_many answers on the CPU. ctx: a context with
+    OpenGL 4.5 and float64 (choose_device)."""
+    surface, u, v = np.broadcast_arrays(*(np.atleast_1d(np.asarray(a)).ravel() for a in (surface, u, v)))
+    n = u.size
+    if n == 0 or not patches.trimmed:
+        return np.ones(n, dtype=bool)
+    points = np.stack([surface.astype(np.float64), u, v], axis=1)
+    with ctx:
+        shader = gl.program(ctx, "trim_probe64", compute=True)
+        table = _uploaded(ctx, patches)
+        for name, offset in table.offsets.items():
+            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
+        _set(shader, "point_count", n)
+        buffers = [ctx.buffer(points.tobytes())]
+        try:
+            buffers.append(ctx.buffer(reserve=4 * n))
+            table.reals.bind_to_storage_buffer(0)
+            table.ints.bind_to_storage_buffer(1)
+            buffers[0].bind_to_storage_buffer(2)
+            buffers[1].bind_to_storage_buffer(3)
+            shader.run(group_x=-(-n // GROUP))  # tests' sizes: one dispatch
+            return np.frombuffer(buffers[1].read(), dtype=np.int32) != 0
+        finally:
+            for buffer in buffers:
+                buffer.release()
