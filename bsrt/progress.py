@@ -100,7 +100,7 @@ class Progress:
         """Stage ``stage`` is ``fraction`` done; detail: shown after the stage's name."""
         global _active
         now = self.clock()
-        if stage != self.stage and (self.stage in BEFORE or stage in BEFORE):  # a phase of its own starts
+        if self.stage and stage != self.stage and (self.stage in BEFORE or stage in BEFORE):  # a new phase
             self.fraction, self.phase_start = 0.0, now  # (after a load or a compile the render starts from 0)
         self.fraction = max(self.fraction, min(1.0, max(0.0, float(fraction))))  # never backwards
         self.stage, self.detail = stage, detail

@@ -163,7 +163,8 @@ def test_the_output_may_not_be_the_model_it_renders(tmp_path):
 
 def test_the_output_may_not_be_a_file_the_scene_imports(tmp_path):
     (tmp_path / "cup.png").write_bytes(TEACUP.read_bytes())
-    (tmp_path / "s.toml").write_text(CAMERA + '[[import]]\nfile = "cup.png"\nformat = "bez"\n')
+    light = '[[light]]\nkind = "ambient"\ncolor = [1.0, 1.0, 1.0]\nintensity = 1.0\n'
+    (tmp_path / "s.toml").write_text(CAMERA + light + '[[import]]\nfile = "cup.png"\nformat = "bez"\n')
     run = bsrt("render", "s.toml", "-o", "./cup.png", "--width", 8, "--height", 8, cwd=tmp_path)
     assert run.returncode == 2
     assert "cup.png: is an input of this render" in run.stderr and len(run.stderr.splitlines()) == 1
@@ -224,7 +225,7 @@ def test_an_import_that_is_a_fifo_is_refused(tmp_path):
             ["render", "q.toml", "-o", "q.png", "--width", "0"],
             "bsrt render: error: argument --width: expected a whole number >= 1, got 0",
         ),
-        (["render"], "bsrt render: error: the following arguments are required: scene, -o/--output"),
+        (["render"], "bsrt render: error: the following arguments are required: scene"),
         (
             ["render", "q.toml", "-o", "q.png", "--method", "euler"],
             "bsrt render: error: argument --method: invalid choice: 'euler' (choose from 'gradient', 'fast', 'newton', "

@@ -145,6 +145,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
 def cmd_animate(args: argparse.Namespace) -> int:
     require_dask("animate")
     _check_device(args)
+    if str(args.input).endswith(".toml"):  # a bad scene is refused at once, before a first run's compile
+        from bsrt.scene.parse import load_scene
+
+        load_scene(args.input, cache=args.cache)
     return _run(
         "animate",
         lambda progress, report: animate(

@@ -29,11 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from bsrt import validate
-from bsrt.kernels.shading import frames_many
-from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.bvh import ray_budget
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.pipeline import Geometry
+from bsrt.rendering.shade import facing_frames
 
 CHUNK = 1 << 18  # rays per kernel call: bounds the temporaries of one call
 KERNEL_TOLERANCE = 1e-10  # finer tolerances (fractions of the diagonal) are reached by the polish
@@ -149,7 +148,7 @@ class RayCaster:
             records.append(self._records(hits, origins[rays], directions[rays], rays + first, tolerance))
             found[rays] += 1
             start[rays] = hits.t + SAME_T * self.diagonal
-            _, _, speed = frames_many_speed(patches, hits, directions[rays])
+            _, _, speed = facing_frames(patches, hits, directions[rays])
             eps = EXCLUDE * self.diagonal
             bounds = patches.bounds[hits.patch]
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -176,30 +175,6 @@ class RayCaster:
         normal[flip] *= -1.0
         front = np.einsum("ij,ij->i", normal, directions) < 0.0
         return RayHits(hit, hits.t, point, normal, front & hit, hits.u, hits.v, hits.surface, hits.residual, ray)
-
-
-def frames_many_speed(patches, hits: Hits, towards: np.ndarray):
-    """Position, unit S_u x S_v normal (flipped against ``towards``' rows unless zero) (K, 3), and
-    |S_u|, |S_v| (K, 2) of each hit, NaN where none (kernels.shading.frames_many)."""
-    n = len(hits)
-    position, normal, speed = np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.full((n, 2), np.nan)
-    hit = np.flatnonzero(hits.hit)
-    if hit.size:
-        pos, nrm, spd = np.empty((hit.size, 3)), np.empty((hit.size, 3)), np.empty((hit.size, 2))
-        run_chunks(
-            frames_many,
-            hit.size,
-            patches.arrays,
-            hits.patch[hit],
-            hits.u[hit],
-            hits.v[hit],
-            np.ascontiguousarray(towards[hit], dtype=np.float64),
-            pos,
-            nrm,
-            spd,
-        )
-        position[hit], normal[hit], speed[hit] = pos, nrm, spd
-    return position, normal, speed
 
 
 def outward_frames(patches, hits: Hits):
