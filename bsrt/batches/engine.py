@@ -399,7 +399,8 @@ def run(
     ``resume``, an item whose outputs are complete is skipped. At most
     ``window`` jobs are in flight at once (default: 4 per worker thread, at
     least 8), so the scheduler holds few jobs' bytes at a time.
-    progress(stage, fraction) follows the items done; report(item) is called
+    progress(stage, fraction) is called with "starting" before the first job
+    is submitted, then follows the items done; report(item) is called
     as each one finishes.
     """
     from distributed import as_completed
@@ -424,6 +425,8 @@ def run(
             finished(item)
         else:
             pending.append((item, job))
+    if pending and progress:
+        progress("starting", 0.0)  # the inputs are checked: the work begins (the CLI compiles here on a first run)
     if window is None:
         threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
         window = max(8, 4 * threads)

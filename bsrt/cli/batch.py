@@ -86,14 +86,22 @@ def _run(command: str, call, local: bool = True) -> int:
     from bsrt.progress import wanted
 
     progress = wanted(sys.stderr, None)
-    if local:  # workers on this machine: the kernels are compiled once here, not by each at once
-        from bsrt.cli.compiling import compile_if_cold
+    cold = local  # workers on this machine: the kernels are compiled once here, not by each at once
 
-        compile_if_cold(progress, warm=False)
+    def follow(stage, fraction, *detail) -> None:
+        nonlocal cold
+        if cold:  # the first report ("starting") comes once the inputs are checked, before any job
+            from bsrt.cli.compiling import compile_if_cold
+
+            cold = False
+            compile_if_cold(progress, warm=False)
+        if progress:
+            progress(stage, fraction, *detail)
+
     if progress:
         progress("starting", 0.0)
     try:
-        summary = call(progress=progress, report=_reporter(progress))
+        summary = call(progress=follow, report=_reporter(progress))
     except BaseException:
         if progress:
             progress.clear()
@@ -145,10 +153,6 @@ def cmd_batch(args: argparse.Namespace) -> int:
 def cmd_animate(args: argparse.Namespace) -> int:
     require_dask("animate")
     _check_device(args)
-    if str(args.input).endswith(".toml"):  # a bad scene is refused at once, before a first run's compile
-        from bsrt.scene.parse import load_scene
-
-        load_scene(args.input, cache=args.cache)
     return _run(
         "animate",
         lambda progress, report: animate(
