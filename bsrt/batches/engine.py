@@ -5,9 +5,8 @@ The client finds the inputs (:func:`discover`), names their outputs
 input's bytes and, for a scene, the bytes of the model files its
 ``[[import]]`` tables name by relative path, laid out as on the client's
 disk. So workers need not share a file system with the client: a worker
-writes the files into a private temporary folder, renders
-(:func:`render_job`) and returns the encoded PNG (and AOV archive) bytes; the
-client writes every output atomically (bsrt/outputs.py). An import given by
+writes the files into a private temporary folder, renders (:func:`render_job`)
+and returns the encoded PNG (and AOVs); the client writes them atomically. An import given by
 absolute path is not carried: the worker reads it where it runs.
 
 Each worker process renders with the process's one headless OpenGL context
@@ -399,9 +398,8 @@ def run(
     ``resume``, an item whose outputs are complete is skipped. At most
     ``window`` jobs are in flight at once (default: 4 per worker thread, at
     least 8), so the scheduler holds few jobs' bytes at a time.
-    progress(stage, fraction) is called with "starting" before the first job
-    is submitted, then follows the items done; report(item) is called
-    as each one finishes.
+    progress(stage, fraction): "starting" before the first job, then the items
+    done; report(item) is called as each one finishes.
     """
     from distributed import as_completed
 

@@ -13,11 +13,20 @@ from __future__ import annotations
 import os
 import sys
 
-from bsrt.cli.commands import COMMANDS
+from bsrt.cli import commands
 from bsrt.cli.parser import _join_negative_values, _parser
 from bsrt.errors import InputError, OutputError, RenderError
 
 __all__ = ["COMMANDS", "main"]
+
+
+def _cmd_scan(args) -> int:
+    from bsrt.cli.scan import cmd_scan  # a user of commands.py's helpers: registered here, not there
+
+    return cmd_scan(args)
+
+
+COMMANDS = {**commands.COMMANDS, "scan": _cmd_scan}
 
 
 def main(argv=None) -> int:

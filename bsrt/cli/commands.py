@@ -397,12 +397,6 @@ def _cmd_animate(args) -> int:
     return cmd_animate(args)
 
 
-def _cmd_scan(args) -> int:
-    from bsrt.cli.scan import cmd_scan
-
-    return cmd_scan(args)
-
-
 COMMANDS = {
     "render": _cmd_render,
     "map": _cmd_map,
@@ -413,5 +407,4 @@ COMMANDS = {
     "preview": _cmd_preview,
     "batch": _cmd_batch,
     "animate": _cmd_animate,
-    "scan": _cmd_scan,
 }

@@ -61,10 +61,9 @@ def cmd_scan(args) -> int:
     from pathlib import Path
 
     from bsrt import sensors
+    from bsrt.cli.commands import _check_output, _load_input, _refuse_overwriting
     from bsrt.outputs import write_file
     from bsrt.queries import intersect
-
-    from .commands import _check_output, _load_input, _refuse_overwriting
 
     suffix = Path(args.output).suffix.lower()
     if suffix not in SUFFIXES:
