@@ -21,9 +21,9 @@ from bsrt.errors import InputError, RenderError
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
-from bsrt.methods import METHODS, REFERENCE_METHOD
+from bsrt.methods import REFERENCE_METHOD
 from bsrt.rendering import gl
-from bsrt.rendering.solve import Rays, RootResult
+from bsrt.rendering.solve import Rays, RootResult, seeded_kernel_id
 from bsrt.settings import DEVICES
 
 GROUP = 64  # local_size_x of shaders/solve.glsl
@@ -186,20 +186,9 @@ def find_roots_gpu(
     rays, surface (M,) int, u, v (M,) float64 starts) solved by
     shaders/solve.glsl on ctx (a context with OpenGL 4.5 and float64:
     choose_device), the trims applied there too (trim64.glsl)."""
-    kernel_id = METHODS[method].kernel_id if method in METHODS else None
-    if kernel_id is None:
-        raise ValueError(f"not a seeded method: {method!r}")
+    kernel_id = seeded_kernel_id(method)
     m = int(np.shape(ray)[0])
-    out = RootResult(
-        converged=np.zeros(m, dtype=bool),
-        trimmed=np.zeros(m, dtype=bool),
-        u=np.empty(m),
-        v=np.empty(m),
-        patch=np.empty(m, dtype=np.int64),
-        t=np.empty(m),
-        residual=np.empty(m),
-        iterations=np.zeros(m, dtype=np.int32),
-    )
+    out = RootResult.empty(m)
     if m == 0:
         return out
     ray = np.asarray(ray, dtype=np.int64)

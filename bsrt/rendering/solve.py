@@ -80,6 +80,28 @@ class RootResult:
             residual=self.residual + nan,
         )
 
+    @classmethod
+    def empty(cls, m: int) -> RootResult:
+        """M items not converged yet (the outputs a solve fills)."""
+        return cls(
+            converged=np.zeros(m, dtype=bool),
+            trimmed=np.zeros(m, dtype=bool),
+            u=np.empty(m),
+            v=np.empty(m),
+            patch=np.empty(m, dtype=np.int64),
+            t=np.empty(m),
+            residual=np.empty(m),
+            iterations=np.zeros(m, dtype=np.int32),
+        )
+
+
+def seeded_kernel_id(method: str) -> int:
+    """The kernel id of a seeded method (bsrt/methods.py); ValueError for another name."""
+    kernel_id = METHODS[method].kernel_id if method in METHODS else None
+    if kernel_id is None:
+        raise ValueError(f"not a seeded method: {method!r}")
+    return kernel_id
+
 
 def find_roots(
     patches: PatchSet,
@@ -101,20 +123,9 @@ def find_roots(
     converged. stop_on_growth: give up on an item as soon as a Newton step
     increases the residual (Martin et al.'s rule, for starts that may be far).
     """
-    kernel_id = METHODS[method].kernel_id if method in METHODS else None
-    if kernel_id is None:
-        raise ValueError(f"not a seeded method: {method!r}")
+    kernel_id = seeded_kernel_id(method)
     m = np.shape(ray)[0]
-    out = RootResult(
-        converged=np.zeros(m, dtype=bool),
-        trimmed=np.zeros(m, dtype=bool),
-        u=np.empty(m),
-        v=np.empty(m),
-        patch=np.empty(m, dtype=np.int64),
-        t=np.empty(m),
-        residual=np.empty(m),
-        iterations=np.zeros(m, dtype=np.int32),
-    )
+    out = RootResult.empty(m)
     if m == 0:
         return out
     run_chunks(
