@@ -31,11 +31,25 @@ from bsrt.rendering.image import srgb_encode
 from bsrt.rendering.screen import film_rays
 
 CONTRAST = 6  # 8-bit sRGB levels
+BAND_ROWS = 256  # pixel rows whose differences are worked out at once
 
 
-def disagreeing(pixels: np.ndarray) -> np.ndarray:
+def disagreeing(pixels: np.ndarray, rows: int = BAND_ROWS) -> np.ndarray:
     """pixels: (H, W, 3) uint8 -> (H, W) bool, True where the second difference along the row or the
-    column (the first difference at the film's border) exceeds CONTRAST levels in some channel."""
+    column (the first difference at the film's border) exceeds CONTRAST levels in some channel.
+    Worked out ``rows`` pixel rows at a time (each with its neighbours above and below), so the
+    temporaries are bounded by the band, not the film."""
+    height = pixels.shape[0]
+    marked = np.zeros(pixels.shape[:2], dtype=bool)
+    for top in range(0, height, rows):
+        bottom = min(height, top + rows)
+        lo, hi = max(0, top - 1), min(height, bottom + 1)
+        marked[top:bottom] = _disagreeing(pixels[lo:hi])[top - lo : bottom - lo]
+    return marked
+
+
+def _disagreeing(pixels: np.ndarray) -> np.ndarray:
+    """disagreeing for one slab of rows (its first and last rows taken as the film's border)."""
     p = pixels.astype(np.int32)
     marked = np.zeros(p.shape[:2], dtype=bool)
     for axis in (0, 1):
@@ -53,7 +67,7 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     """Re-render the marked pixels with the samples of ``--spp columns * rows``, in place.
 
     linear: (H, W, 3) float64 (or None: a streamed film) and pixels: (H, W, 3) uint8, the one-sample
-    render, updated where marked; coverage: (H, W) float64, the fraction of each pixel's samples that hit, updated
+    render, updated where marked; coverage: (H, W) float64 (or None), the fraction of each pixel's samples that hit, updated
     alike. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
     camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
     most samples traced at once."""
@@ -65,20 +79,21 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
     early, early_hit = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
-    cover = coverage.reshape(-1)
     levels = srgb_encode(early).astype(np.int32)
     spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
     full = spread.max(axis=1) > CONTRAST
     value = early.mean(axis=1)  # (K, 3): the marked pixels' new linear RGB
-    cover[marked] = early_hit.mean(axis=1)
+    hit_fraction = early_hit.mean(axis=1)  # (K,)
     if not first.all():
         rest, rest_hit = _samples(marked[full], offset[~first], shade, trace, options, stats, chunk_samples)
         value[full] = (early[full].sum(axis=1) + rest.sum(axis=1)) / offset.shape[0]
-        cover[marked[full]] = (early_hit[full].sum(axis=1) + rest_hit.sum(axis=1)) / offset.shape[0]
+        hit_fraction[full] = (early_hit[full].sum(axis=1) + rest_hit.sum(axis=1)) / offset.shape[0]
     stats.add("adaptive_pixels", marked.size)
     stats.add("adaptive_full", int(full.sum()))
     stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int((~first).sum()))
     if marked.size:
+        if coverage is not None:
+            coverage.reshape(-1)[marked] = hit_fraction
         if linear is not None:
             linear.reshape(-1, 3)[marked] = value
         pixels.reshape(-1, 3)[marked] = srgb_encode(value)

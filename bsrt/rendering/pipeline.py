@@ -267,7 +267,7 @@ def render(
             stop = min(height, first + band)
             hits, _ = tracer.trace(width, height, (first, stop), None)
             film.put_hits(first * width, hits)
-    coverage = film.coverage
+    coverage = film.coverage if keep else None  # (H, W) float64: only a kept film's result holds it
     if spp == 1 and opts.adaptive_spp > 1:
         _adaptive(film.linear, film.pixels, coverage, tracer, shader, opts, geometry, stats)
     if opts.edges:
@@ -302,7 +302,8 @@ def _edges(linear, pixels, coverage, hits: Hits, opts: RenderOptions, geometry: 
     """The edges drawn over the image (rendering/edges.py), in place: pixels (H, W, 3) uint8 and,
     when kept, linear (H, W, 3) float64 (else the 8-bit pixels under a line are decoded to blend
     with). Returns the coverage (H, W): a line adds to it (the alpha) as it covers the pixel,
-    ``a + e (1 - a)``, so a transparent picture keeps the lines drawn over the background."""
+    ``a + e (1 - a)``, so a transparent picture keeps the lines drawn over the background (None
+    stays None)."""
     from bsrt.rendering.edges import draw, edge_coverage
     from bsrt.rendering.image import srgb_decode, srgb_encode
 
@@ -314,7 +315,7 @@ def _edges(linear, pixels, coverage, hits: Hits, opts: RenderOptions, geometry: 
         if linear is not None:
             linear[under] = blended
         pixels[under] = srgb_encode(blended)
-    return coverage + lines * (1.0 - coverage)
+    return None if coverage is None else coverage + lines * (1.0 - coverage)
 
 
 class _Shader:
