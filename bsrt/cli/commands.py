@@ -325,24 +325,37 @@ def _cmd_bench(args) -> int:
         raise InputError(f"--methods: names no method (expected a comma-separated list of {', '.join(METHODS)})")
     if args.json:
         _check_output(args.json, ".json")
+    embree = _embree_segments(args.embree)
     if args.preview:
         bench.check_preview_display()  # before the long part
     log = lambda text: print(text, flush=True)  # noqa: E731
     if args.models:
         results = bench.trim_cost(args.models, args.size, args.repeat, log=log)
     else:
-        results = bench.run(args.scenes or bench.DEFAULT_SCENES, named, args.size, args.repeat, log=log)
+        results = bench.run(args.scenes or bench.DEFAULT_SCENES, named, args.size, args.repeat, log=log, embree=embree)
         print()
         print(bench.format_tables(results))
         if args.full:
             print()
             print(bench.format_full(results))
+        if embree:
+            from bsrt.rendering import bench_embree
+
+            print()
+            print(bench_embree.format_rows(results))
         if args.startup:
             scene = (args.scenes or bench.DEFAULT_SCENES)[0]
             results["startup"] = bench.startup(scene)
             results["first_run"] = bench.first_run(scene)
             print()
             print(bench.format_startup(results))
+        if args.memory:
+            from bsrt.rendering import bench_memory
+
+            scene = (args.scenes or bench.DEFAULT_SCENES)[0]
+            results["memory"] = bench_memory.per_pixel(lambda out: bench.render_argv(scene, out), bench.child_env())
+            print()
+            print(bench_memory.format_row(results["memory"]))
         if args.preview:
             results["preview"] = bench.preview_latency(*(args.scenes or ["water-lily"])[:1])
             print()
@@ -352,6 +365,18 @@ def _cmd_bench(args) -> int:
 
         write_text(args.json, json.dumps(results, indent=2))
     return 0
+
+
+def _embree_segments(wanted: bool | None) -> tuple[int, ...]:
+    """bench's Embree comparison: the segment counts to compare, () for none (``--no-embree``, or
+    embreex missing without ``--embree``); ``--embree`` without embreex is an InputError."""
+    from bsrt.rendering import bench_embree
+
+    if wanted is False or (wanted is None and not bench_embree.available()):
+        return ()
+    if not bench_embree.available():
+        raise InputError("--embree: needs the embreex package (pip install embreex)")
+    return bench_embree.DEFAULT_SEGMENTS
 
 
 def _cmd_preview(args) -> int:

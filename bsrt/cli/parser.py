@@ -117,6 +117,20 @@ def _parser() -> argparse.ArgumentParser:
         "--full", action="store_true", help="also show whole renders by stage (shadows, mirrors) and rays per second"
     )
     b.add_argument(
+        "--embree",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="also trace the primary rays with Embree on tessellations of 8, 32 and 128 quads per patch edge "
+        "and compare time and depth with the exact ones (default: on when the embreex package is installed)",
+    )
+    b.add_argument(
+        "--memory",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also measure the peak memory of CLI renders at 512x512 and 2048x2048 in new processes, and the "
+        "bytes per added pixel (default: on)",
+    )
+    b.add_argument(
         "--startup",
         action=argparse.BooleanOptionalAction,
         default=True,

@@ -45,8 +45,10 @@ def scene_path(name: str) -> Path:
     return bundled
 
 
-def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=print) -> dict:
-    """Benchmark; returns a JSON-serialisable dict (see format_tables)."""
+def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=print, embree=()) -> dict:
+    """Benchmark; returns a JSON-serialisable dict (see format_tables). ``embree``: segment counts
+    for the Embree comparison (bench_embree.compare, against the reference method's hits; needs it
+    among ``methods``), none by default."""
     results = {"size": size, "repeat": repeat, "scenes": {}}
     for name in scenes:
         path = scene_path(name)
@@ -84,6 +86,13 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
             )
             med = entry["methods"][method]["seconds"]
             log(f"{label:12s} {method:9s} map+solve {med['map+solve']:7.3f} s  total {med['total']:7.3f} s")
+        if embree and REFERENCE_METHOD in last:
+            from bsrt.rendering import bench_embree
+
+            exact = entry["methods"][REFERENCE_METHOD]["seconds"]["map+solve"]
+            entry["embree"] = bench_embree.compare(
+                geometry, options[REFERENCE_METHOD].camera, size, last[REFERENCE_METHOD].hits, exact, embree, repeat
+            )
         results["scenes"][label] = entry
     results["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return results
@@ -351,13 +360,14 @@ def _child_seconds(argv: list[str], env: dict) -> tuple[float, float]:
     return wall, (after.children_user - before.children_user) + (after.children_system - before.children_system)
 
 
-def _tiny_render(scene: str, out: Path) -> list[str]:
+def render_argv(scene: str, out: Path) -> list[str]:
+    """The argv of a ``bsrt render`` of ``scene`` (bundled name or path) to ``out``, in a new process."""
     import sys
 
     return [sys.executable, "-m", "bsrt", "render", str(scene_path(scene)), "-o", str(out)]
 
 
-def _child_env(**extra) -> dict:
+def child_env(**extra) -> dict:
     """The environment of a child that runs this bsrt (its folder first on PYTHONPATH)."""
     import os
 
@@ -374,15 +384,15 @@ def startup(scene: str = "column", repeat: int = 5) -> dict:
     import sys
     import tempfile
 
-    env = _child_env()
+    env = child_env()
     with tempfile.TemporaryDirectory() as tmp:
-        render_argv = _tiny_render(scene, Path(tmp) / "tiny.png") + ["--width", "16", "--height", "16"]
-        _child_seconds(render_argv, env)  # untimed: the cache
+        tiny = render_argv(scene, Path(tmp) / "tiny.png") + ["--width", "16", "--height", "16"]
+        _child_seconds(tiny, env)  # untimed: the cache
         numpy, renders = [], []
         load = os.getloadavg()[0]
         for _ in range(repeat):
             numpy.append(_child_seconds([sys.executable, "-c", "import numpy"], env))
-            renders.append(_child_seconds(render_argv, env))
+            renders.append(_child_seconds(tiny, env))
     med = lambda runs, i: statistics.median(r[i] for r in runs)  # noqa: E731
     return {
         "repeat": repeat,
@@ -404,10 +414,10 @@ def first_run(scene: str = "column") -> dict:
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
-        env = _child_env(NUMBA_CACHE_DIR=str(Path(tmp) / "kernels"))
+        env = child_env(NUMBA_CACHE_DIR=str(Path(tmp) / "kernels"))
         load = os.getloadavg()[0]
         wall, cpu = _child_seconds(
-            _tiny_render(scene, Path(tmp) / "first.png") + ["--width", "16", "--height", "16"], env
+            render_argv(scene, Path(tmp) / "first.png") + ["--width", "16", "--height", "16"], env
         )
     return {"first_run_wall": wall, "first_run_cpu": cpu, "load_average": [load, os.getloadavg()[0]]}
 

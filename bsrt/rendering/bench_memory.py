@@ -1,0 +1,61 @@
+"""``bsrt bench --memory``: the memory a render holds per pixel.
+
+Two CLI renders of one scene in new processes, a small and a large film; the
+peak resident memory of each (the child's own ``ru_maxrss`` from ``wait4``) and
+the difference per added pixel: what a bigger film costs, the process's fixed
+part (Python, NumPy, numba, the GL context, the scene) taken out. A streamed
+film (bsrt/rendering/film.py) holds the 8-bit image, a 2-byte sample count per
+pixel and the band being traced, so this tends to a few bytes per pixel.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import tempfile
+from pathlib import Path
+
+from bsrt.errors import InputError
+
+DEFAULT_SIZES = (512, 2048)
+
+
+def peak_rss(argv: list[str], env: dict) -> int:
+    """Run ``argv`` in a child process; its peak resident memory in bytes. A failure is an InputError."""
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    err = proc.stderr.read().decode(errors="replace")
+    proc.stderr.close()
+    if proc.returncode != 0:
+        raise InputError(f"{' '.join(argv)}: failed ({proc.returncode}): {err.strip()[-300:]}")
+    return int(usage.ru_maxrss) * 1024  # kB on Linux
+
+
+def per_pixel(render_argv, env: dict, sizes=DEFAULT_SIZES) -> dict:
+    """``render_argv(out_path)``: the argv of a CLI render writing out_path (width and height are
+    added). Peak memory at each size of ``sizes`` (small, large) and bytes per added pixel."""
+    small, large = sizes
+    peaks = {}
+    load = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in sizes:
+            argv = render_argv(Path(tmp) / f"memory-{n}.png") + ["--width", str(n), "--height", str(n)]
+            peaks[n] = peak_rss(argv, env)
+    return {
+        "sizes": list(sizes),
+        "peak_mb": {str(n): peaks[n] / 2**20 for n in sizes},
+        "bytes_per_pixel": (peaks[large] - peaks[small]) / (large * large - small * small),
+        "load_average": [load, os.getloadavg()[0]],
+    }
+
+
+def format_row(memory: dict) -> str:
+    """One line: the peaks and bytes per pixel."""
+    small, large = memory["sizes"]
+    return (
+        f"memory: peak {memory['peak_mb'][str(small)]:.0f} MB at {small}x{small}, "
+        f"{memory['peak_mb'][str(large)]:.0f} MB at {large}x{large}: "
+        f"{memory['bytes_per_pixel']:.1f} bytes per added pixel, "
+        f"load {memory['load_average'][0]:.1f}-{memory['load_average'][1]:.1f}"
+    )
