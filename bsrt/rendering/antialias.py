@@ -25,17 +25,18 @@ whose five first samples agree takes their mean. An unmarked pixel keeps its
 centre sample.
 
 The cost is the marked pixels' samples, and those are the dear ones: at
-silhouettes and borders the hierarchy finds their hits and their shadow
-rays graze nearby surfaces (shading a marked pixel's hit costs 2.5 to 3
-times an average pixel's, measured). Seeding them with Newton from the
-pixel's own hit, accepted where the pixel-centre hits pass the hard-pixel
-tests (hard_pixels.suspect_pixels), is not exact: a sliver of another
-surface between the centres of a 3 x 3 neighbourhood that all hit one
-surface is missed (water-lily at 256 x 256, n = 16: 5 pixels off by up to
-6 levels), and proving a seeded root the nearest with a hierarchy query
-bounded by its distance costs 0.7 to 1.2 times the plain query (measured). So every sample goes through the
-hierarchy, and the default n is the one whose cost is a small part of
-``--spp 4``'s (docs/design.md, "Adaptive anti-aliasing").
+silhouettes and borders the hierarchy finds their hits, and their shadow
+rays (nearly all of the shading time) cost up to 3 times an average
+pixel's (measured on water-lily and column). Seeding the samples with
+Newton from the pixel's own hit, accepted where the pixel-centre hits pass
+the hard-pixel tests (hard_pixels.suspect_pixels), is not exact: a sliver
+of another surface between the centres of a 3 x 3 neighbourhood that all
+hit one surface is missed (water-lily at 256 x 256, n = 16: 5 pixels off by
+up to 6 levels), and proving a seeded root the nearest with a hierarchy
+query bounded by its distance costs 0.7 to 1.2 times the plain query
+(measured). So every sample goes through the hierarchy, and the default n
+is the one whose cost is a small part of ``--spp 4``'s (docs/design.md,
+"Adaptive anti-aliasing").
 
 ``--stats`` reports ``adaptive_pixels`` (marked), ``adaptive_full`` (given
 all n samples) and ``adaptive_samples`` (the camera samples added); the
