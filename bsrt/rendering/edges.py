@@ -135,7 +135,8 @@ def _creased_spans(patches, m: int, axis: int, k: float, breaks: np.ndarray, cos
     s = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * t[None, :]).ravel()  # (spans * (n + 1),)
     uv = _iso(axis, k)(s)
     side = np.zeros_like(uv)
-    side[:, axis] = 1e-9 * max(abs(k), 1.0)
+    lo, hi = patches.domain[m, 2 * axis : 2 * axis + 2]
+    side[:, axis] = max(1e-9 * (hi - lo), 8.0 * np.spacing(abs(k)))  # into the span before / after the knot
     surface = np.full(s.size, m, dtype=np.int64)
     normals = []
     for shift in (-side, side):  # the patch before the knot, then the one after, both evaluated on it
