@@ -220,7 +220,7 @@ SETTINGS: tuple[Setting, ...] = (
         "adaptive_spp",
         "render",
         "int",
-        16,
+        4,
         "adaptive anti-aliasing: samples per pixel where neighbouring pixels disagree, when spp = 1 (0 or 1: off)",
         0,
         validate.MAX_SPP,

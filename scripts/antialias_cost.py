@@ -4,13 +4,14 @@
 
 For each input (default: the bundled scenes water-lily and column, and the
 STEP screw of the tests), renders in one process, after a warm-up: one
-sample per pixel (adaptive_spp 0), the default adaptive anti-aliasing
-(adaptive_spp 16), uniform --spp 4 and --spp 16; prints per render the
-camera samples (pixels x spp, plus adaptive_samples), their ratio to --spp 4
-and --spp 16, the process CPU time (time.process_time: the machine may be
-shared) and the error against --spp 16 (mean and max over pixels of the
-largest channel difference, linear RGB). Reports the load average at start
-and end.
+sample per pixel (adaptive_spp 0), adaptive anti-aliasing with 4, 9 and
+16 samples (adaptive_spp 4, 9, 16), uniform --spp 4 and --spp 16; prints
+per render the camera samples (pixels x spp, plus adaptive_samples), their
+ratio to --spp 4 and --spp 16, the process CPU time (time.process_time: the
+machine may be shared), the CPU time above the one-sample render's as a
+fraction of --spp 4's above it (``extra/spp4``) and the error against
+--spp 16 (mean and max over pixels of the largest channel difference,
+linear RGB). Reports the load average at start and end.
 """
 
 from __future__ import annotations
@@ -31,7 +32,14 @@ DEFAULT = [
     ROOT / "scenes" / "column.toml",
     ROOT / "tests" / "data" / "models" / "step" / "occt" / "screw.step",
 ]
-CASES = (("spp1", 1, 0), ("adaptive16", 1, 16), ("spp4", 4, 0), ("spp16", 16, 0))
+CASES = (
+    ("spp1", 1, 0),
+    ("adaptive4", 1, 4),
+    ("adaptive9", 1, 9),
+    ("adaptive16", 1, 16),
+    ("spp4", 4, 0),
+    ("spp16", 16, 0),
+)
 
 
 def main() -> None:
@@ -54,12 +62,13 @@ def main() -> None:
         ref = out["spp16"][0]
         pixels = args.size * args.size
         print(f"\n{path.name} {args.size}x{args.size}")
-        print("render        samples  /spp4  /spp16   cpu s  err mean  err max")
+        print("render        samples  /spp4  /spp16   cpu s  extra/spp4  err mean  err max")
+        one, four = out["spp1"][2], out["spp4"][2]
         for name, (linear, samples, cpu) in out.items():
             err = np.abs(linear - ref).max(axis=2)
             print(
                 f"{name:12s} {samples:8d}  {samples / (4 * pixels):5.2f}  {samples / (16 * pixels):5.3f}  "
-                f"{cpu:6.2f}  {err.mean():8.5f}  {err.max():6.3f}"
+                f"{cpu:6.2f}  {(cpu - one) / max(four - one, 1e-9):10.2f}  {err.mean():8.5f}  {err.max():6.3f}"
             )
     print(f"\nload average at end: {Path('/proc/loadavg').read_text().split()[:3]}")
 

@@ -17,6 +17,7 @@ import pytest
 
 from bsrt.cli import _parser
 from bsrt.errors import InputError
+from bsrt.rendering.antialias import disagreeing
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import parse_scene
@@ -247,6 +248,30 @@ def test_adaptive_anti_aliasing_matches_spp16_at_a_fraction_of_its_samples():
     assert "adaptive_pixels" not in one.stats
 
 
+def test_an_odd_grid_reuses_the_centre_ray_and_a_2x2_grid_is_spp4():
+    """adaptive_spp 9: the 3 x 3 grid's middle sample is the pixel-centre ray already shaded (not
+    traced again: 4 samples, then 4 more where the five disagree), and the picture is --spp 9's where
+    one straight edge crosses a pixel. adaptive_spp 4: the 2 x 2 grid is all corners, one round,
+    every marked pixel is --spp 4's."""
+    size = 96
+    scene = _checker(size)
+    geometry = Geometry(scene)
+    for n in (9, 4):
+        uniform = render(scene, RenderOptions.resolve(scene, spp=n, adaptive_spp=0), geometry=geometry)
+        adaptive = render(scene, RenderOptions.resolve(scene, spp=1, adaptive_spp=n), geometry=geometry)
+        error = np.abs(adaptive.linear - uniform.linear).max(axis=2)
+        marked, full = adaptive.stats["adaptive_pixels"], adaptive.stats["adaptive_full"]
+        if n == 9:
+            assert np.mean(error < 1e-9) > 0.995 and error.max() <= 0.25
+            assert 0 < full < marked
+            assert adaptive.stats["adaptive_samples"] == 4 * marked + 4 * full
+        else:
+            marks = disagreeing(render(scene, RenderOptions.resolve(scene, adaptive_spp=0), geometry=geometry).pixels)
+            assert np.abs(error[marks]).max() < 1e-9  # every marked pixel: --spp 4's value
+            assert full == marked > 0
+            assert adaptive.stats["adaptive_samples"] == 4 * marked
+
+
 def test_a_periodic_seam_is_no_edge():
     """A whole cylinder x^2 + y^2 = 1, |z| <= 1, as one untrimmed surface whose u = 0 and u = 1 borders
     are the same line (1, 0, z): seen from (5, 0, 0), that seam runs down the middle of the film. Its
@@ -289,7 +314,6 @@ def test_a_periodic_seam_is_no_edge():
 def test_the_pixels_to_refine_are_the_same_worked_out_in_bands():
     """disagreeing() works band by band (bounded memory on big films): any band height gives the
     marks of the whole film at once, borders included."""
-    from bsrt.rendering.antialias import disagreeing
 
     rng = np.random.default_rng(7)
     pixels = rng.integers(0, 256, size=(41, 23, 3), dtype=np.uint8)

@@ -7,7 +7,7 @@ difference p[j - 1] - 2 p[j] + p[j + 1]; at the film's border, the first
 difference): a step between two pixels marks both of them (silhouettes, face
 borders, shadow borders, a thin line), a smooth gradient of shading marks
 none. Each marked pixel is traced again with the samples of ``--spp n``
-(``adaptive_spp``: the same stratified columns x rows grid,
+(``adaptive_spp``, default 4: the same stratified columns x rows grid,
 pipeline.sample_grid), through the hierarchy, shaded as every camera ray is,
 in two rounds: first the grid's four corner samples; a pixel whose corner
 samples and centre all agree within CONTRAST levels takes the corners' mean
@@ -16,11 +16,31 @@ and stops, the others get the rest of the grid and take the mean of all n
 segment between two of those five points, so a straight edge (a half-plane)
 that leaves the five on one side leaves all n there too: such a pixel's
 value is exactly ``--spp n``'s where the picture is flat on each side, and a
-pixel an edge separates gets exactly the samples of ``--spp n``. An
-unmarked pixel keeps its centre sample. ``--stats`` reports ``adaptive_pixels`` (marked),
-``adaptive_full`` (given all n samples) and ``adaptive_samples`` (the camera
-samples added); the render's camera samples in all are
-``pixels + adaptive_samples``.
+pixel an edge separates gets exactly the samples of ``--spp n``. The 2 x 2
+grid of n = 4 is all corners: one round, every marked pixel gets ``--spp
+4``'s value. An odd grid (3 x 3 for n = 9) has the pixel centre as its
+middle sample: that one is the centre ray already shaded, not traced again
+(a streamed film, which keeps no linear colour, traces it), and a pixel
+whose five first samples agree takes their mean. An unmarked pixel keeps its
+centre sample.
+
+The cost is the marked pixels' samples, and those are the dear ones: at
+silhouettes and borders the hierarchy finds their hits, and their shadow
+rays (nearly all of the shading time) cost up to 3 times an average
+pixel's (measured on water-lily and column). Seeding the samples with
+Newton from the pixel's own hit, accepted where the pixel-centre hits pass
+the hard-pixel tests (hard_pixels.suspect_pixels), is not exact: a sliver
+of another surface between the centres of a 3 x 3 neighbourhood that all
+hit one surface is missed (water-lily at 256 x 256, n = 16: 5 pixels off by
+up to 6 levels), and proving a seeded root the nearest with a hierarchy
+query bounded by its distance costs 0.7 to 1.2 times the plain query
+(measured). So every sample goes through the hierarchy, and the default n
+is the one whose cost is a small part of ``--spp 4``'s (docs/design.md,
+"Adaptive anti-aliasing").
+
+``--stats`` reports ``adaptive_pixels`` (marked), ``adaptive_full`` (given
+all n samples) and ``adaptive_samples`` (the camera samples added); the
+render's camera samples in all are ``pixels + adaptive_samples``.
 """
 
 from __future__ import annotations
@@ -75,22 +95,31 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     a, b = np.meshgrid(np.arange(cols), np.arange(rows))  # sample (b, a) of a pixel: row b, column a
     a, b = a.ravel(), b.ravel()
     offset = np.stack([(a + 0.5) / cols, (b + 0.5) / rows], axis=1)  # (n, 2)
+    n = offset.shape[0]
     first = ((a == 0) | (a == cols - 1)) & ((b == 0) | (b == rows - 1))  # the grid's corners
+    # an odd grid's middle sample is the pixel-centre ray, already shaded: reused where the film keeps it
+    kept = linear is not None and coverage is not None
+    middle = (cols % 2 == 1) & (rows % 2 == 1) & (2 * a + 1 == cols) & (2 * b + 1 == rows) & kept
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
     early, early_hit = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
+    if middle.any():  # (K, f + 1, 3): the centre sample joins the corners
+        early = np.concatenate([early, linear.reshape(-1, 3)[marked][:, None, :]], axis=1)
+        early_hit = np.concatenate([early_hit, coverage.reshape(-1)[marked][:, None] > 0], axis=1)
     levels = srgb_encode(early).astype(np.int32)
     spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
     full = spread.max(axis=1) > CONTRAST
     value = early.mean(axis=1)  # (K, 3): the marked pixels' new linear RGB
     hit_fraction = early_hit.mean(axis=1)  # (K,)
-    if not first.all():
-        rest, rest_hit = _samples(marked[full], offset[~first], shade, trace, options, stats, chunk_samples)
-        value[full] = (early[full].sum(axis=1) + rest.sum(axis=1)) / offset.shape[0]
-        hit_fraction[full] = (early_hit[full].sum(axis=1) + rest_hit.sum(axis=1)) / offset.shape[0]
+    rest = ~first & ~middle
+    full |= not rest.any()  # a grid of corners (2 x 2; 1 x 3 with its middle): every pixel has them all
+    if rest.any():
+        more, more_hit = _samples(marked[full], offset[rest], shade, trace, options, stats, chunk_samples)
+        value[full] = (early[full].sum(axis=1) + more.sum(axis=1)) / n
+        hit_fraction[full] = (early_hit[full].sum(axis=1) + more_hit.sum(axis=1)) / n
     stats.add("adaptive_pixels", marked.size)
     stats.add("adaptive_full", int(full.sum()))
-    stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int((~first).sum()))
+    stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int(rest.sum()))
     if marked.size:
         if coverage is not None:
             coverage.reshape(-1)[marked] = hit_fraction

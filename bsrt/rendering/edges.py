@@ -2,10 +2,13 @@
 
 Two sources, both independent of the film's resolution:
 
-- Boundary curves (B-rep edges, trim boundaries, surface borders): every
-  trim curve of every surface (the same ``TrimCurve`` objects the trim table
-  is built from), and the four borders of each untrimmed surface's domain,
-  are sampled in their own parameter, mapped onto the surface in 3-D
+- Boundary curves (B-rep edges, trim boundaries, surface borders, creases):
+  every trim curve of every surface (the same ``TrimCurve`` objects the trim
+  table is built from), the four borders of each untrimmed surface's
+  domain, and the creases inside a surface (crease_curves: the iso-curves at
+  its interior knots of multiplicity >= the degree, along the spans where
+  its normal turns by more than CREASE_DEGREES across the knot, clipped by
+  its trims) are sampled in their own parameter, mapped onto the surface in 3-D
   (``PatchSet.evaluate``) and projected onto the film; a span is cut until
   its chord is at most MAX_STEP pixels on the film. A border along which
   the surface closes onto itself (a periodic seam: S at the opposite border
@@ -34,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bsrt.kernels.trim import kept_many
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.screen import film_rays, project
 
@@ -47,13 +51,16 @@ SEAM_TOLERANCE = 1e-7  # of the scene's diagonal: a border meeting its opposite 
 SEGMENT_CHUNK = 1 << 14
 MAX_PIECE = 8.0  # pixels: segments are rasterised in pieces at most this long
 VISIBILITY_MARGIN = 0.02  # pixels: a surface less than this in front of an edge (a grazing ray) does not hide it
+# a knot line of a surface is a crease where its two sides' normals are more than this apart: a C0 knot
+# (multiplicity >= degree) along which the surface is still smooth (G1: its control points in line) is no edge
+CREASE_DEGREES = 1.0
 
 
 class _Curve:
     """One boundary curve of surface m: uv(s) -> (N, 2) for s in [a, b]; knots: the span breaks."""
 
-    def __init__(self, m: int, uv, a: float, b: float, knots: np.ndarray):
-        self.m, self.uv, self.a, self.b = m, uv, a, b
+    def __init__(self, m: int, uv, a: float, b: float, knots: np.ndarray, clip: bool = False):
+        self.m, self.uv, self.a, self.b, self.clip = m, uv, a, b, clip  # clip: drawn only where the trims keep it
         self.knots = np.unique(np.concatenate([[a, b], knots[(knots > a) & (knots < b)]]))
 
 
@@ -81,7 +88,74 @@ def boundary_curves(patches) -> list[_Curve]:
             u0, u1, v0, v1 = patches.domain[m]
             for which in range(4):
                 curves.append(_Curve(m, _border(u0, u1, v0, v1, which), 0.0, 1.0, np.zeros(0)))
+    return curves + crease_curves(patches)
+
+
+def crease_curves(patches) -> list[_Curve]:
+    """The creases inside every surface: at each interior knot of multiplicity >= the degree (in u or
+    v), the iso-curve along the spans of the other parameter where the normals of the two patches
+    that meet there differ by more than CREASE_DEGREES (checked at SPAN_SAMPLES + 1 points of each
+    span); consecutive such spans make one curve. Clipped by the surface's trims when drawn."""
+    cos_limit = np.cos(np.radians(CREASE_DEGREES))
+    curves = []
+    for m, surface in enumerate(patches.surfaces):
+        u0, u1, v0, v1 = patches.domain[m]
+        for axis, knots, other_knots, degree in (
+            (0, surface.knots_u, surface.knots_v, surface.degree[0]),
+            (1, surface.knots_v, surface.knots_u, surface.degree[1]),
+        ):
+            lo, hi = (u0, u1) if axis == 0 else (v0, v1)
+            a, b = (v0, v1) if axis == 0 else (u0, u1)
+            values, counts = np.unique(knots, return_counts=True)
+            breaks = np.unique(np.concatenate([[a, b], other_knots[(other_knots > a) & (other_knots < b)]]))
+            for k in values[(values > lo) & (values < hi) & (counts >= degree)]:
+                creased = _creased_spans(patches, m, axis, float(k), breaks, cos_limit)
+                for first, stop in _runs(creased):
+                    uv = _iso(axis, float(k))
+                    curves.append(_Curve(m, uv, breaks[first], breaks[stop], breaks, clip=surface.is_trimmed))
     return curves
+
+
+def _iso(axis: int, k: float):
+    """The iso-curve u = k (axis 0) or v = k (axis 1) as uv(s), s the other parameter."""
+
+    def uv(s):
+        s = np.asarray(s, dtype=np.float64)
+        fixed = np.full(s.shape, k)
+        return np.stack([fixed, s] if axis == 0 else [s, fixed], axis=1)
+
+    return uv
+
+
+def _creased_spans(patches, m: int, axis: int, k: float, breaks: np.ndarray, cos_limit: float) -> np.ndarray:
+    """(len(breaks) - 1,) bool: whether the normals on the two sides of the knot line (axis, k) of
+    surface m differ by more than the angle of cos_limit somewhere in each span of breaks (a side
+    whose normal vanishes there, a degenerate point, decides nothing)."""
+    t = np.linspace(0.0, 1.0, SPAN_SAMPLES + 1)
+    s = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * t[None, :]).ravel()  # (spans * (n + 1),)
+    uv = _iso(axis, k)(s)
+    side = np.zeros_like(uv)
+    lo, hi = patches.domain[m, 2 * axis : 2 * axis + 2]
+    side[:, axis] = max(1e-9 * (hi - lo), 8.0 * np.spacing(abs(k)))  # into the span before / after the knot
+    surface = np.full(s.size, m, dtype=np.int64)
+    normals = []
+    for shift in (-side, side):  # the patch before the knot, then the one after, both evaluated on it
+        near = uv + shift
+        patch = patches.locate(surface, near[:, 0], near[:, 1])
+        _, su, sv = patches.evaluate(patch, uv[:, 0], uv[:, 1])
+        normals.append(np.cross(su.T, sv.T))
+    na, nb = normals
+    size = np.linalg.norm(na, axis=1) * np.linalg.norm(nb, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos = np.einsum("ij,ij->i", na, nb) / size
+    creased = (size > 0) & (cos < cos_limit)
+    return creased.reshape(breaks.size - 1, SPAN_SAMPLES + 1).any(axis=1)
+
+
+def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
+    """(first, stop) of each run of True in flags: flags[first:stop] all True."""
+    edges = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
 def _points(patches, m: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -112,7 +186,9 @@ def sample_curves(patches, camera, width: int, height: int, diagonal: float):
 
     Returns (curve (N,) int64 index of the curve of each sample, consecutive
     within a curve; m (N,) int64 surface; points (N, 3) float64 world; xy
-    (N, 2) float64 film positions; depth (N,) float64 along the view axis)."""
+    (N, 2) float64 film positions; depth (N,) float64 along the view axis,
+    NaN where a clipped curve (a crease) lies in a trimmed-away part of its
+    surface: no segment ends there)."""
     curves = boundary_curves(patches)
     coarse_s = [
         np.concatenate(
@@ -163,6 +239,10 @@ def sample_curves(patches, camera, width: int, height: int, diagonal: float):
     m = np.array([c.m for c in curves], dtype=np.int64)[curve]
     points = _points(patches, m, uv)
     xy, depth = project(camera, width, height, points)
+    clip = np.array([c.clip for c in curves])[curve]
+    if clip.any():
+        clip[clip] = ~kept_many(patches.trims, m[clip], uv[clip, 0], uv[clip, 1])
+        depth[clip] = np.nan
     return curve, m, points, xy, depth
 
 
