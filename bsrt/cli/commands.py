@@ -119,7 +119,9 @@ def _cmd_render(args) -> int:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
-            result = render(scene, options, progress=progress, keep=bool(aov))  # no AOVs: a streamed film
+            result = render(
+                scene, options, progress=progress, keep=bool(aov), cache=args.cache
+            )  # no AOVs: a streamed film
             clock = time.perf_counter()
             outputs.write(out, image_writer(out, result.image))
             if aov:
