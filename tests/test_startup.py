@@ -128,35 +128,6 @@ def test_machine_code_of_another_version_is_dropped_once(tmp_path):
     assert (folder / "b.g-2.py311.nbi").exists()  # the same version: kept
 
 
-def test_explicitly_typed_kernels_wait_for_the_end_of_a_deferral():
-    """Inside jit.deferred_signatures a kernel with explicit signatures is not compiled at its
-    definition (a first run's workers start first); at the end it has those signatures only."""
-
-    def twice(x):
-        return 2 * x
-
-    with jit.deferred_signatures():
-        kernel = jit.njit("int64(int64)")(twice)
-        assert kernel.signatures == [] and kernel in [k for k, _ in jit._pending]
-    assert [str(s) for s in kernel.signatures] == ["(int64,)"] and not jit._pending
-    assert kernel(21) == 42
-    with pytest.raises(TypeError):  # no further specialisation, as numba's own decorator
-        kernel(1.5j)
-    eager = jit.njit("float64(float64)")(twice)  # outside: at once, as numba does
-    assert [str(s) for s in eager.signatures] == ["(float64,)"]
-
-
-def test_an_interrupted_deferral_compiles_nothing():
-    def once(x):
-        return x
-
-    with pytest.raises(KeyboardInterrupt), jit.deferred_signatures():
-        kernel = jit.njit("int64(int64)")(once)
-        raise KeyboardInterrupt
-    assert kernel.signatures == []
-    jit._pending.clear()
-
-
 @pytest.mark.gl
 def test_a_second_cli_render_takes_the_geometry_from_the_cache_and_no_cache_writes_none(tmp_path):
     env = _env(BSRT_CACHE_DIR=tmp_path / "cache")

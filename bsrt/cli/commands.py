@@ -98,6 +98,7 @@ def _cmd_render(args) -> int:
     from bsrt.outputs import Outputs
     from bsrt.rendering.image import check_image_path, image_writer, npz_writer
     from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import render
 
     out = _check_output(args.output or default_output(args.scene), None)
     given = flag_values(args, "render")
@@ -114,8 +115,6 @@ def _cmd_render(args) -> int:
     options = RenderOptions.resolve(scene, **given)
     check_image_path(out, options.transparent, options.bit_depth, f"{scene.path}: film.")  # the scene's own
     compile_if_cold(progress)
-    from bsrt.rendering.pipeline import render  # after: on a first run, its kernels are compiled by then
-
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:

@@ -49,65 +49,16 @@ def _numpy_functions_without_the_blas_probe() -> None:
 
 _numpy_functions_without_the_blas_probe()
 
-from contextlib import contextmanager  # noqa: E402
-
-from numba import njit as _numba_njit  # noqa: E402
+from numba import njit  # noqa: E402
 from numba.core import caching, config  # noqa: E402
 
-__all__ = ["CACHE_EPOCH", "KernelCacheLocator", "cache_root", "deferred_signatures", "njit"]
+__all__ = ["CACHE_EPOCH", "KernelCacheLocator", "cache_root", "njit"]
 
 #: bump when a type the kernels take as an argument (a NamedTuple) moves to another module
 CACHE_EPOCH = 3
 _PACKAGE = __name__.rsplit(".", 1)[0]  # "bsrt.kernels"
 _checked: set[str] = set()  # folders whose epoch marker was checked in this process
 _writable: set[str] = set()  # folders found writable in this process
-
-
-_defer = False  # inside deferred_signatures: explicitly typed kernels wait in _pending
-_pending: list = []  # (dispatcher, [signature]) to compile (or load) in compile_pending
-
-
-def njit(*args, **kwargs):
-    """numba's ``njit``. A kernel given explicit signatures is compiled (or loaded from the
-    cache) for them at once, as numba does, except inside :func:`deferred_signatures`."""
-    if _defer and args and not callable(args[0]):
-        signatures = list(args[0]) if isinstance(args[0], (list, tuple)) else [args[0]]
-
-        def decorate(func):
-            kernel = _numba_njit(*args[1:], **kwargs)(func)
-            _pending.append((kernel, signatures))
-            return kernel
-
-        return decorate
-    return _numba_njit(*args, **kwargs)
-
-
-@contextmanager
-def deferred_signatures():
-    """Kernel modules first imported inside it compile (or load) their explicitly typed kernels
-    when it ends, not at import: a first run can decide that the cache is cold and start the
-    compile's worker processes (which compile those kernels too) before this process compiles
-    anything. Nothing may call a kernel of such a module inside it."""
-    global _defer
-    _defer = True
-    try:
-        yield
-    finally:
-        _defer = False
-    compile_pending()  # not after an exception (an interrupted compile): the process is ending
-
-
-def compile_pending() -> None:
-    """Compile (or load) the explicitly typed kernels deferred so far, as numba's decorator
-    would have: their signatures only, then no further specialisation."""
-    from numba.core import typeinfer
-
-    while _pending:
-        kernel, signatures = _pending.pop(0)
-        with typeinfer.register_dispatcher(kernel):
-            for signature in signatures:
-                kernel.compile(signature)
-            kernel.disable_compile()
 
 
 def cache_root() -> str:
