@@ -71,6 +71,8 @@ def test_a_second_geometry_of_the_same_surfaces_comes_from_the_cache(folder, mon
     _same(again, Geometry(scene))
     _same(again, built)
     assert again.bvh.patches is again.patches  # one table, shared as built
+    # writable, as built: a read-only array is another type to numba (a kernel compiled again)
+    assert all(a.flags.writeable for a in again.bvh.arrays) and all(a.flags.writeable for a in again.patches.arrays)
 
 
 def test_the_surfaces_are_the_scenes_own_not_copies(folder):
