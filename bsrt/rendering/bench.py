@@ -355,7 +355,7 @@ def _child_seconds(argv: list[str], env: dict) -> tuple[float, float]:
 def _tiny_render(scene: str, out: Path) -> list[str]:
     import sys
 
-    return [sys.executable, "-m", "bsrt", "render", str(scene_path(scene)), "-o", str(out)]
+    return [sys.executable, "-m", "bsrt", "render", str(scene_path(scene).resolve()), "-o", str(out)]
 
 
 def _child_env(**extra) -> dict:
