@@ -119,9 +119,8 @@ def _cmd_render(args) -> int:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
-            result = render(
-                scene, options, progress=progress, keep=bool(aov), cache=args.cache
-            )  # no AOVs: a streamed film
+            # no AOVs: a streamed film; the hierarchy from the prepared-geometry cache unless --no-cache
+            result = render(scene, options, progress=progress, keep=bool(aov), cache=args.cache)
             clock = time.perf_counter()
             outputs.write(out, image_writer(out, result.image))
             if aov:

@@ -137,8 +137,7 @@ def compile_all(workers: int | None = None) -> float:
 # lighting's shadow rays run traverse's piece solver: shade_hits compiles in 13.1 s of CPU alone, 6.6 s
 # after trace_rays (2 busy cores, measured)
 FAMILIES = {"traverse": "hits", "lighting": "hits", "roots": "hits", "patches": "hits", "shading": "hits"}
-FAMILIES |= {"trim": "trims"}
-FAMILIES |= {"trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
+FAMILIES |= {"trim": "trims", "trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
 
 
 def _shares(seconds: dict, workers: int) -> list[list[str]]:
