@@ -128,6 +128,21 @@ def test_machine_code_of_another_version_is_dropped_once(tmp_path):
     assert (folder / "b.g-2.py311.nbi").exists()  # the same version: kept
 
 
+@pytest.mark.gl
+def test_a_second_cli_render_takes_the_geometry_from_the_cache_and_no_cache_writes_none(tmp_path):
+    env = _env(BSRT_CACHE_DIR=tmp_path / "cache")
+    entries = tmp_path / "cache" / "geometry"
+    pictures = []
+    for extra, count in ((["--no-cache"], 0), ([], 1), ([], 1)):
+        out = tmp_path / f"{len(pictures)}.png"
+        argv = [sys.executable, "-m", "bsrt", "render", str(COLUMN), "--width", "8", "--height", "8", "-o", str(out)]
+        run = subprocess.run(argv + extra, env=env, capture_output=True, text=True)
+        assert run.returncode == 0 and run.stderr == "", run.stderr
+        assert len(list(entries.glob("*.geometry"))) == count
+        pictures.append(out.read_bytes())
+    assert pictures[0] == pictures[1] == pictures[2]  # built, stored, read back: the same image
+
+
 def test_the_compile_is_dealt_by_family_longest_first_to_the_least_loaded_worker():
     seconds = {"traverse.a": 10.0, "roots.b": 3.0, "flatten.c": 6.0, "flatten.d": 4.0, "prelim.e": 5.0, "x.f": 1.0}
     # families: hits (traverse, roots) 13, tree (flatten) 10, map (prelim) 5, x.f alone 1

@@ -119,7 +119,8 @@ def _cmd_render(args) -> int:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
-            result = render(scene, options, progress=progress, keep=bool(aov))  # no AOVs: a streamed film
+            # no AOVs: a streamed film; the hierarchy from the prepared-geometry cache unless --no-cache
+            result = render(scene, options, progress=progress, keep=bool(aov), cache=args.cache)
             clock = time.perf_counter()
             outputs.write(out, image_writer(out, result.image))
             if aov:
@@ -353,7 +354,9 @@ def _cmd_bench(args) -> int:
             from bsrt.rendering import bench_memory
 
             scene = (args.scenes or bench.DEFAULT_SCENES)[0]
-            results["memory"] = bench_memory.per_pixel(lambda out: bench.render_argv(scene, out), bench.child_env())
+            results["memory"] = bench_memory.per_pixel(
+                lambda out: bench.render_argv(scene, out), bench.child_env(), cwd=bench.CHILD_FOLDER
+            )
             print()
             print(bench_memory.format_row(results["memory"]))
         if args.preview:

@@ -203,7 +203,7 @@ def _cache_option(parser) -> None:
         "--no-cache",
         dest="cache",
         action="store_false",
-        help="read model files without the converted-model cache (neither use nor write it)",
+        help="without the caches of converted models and of prepared geometry (neither use nor write them)",
     )
 
 

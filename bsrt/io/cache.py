@@ -65,8 +65,7 @@ SUFFIX = ".model"
 DEFAULT_MAX_MB = 2048
 _STALE_TEMPORARY = 3600.0  # seconds: an older temporary file is a killed writer's
 
-_noted: set[str] = set()  # "read", "write": a folder that cannot be read or written is noted once per process
-_fingerprint: str | None = None
+_fingerprints: dict[tuple, str] = {}  # source_fingerprint's, per process
 
 
 def folder() -> Path:
@@ -140,19 +139,27 @@ def entry_key(digest: bytes, path: str, format: str) -> bytes:
 
 def _code_fingerprint() -> str:
     """SHA-256 of the readers' source: bsrt/io and bsrt/geometry (all of them) and the checks they use."""
-    global _fingerprint
-    if _fingerprint is None:
+    return source_fingerprint(("io", "geometry", "validate.py", "errors.py", "files.py"))
+
+
+def source_fingerprint(parts: tuple[str, ...]) -> str:
+    """SHA-256 of the source of ``parts`` of the package (folders, all their .py files, or
+    files), computed once per process: an edited checkout never meets its old entries."""
+    if parts not in _fingerprints:
         package = Path(__file__).resolve().parent.parent
-        files = sorted(p for folder in ("io", "geometry") for p in (package / folder).rglob("*.py"))
-        files += [package / name for name in ("validate.py", "errors.py", "files.py")]
+        files = sorted(
+            q
+            for part in parts
+            for q in ((package / part).rglob("*.py") if (package / part).is_dir() else [package / part])
+        )
         h = hashlib.sha256()
-        for p in files:
+        for q in files:
             try:
-                h.update(p.relative_to(package).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+                h.update(q.relative_to(package).as_posix().encode() + b"\0" + q.read_bytes() + b"\0")
             except OSError:
                 h.update(b"?")
-        _fingerprint = h.hexdigest()
-    return _fingerprint
+        _fingerprints[parts] = h.hexdigest()
+    return _fingerprints[parts]
 
 
 def _occt_fingerprint() -> str:
@@ -166,42 +173,85 @@ def _occt_fingerprint() -> str:
 
 
 # ---------------------------------------------------------------------------
-# Entries
+# Entries (shared with the prepared-geometry cache, bsrt/rendering/prepared.py)
+
+
+class Notes:
+    """Who a cache's notes on stderr speak for: ``bsrt: note: <name> cache: ...``; ``without``
+    says what happens when the folder cannot be used ("models are read without the cache")."""
+
+    def __init__(self, name: str, without: str):
+        self.name, self.without = name, without
+        self.noted: set[str] = set()  # "read", "write": a folder that cannot be read or written is noted once
+
+    def once(self, kind: str, text: str) -> None:
+        if kind not in self.noted:
+            self.noted.add(kind)
+            self(text)
+
+    def __call__(self, text: str) -> None:
+        """One line on stderr, after erasing a progress bar that may be drawn."""
+        from bsrt.progress import clear_active
+
+        clear_active()
+        print(f"bsrt: note: {self.name} cache: {text}", file=sys.stderr, flush=True)
+
+
+MODEL_NOTES = Notes("model", "models are read without the cache")
 
 
 def _fetch(entry: Path, key: bytes):
     """The Model in ``entry``, or None (no entry, or a damaged one: noted, to be rebuilt)."""
+    payload = read_entry(entry, key, MODEL_NOTES)
+    if payload is None:
+        return None
+    try:
+        model = pickle.loads(payload)
+    except Exception as exc:  # an entry from an incompatible environment: rebuilt like any damage
+        return _damaged(entry, f"cannot unpickle it: {type(exc).__name__}", MODEL_NOTES)
+    from bsrt.io.model import Model
+
+    if not isinstance(model, Model):
+        return _damaged(entry, f"it holds a {type(model).__name__}, not a model", MODEL_NOTES)
+    return model
+
+
+def read_entry(entry: Path, key: bytes, notes: Notes) -> memoryview | None:
+    """The payload of ``entry`` (checked: magic, key, length, checksum; the entry is then
+    marked recently used), or None: no entry, or a damaged one (noted, to be rebuilt)."""
     try:
         fd = os.open(entry, os.O_RDONLY)
     except (FileNotFoundError, NotADirectoryError):  # no entry (or no folder: noted when writing)
         return None
     except OSError as exc:
-        _note_once("read", f"cannot read {entry} ({exc.strerror or exc}); reading the model file instead")
+        notes.once("read", f"cannot read {entry} ({exc.strerror or exc}); {notes.without}")
         return None
     try:
         with os.fdopen(fd, "rb") as f:
             if hasattr(os, "getuid") and os.fstat(f.fileno()).st_uid != os.getuid():
-                _note(f"{entry} belongs to another user; not using it")
+                notes(f"{entry} belongs to another user; not using it")
                 return None
             data = f.read()
     except OSError as exc:
-        _note_once("read", f"cannot read {entry} ({exc.strerror or exc}); reading the model file instead")
+        notes.once("read", f"cannot read {entry} ({exc.strerror or exc}); {notes.without}")
         return None
-    problem, model = _decode(data, key)
+    problem, payload = _payload(data, key)
     if problem:
-        _note(f"{entry} was damaged ({problem}); rebuilt it")
-        return None
+        return _damaged(entry, problem, notes)
     try:
         os.utime(entry)  # recently used: the last to be evicted
     except OSError:
         pass
-    return model
+    return payload
 
 
-def _decode(data: bytes, key: bytes):
-    """(problem, model): problem is None and model the Model, or a short reason and None."""
-    from bsrt.io.model import Model
+def _damaged(entry: Path, problem: str, notes: Notes) -> None:
+    notes(f"{entry} was damaged ({problem}); rebuilt it")
 
+
+def _payload(data: bytes, key: bytes):
+    """(problem, payload): problem is None and payload the entry's checked payload, or a short
+    reason and None."""
     head = len(MAGIC) + _HEADER.size
     if len(data) < head or not data.startswith(MAGIC):
         return "not a cache entry" if not data.startswith(MAGIC[: len(data)]) else "truncated", None
@@ -213,31 +263,31 @@ def _decode(data: bytes, key: bytes):
         return f"{len(payload)} of {length} bytes", None
     if hashlib.sha256(payload).digest() != checksum:
         return "checksum mismatch", None
-    try:
-        model = pickle.loads(payload)
-    except Exception as exc:  # an entry from an incompatible environment: rebuilt like any damage
-        return f"cannot unpickle it: {type(exc).__name__}", None
-    if not isinstance(model, Model):
-        return f"it holds a {type(model).__name__}, not a model", None
-    return None, model
+    return None, payload
 
 
-def encode(model, key: bytes) -> bytes:
-    """The bytes of an entry holding ``model`` under ``key``."""
-    payload = pickle.dumps(model, protocol=5)
+def encode(payload: bytes, key: bytes) -> bytes:
+    """The bytes of an entry holding ``payload`` under ``key``."""
     return MAGIC + _HEADER.pack(key, len(payload), hashlib.sha256(payload).digest()) + payload
 
 
 def _store(entry: Path, key: bytes, model) -> None:
-    """Write the entry atomically (temporary file, fsync, rename); a folder that cannot be
-    written is noted once and otherwise ignored."""
+    """Write the model's entry (write_entry); a model that does not pickle is noted."""
+    try:
+        payload = pickle.dumps(model, protocol=5)
+    except Exception as exc:  # something in the model that does not pickle: a bug, but never a failed load
+        MODEL_NOTES(f"cannot store {entry.name} ({type(exc).__name__}: {exc})")
+        return
+    write_entry(entry, key, payload, MODEL_NOTES)
+
+
+def write_entry(entry: Path, key: bytes, payload: bytes, notes: Notes, suffix: str = SUFFIX) -> None:
+    """Write the entry atomically (temporary file, fsync, rename), then evict the folder's least
+    recently used ``suffix`` entries over max_bytes(); a folder that cannot be written is noted
+    once and otherwise ignored."""
     where = entry.parent
     temporary = where / f".{entry.stem[:16]}-{os.getpid()}-{secrets.token_hex(4)}.tmp"
-    try:
-        data = encode(model, key)
-    except Exception as exc:  # something in the model that does not pickle: a bug, but never a failed load
-        _note(f"cannot store {entry.name} ({type(exc).__name__}: {exc})")
-        return
+    data = encode(payload, key)
     try:
         where.mkdir(mode=0o700, parents=True, exist_ok=True)
         fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
@@ -251,16 +301,16 @@ def _store(entry: Path, key: bytes, model) -> None:
             temporary.unlink(missing_ok=True)
             raise
     except OSError as exc:
-        _note_once(
+        notes.once(
             "write",
-            f"cannot write to {where} ({exc.strerror or exc}); models are read without the cache "
+            f"cannot write to {where} ({exc.strerror or exc}); {notes.without} "
             f"(set BSRT_CACHE_DIR to another folder, or use --no-cache)",
         )
         return
-    evict(where, max_bytes())
+    evict(where, max_bytes(), suffix)
 
 
-def evict(where: Path, limit: int) -> None:
+def evict(where: Path, limit: int, suffix: str = SUFFIX) -> None:
     """Delete the least recently used entries of ``where`` until they total at most ``limit``
     bytes, and temporary files over an hour old. Files others delete meanwhile are skipped."""
     now = time.time()
@@ -275,7 +325,7 @@ def evict(where: Path, limit: int) -> None:
                 if item.name.endswith(".tmp") and item.name.startswith("."):
                     if now - st.st_mtime > _STALE_TEMPORARY:
                         _unlink(item.path)
-                elif item.name.endswith(SUFFIX):
+                elif item.name.endswith(suffix):
                     entries.append((st.st_mtime, st.st_size, item.path))
     except OSError:
         return
@@ -292,17 +342,3 @@ def _unlink(name: str) -> None:
         os.unlink(name)
     except OSError:
         pass
-
-
-def _note_once(kind: str, text: str) -> None:
-    if kind not in _noted:
-        _noted.add(kind)
-        _note(text)
-
-
-def _note(text: str) -> None:
-    """One line on stderr, after erasing a progress bar that may be drawn."""
-    from bsrt.progress import clear_active
-
-    clear_active()
-    print(f"bsrt: note: model cache: {text}", file=sys.stderr, flush=True)

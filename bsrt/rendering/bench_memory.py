@@ -20,9 +20,10 @@ from bsrt.errors import InputError
 DEFAULT_SIZES = (512, 2048)
 
 
-def peak_rss(argv: list[str], env: dict) -> int:
-    """Run ``argv`` in a child process; its peak resident memory in bytes. A failure is an InputError."""
-    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+def peak_rss(argv: list[str], env: dict, cwd=None) -> int:
+    """Run ``argv`` in a child process (in folder ``cwd``); its peak resident memory in bytes. A failure is
+    an InputError."""
+    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
     _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
     err = proc.stderr.read().decode(errors="replace")
@@ -32,16 +33,17 @@ def peak_rss(argv: list[str], env: dict) -> int:
     return int(usage.ru_maxrss) * 1024  # kB on Linux
 
 
-def per_pixel(render_argv, env: dict, sizes=DEFAULT_SIZES) -> dict:
+def per_pixel(render_argv, env: dict, sizes=DEFAULT_SIZES, cwd=None) -> dict:
     """``render_argv(out_path)``: the argv of a CLI render writing out_path (width and height are
-    added). Peak memory at each size of ``sizes`` (small, large) and bytes per added pixel."""
+    added), run in folder ``cwd``. Peak memory at each size of ``sizes`` (small, large) and bytes per
+    added pixel."""
     small, large = sizes
     peaks = {}
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:
             argv = render_argv(Path(tmp) / f"memory-{n}.png") + ["--width", str(n), "--height", str(n)]
-            peaks[n] = peak_rss(argv, env)
+            peaks[n] = peak_rss(argv, env, cwd)
     return {
         "sizes": list(sizes),
         "peak_mb": {str(n): peaks[n] / 2**20 for n in sizes},

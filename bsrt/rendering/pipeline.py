@@ -162,13 +162,20 @@ def encode_picture_8(result: RenderResult) -> np.ndarray:
 class Geometry:
     """A scene's surfaces prepared for tracing: the patch table and, built on
     first use, the Martin et al. hierarchy. Reuse it across renders of the
-    same scene (the preview window does)."""
+    same scene (the preview window does). cache: both come from the
+    prepared-geometry cache (rendering/prepared.py), built and stored there
+    if they are not in it."""
 
-    def __init__(self, scene: Scene):
-        self.patches = PatchSet([s.geometry for s in scene.surfaces])
+    def __init__(self, scene: Scene, cache: bool = False):
+        surfaces = [s.geometry for s in scene.surfaces]
+        if cache:
+            from bsrt.rendering import prepared
+
+            self.patches, self._bvh = prepared.load(surfaces, lambda: _prepare(surfaces))
+        else:
+            self.patches, self._bvh = PatchSet(surfaces), None
         self.material = np.array([s.material for s in scene.surfaces], dtype=np.int64)
         self.diagonal = max(self.patches.scene_diagonal(), 1e-300)
-        self._bvh = None
         self.out_of_budget = 0  # rays that spent their budget in the hierarchy (bvh.py, "Budget"), all renders
 
     @property
@@ -183,6 +190,12 @@ class Geometry:
         hits = intersect(self.bvh, origins, directions, budget=budget, **kwargs)
         self.out_of_budget += out_of_budget(hits, budget)
         return hits
+
+
+def _prepare(surfaces: list):
+    """(PatchSet, BVH) of ``surfaces`` (a list of BSplineSurface), built."""
+    patches = PatchSet(surfaces)
+    return patches, build_bvh(patches)
 
 
 def sample_grid(spp: int) -> tuple[int, int]:
@@ -202,6 +215,7 @@ def render(
     prelim: PrelimMap | None = None,
     progress=None,
     keep: bool = True,
+    cache: bool = False,
 ) -> RenderResult:
     """Render a scene with ``options`` (default: the scene's own settings).
 
@@ -216,6 +230,8 @@ def render(
     the linear image and every pixel-centre ray's hit for the result (its
     ``linear``, ``hits``, ``aovs()``); False streams the film (rendering/film.py):
     memory bounded by the band whatever the film's size, pixels and stats only.
+    cache: without ``geometry``, take the scene's patch table and hierarchy from the
+    prepared-geometry cache (rendering/prepared.py), storing them there if absent.
 
     Anti-aliasing: spp samples per pixel sit at the centres of a stratified
     columns x rows grid (sample_grid), which is exactly the pixel-centre grid
@@ -235,7 +251,7 @@ def render(
             from bsrt.rendering.occlusion import with_ground
 
             scene, radius = with_ground(scene)
-        geometry = geometry or Geometry(scene)
+        geometry = geometry or Geometry(scene, cache)
         _ = geometry.bvh  # built here, not inside the first stage that needs it
     spent_before = geometry.out_of_budget
     tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
