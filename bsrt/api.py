@@ -247,7 +247,8 @@ def render(
     raise to abandon the render; given a file, first "load" with the
     fraction of its faces converted), or True for a progress bar on stderr
     (lines when stderr is not a terminal) ended by a one-line summary.
-    cache: given a file, False loads it without the converted-model cache.
+    cache: False loads a file without the converted-model cache and builds the
+    patch table and hierarchy without the prepared-geometry cache (docs/usage.md).
 
     Returns a :class:`bsrt.rendering.pipeline.RenderResult`: ``pixels`` (H, W, 3) uint8
     sRGB, ``linear`` (H, W, 3) float64, ``aovs()`` (the per-pixel arrays of
@@ -282,7 +283,7 @@ def render(
         options = RenderOptions.resolve(scene, **settings)
         if bar is not None:
             bar("setup", 0.0)
-        result = pipeline(scene, options, progress=report)
+        result = pipeline(scene, options, progress=report, cache=cache)
     except BaseException:
         if bar is not None:
             bar.clear()

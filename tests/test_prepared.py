@@ -156,3 +156,16 @@ def test_the_key_follows_every_field_of_the_surfaces():
 
 def _never(surfaces):
     raise AssertionError("built again")
+
+
+@pytest.mark.gl
+def test_the_python_api_uses_the_cache_unless_told_not_to(folder):
+    import bsrt
+
+    plain = bsrt.render(_scene(), cache=False)
+    assert not folder.exists()
+    cached = bsrt.render(_scene())
+    assert len(list(folder.glob("*.geometry"))) == 1
+    again = bsrt.render(_scene())
+    np.testing.assert_array_equal(cached.pixels, plain.pixels)
+    np.testing.assert_array_equal(again.pixels, plain.pixels)

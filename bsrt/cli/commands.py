@@ -395,6 +395,7 @@ def _cmd_preview(args) -> int:
         args.max_fps,
         args.frame_log,
         preview.script_commands(args.events, args.script),
+        args.cache,
     ).checked()
     scene = load_input(
         args.scene,

@@ -39,7 +39,9 @@ class WindowOptions:
     many frames (None: run until closed). screenshot: with frames, write the
     last frame there (.png). max_fps: the frame-rate cap (0: none).
     frame_log: write per-frame timestamps and states there (JSON).
-    commands: the parsed script (script.parse_script).
+    commands: the parsed script (script.parse_script). cache: the window and the
+    solver take the patch table and hierarchy from the prepared-geometry cache
+    (bsrt/rendering/prepared.py; the CLI's ``--no-cache`` turns it off).
     """
 
     width: int = 800
@@ -49,6 +51,7 @@ class WindowOptions:
     max_fps: float = 60.0
     frame_log: str | None = None
     commands: tuple = ()
+    cache: bool = True
 
     def checked(self) -> WindowOptions:
         for name in ("width", "height"):
@@ -90,13 +93,13 @@ class Preview:
         self.scene, self.scene_path, self.options = scene, scene_path, options
         self.map_mode = scene.render.map
         self.method = scene.render.method
-        self.geometry = Geometry(scene)
+        self.geometry = Geometry(scene, options.cache)
         self.home = self.camera = scene.camera
         self.commands = collections.deque(options.commands)
         self.log = FrameLog()
         self.window = Window(self, scene_path)
         self.view: View | None = None
-        self.solver = Solver(scene, self.map_mode)
+        self.solver = Solver(scene, self.map_mode, options.cache)
         self.refine = Refinement()
         self.fb_size = (0, 0)
         self.released = 0  # how many GL objects close() released

@@ -103,7 +103,7 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     return outcome
 
 
-def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> None:
+def _solver_process(scene, map_mode, jobs, outcomes, generation, running, cache=False) -> None:
     """A solver process's loop: render() each job that is still current.
 
     jobs: Queue of Job (None: stop), at most one at a time; outcomes: Queue
@@ -114,7 +114,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the window's business
     from bsrt.rendering.pipeline import Geometry
 
-    geometry = Geometry(scene)
+    geometry = Geometry(scene, cache)  # cache: through the prepared-geometry cache
     try:
         _ = geometry.bvh  # shadow rays and "martin" need it: build it before the first job
     except (InputError, RenderError) as exc:  # reported now; each job that needs it reports it again
@@ -142,13 +142,13 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running) -> Non
 class _Worker:
     """One solver process, its queues and its state (main process side)."""
 
-    def __init__(self, mp, scene, map_mode, generation):
+    def __init__(self, mp, scene, map_mode, generation, cache=False):
         self.jobs, self.outcomes = mp.Queue(), mp.Queue()
         self.running = mp.Value("q", STARTING, lock=False)
         self.job: Job | None = None  # in flight: sent, its outcome not back yet
         self.process = mp.Process(
             target=_solver_process,
-            args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running),
+            args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running, cache),
             name="bsrt-preview-solver",
             daemon=True,
         )
@@ -213,9 +213,9 @@ class Solver:
     new spare starts once the active process is warm.
     """
 
-    def __init__(self, scene, map_mode):
+    def __init__(self, scene, map_mode, cache=False):
         self._mp = multiprocessing.get_context("spawn")  # never fork a process holding a GL context
-        self._scene, self._map_mode = scene, map_mode
+        self._scene, self._map_mode, self._cache = scene, map_mode, cache
         self._generation = self._mp.Value("q", 0, lock=False)
         self._pending: collections.deque[Job] = collections.deque()
         self.active: _Worker | None = None
@@ -225,7 +225,7 @@ class Solver:
         self.swaps = 0
 
     def _worker(self) -> _Worker:
-        return _Worker(self._mp, self._scene, self._map_mode, self._generation)
+        return _Worker(self._mp, self._scene, self._map_mode, self._generation, self._cache)
 
     def start(self) -> None:
         self.active = self._worker()
