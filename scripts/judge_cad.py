@@ -401,6 +401,9 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
     out["occ_read_s"] = occ_s
     faces = occ_faces(shape)
     out.update(face_census(faces))
+    if not faces:  # nothing to trace rays on (and no box): bsrt's surfaces are all the news
+        out["error"] = f"OpenCASCADE made no face from the file, bsrt draws {len(model.surfaces)} surfaces"
+        return out
     diag = tight_diagonal(faces)
     lo, hi = model_box(model.surfaces)
     ours = float(np.linalg.norm(hi - lo))
