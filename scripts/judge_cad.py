@@ -18,6 +18,8 @@ load starts cold; ``--timeout`` seconds per part):
    the file's unit, so the IGES shape is scaled back by the Global section's
    unit flag. The diagonals of both boxes are compared: within a factor of 2
    (bsrt's box holds untrimmed surfaces' control points), else ``UNITS?``.
+   A file OpenCASCADE makes no face of is an error row that says how many
+   surfaces bsrt draws (nothing to compare).
 3. The default camera (``scene_for_model``) shoots one primary ray per pixel
    of a SIZE x SIZE film; bsrt traces them (``render``) and OpenCASCADE's
    ``IntCurvesFace_ShapeIntersector`` traces the same rays on the shape.
@@ -401,6 +403,9 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
     out["occ_read_s"] = occ_s
     faces = occ_faces(shape)
     out.update(face_census(faces))
+    if not faces:  # nothing to trace rays on (and no box): bsrt's surfaces are all the news
+        out["error"] = f"OpenCASCADE made no face from the file, bsrt draws {len(model.surfaces)} surfaces"
+        return out
     diag = tight_diagonal(faces)
     lo, hi = model_box(model.surfaces)
     ours = float(np.linalg.norm(hi - lo))
