@@ -12,7 +12,8 @@ trims. A piece whose centre start finds nothing, or finds a grazing root
 (|cos| < 0.3: the ray may cross it twice), is cut into quarters by de
 Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
 points do not straddle the ray (in the ray's frame) or lie beyond the root
-found are culled, and Newton restarts from the survivors' centres.
+found are culled, and Newton restarts from the survivors' centres. A planar
+piece (it meets a ray once) is cut only when its centre start finds nothing.
 """
 
 from __future__ import annotations
@@ -199,7 +200,10 @@ def _solve_piece(
     for k in range(4):
         rects[0, k] = rect[k]
     depth[0] = 0
-    top = 1
+    # A planar piece meets a ray once (one normal): a root of it, grazing or not, is its only one, so
+    # only a planar piece where Newton found none is cut (grazing roots on the planar faces of CAD
+    # parts were most of the retries of random rays). Its grazing root still takes the step below.
+    top = 1 if state == 0 or not B.leaf_planar[leaf] else 0
     while top > 0:
         top -= 1
         if depth[top] >= retry_depth or top + 6 > size:

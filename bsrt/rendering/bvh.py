@@ -78,7 +78,10 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    straddle the ray in the ray's frame (or lie beyond the root found) are
    culled and Newton restarts from the survivors' centres, recursively;
    quarters whose root is again grazing are cut further too (the nearer of
-   two crossings may be in the same quarter). A grazing root then takes one
+   two crossings may be in the same quarter). A planar piece (``leaf_planar``)
+   meets a ray once, so it is cut only when its centre start finds no root
+   (its grazing roots were most of the retries of random rays at the
+   160-face as1 assembly, whose plates are planar). A grazing root then takes one
    more Newton step (kept if it is still a valid root of the piece, that
    near): its t is off by up to its residual / |cos|, and the step takes the
    residual from the tolerance down to rounding. The piece holding a
