@@ -110,9 +110,10 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
+def _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
     """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either); 3: a root of the piece
-    that is not a hit (outside (t_min, t_max) or trimmed away).
+    that is not a hit (outside (t_min, t_max) or trimmed away). kept: the trims keep all of the
+    piece's rectangle (BVHArrays.leaf_kept), so a root inside it needs no trim test.
 
     A root that is the secondary ray's own start counts as 2 even when Newton
     reached it from a neighbouring piece; the piece is then retried (quarters)
@@ -126,7 +127,7 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
         return 0
     if not (t_min < t < t_max):
         return 3
-    if not point_kept(T, m, u, v):
+    if not (kept and rect[0] <= u <= rect[1] and rect[2] <= v <= rect[3]) and not point_kept(T, m, u, v):
         return 3
     return 1
 
@@ -165,7 +166,7 @@ def _solve_piece(
     nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
     for the retries, S = scratch_size(retry_depth)."""
     m = B.leaf_surface[leaf]
-    rect = B.leaf_rect[leaf]
+    rect, kept = B.leaf_rect[leaf], B.leaf_kept[leaf]
     tol2 = tol * tol
     ok, u, v, k, t, res, its = solve_one(
         P,
@@ -184,7 +185,7 @@ def _solve_piece(
         True,
     )
     iterations = its
-    state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+    state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
     found = state == 1
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
     # No retry after a root that is not grazing. The start root of a secondary ray is retried too when
@@ -242,7 +243,7 @@ def _solve_piece(
                 True,
             )
             iterations += its
-            state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+            state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
             again = True
             if state != 0:  # a root of this quarter: cut further only if it is grazing
                 if state == 1 and t < best_t:
@@ -265,7 +266,7 @@ def _solve_piece(
         if (
             res < best_res
             and abs(t - best_t) * cosine <= 4.0 * best_res
-            and _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1
+            and _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1
         ):
             best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
     return found, best_t, best_u, best_v, best_k, best_res, iterations
