@@ -168,7 +168,7 @@ def _solve_piece(
     m = B.leaf_surface[leaf]
     rect, kept = B.leaf_rect[leaf], B.leaf_kept[leaf]
     tol2 = tol * tol
-    ok, u, v, k, t, res, its = solve_one(
+    ok, u, v, k, t, res, its, c = solve_one(
         P,
         m,
         0.5 * (rect[0] + rect[1]),
@@ -188,11 +188,12 @@ def _solve_piece(
     state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
     found = state == 1
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
+    best_c = c  # |cos| at the best root (solve_one's, from the frame it ended on)
     # No retry after a root that is not grazing. The start root of a secondary ray is retried too when
     # the ray leaves it grazing: the leaf's normals lie within its cone, so a ray that meets the leaf
     # again (a cupped surface shadowing itself) leaves it at |cos| below GRAZING_COSINE. The same holds
     # for a root that is not a hit (trimmed away, beyond t_max): not grazing, it is the piece's only one.
-    if retry_depth == 0 or (state != 0 and not _grazing(P, k, u, v, dx, dy, dz)):
+    if retry_depth == 0 or (state != 0 and not c < GRAZING_COSINE):
         return found, best_t, best_u, best_v, best_k, best_res, iterations
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
@@ -226,7 +227,7 @@ def _solve_piece(
             if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
                 continue
             sr = rects[s]
-            ok, u, v, k, t, res, its = solve_one(
+            ok, u, v, k, t, res, its, c = solve_one(
                 P,
                 m,
                 0.5 * (sr[0] + sr[1]),
@@ -248,8 +249,8 @@ def _solve_piece(
             if state != 0:  # a root of this quarter: cut further only if it is grazing
                 if state == 1 and t < best_t:
                     found = True
-                    best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
-                again = _grazing(P, k, u, v, dx, dy, dz)
+                    best_t, best_u, best_v, best_k, best_res, best_c = t, u, v, k, res, c
+                again = c < GRAZING_COSINE
             if again and d < retry_depth:  # keep it: move it down to the stack's top
                 if s != top:
                     copy_net(nets[s], nets[top], p, q)
@@ -257,11 +258,11 @@ def _solve_piece(
                         rects[top, k] = rects[s, k]
                 depth[top] = d
                 top += 1
-    cosine = _cosine(P, best_k, best_u, best_v, dx, dy, dz) if found else 1.0
+    cosine = best_c if found else 1.0
     if cosine < GRAZING_COSINE:
         # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
         # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
-        ok, u, v, k, t, res, its = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
+        ok, u, v, k, t, res, its, _ = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
         iterations += its
         if (
             res < best_res
