@@ -143,6 +143,50 @@ def test_against_opencascade_on_a_trimmed_step_part():
     assert same_count >= 0.995 * 1500 and len(every) > 2 * hit.sum() and dt_all <= 1e-7 * size
 
 
+def test_grazing_rays_at_the_planar_face_of_a_box(tmp_path):
+    """Rays down onto the top face z = 1 of a 4 x 3 x 1 box at |cos| 0.02-0.29 to its normal (a
+    planar leaf, so no quarters are retried after its root): t is the plane crossing's closed form,
+    the normal +z."""
+    scene = bsrt.load(write_step(BRepPrimAPI_MakeBox(4.0, 3.0, 1.0).Shape(), tmp_path / "box.step"))
+    rng = np.random.default_rng(5)
+    n = 200
+    cos, azimuth = rng.uniform(0.02, 0.29, n), rng.uniform(0.0, 2.0 * math.pi, n)
+    target = np.stack([rng.uniform(0.5, 3.5, n), rng.uniform(0.5, 2.5, n), np.ones(n)], 1)
+    sin = np.sqrt(1.0 - cos**2)
+    direction = np.stack([sin * np.cos(azimuth), sin * np.sin(azimuth), -cos], 1)
+    t = 0.4 / cos  # from 0.4 above the face: the ray leaves the box's top before it reaches a side
+    got = bsrt.intersect(scene, target - t[:, None] * direction, direction)
+    assert got.hit.all() and np.allclose(got.t, t, rtol=0, atol=1e-9 * got.diagonal / cos)
+    assert np.allclose(got.normal, [0.0, 0.0, 1.0], atol=1e-9)
+
+
+def test_pieces_the_trims_keep_wholly_skip_the_trim_test_with_the_same_hits():
+    """featuretype.STEP's leaf_kept is trim.rect_state's INSIDE for each leaf (most of them; some
+    are not), and 3,000 random rays give bit-identical hits (nearest and any) with it cleared."""
+    from bsrt.kernels.trim import INSIDE, rect_states
+    from bsrt.queries import prepared
+    from bsrt.rendering.bvh import intersect
+
+    _, caster = prepared(PART)
+    bvh = caster.geometry.bvh
+    kept, rect = bvh.arrays.leaf_kept, bvh.arrays.leaf_rect
+    state = rect_states(bvh.patches.trims, bvh.arrays.leaf_surface, *(rect[:, c].copy() for c in range(4)))
+    assert np.array_equal(kept, state == INSIDE) and 0.5 < kept.mean() < 1.0
+    pts = bvh.leaf_min
+    origins, directions, diag = random_rays(pts.min(axis=0), bvh.leaf_max.max(axis=0), 3000, seed=4)
+    cleared = bvh.arrays._replace(leaf_kept=np.zeros_like(kept))
+    for any_hit in (False, True):
+        a = intersect(bvh, origins, directions, tolerance=1e-9 * diag, any_hit=any_hit)
+        bvh.arrays, saved = cleared, bvh.arrays
+        try:
+            b = intersect(bvh, origins, directions, tolerance=1e-9 * diag, any_hit=any_hit)
+        finally:
+            bvh.arrays = saved
+        assert a.hit.sum() > 1000
+        for field in ("hit", "t", "u", "v", "patch", "residual", "iterations"):
+            assert np.array_equal(getattr(a, field), getattr(b, field), equal_nan=True), field
+
+
 def test_scan_writes_points_on_the_part(tmp_path, capsys):
     """bsrt scan part.step -o cloud.ply: a binary PLY whose points lie on the part (BRepExtrema:
     within 1e-6 of the diagonal); .npz: every array and the range image."""

@@ -36,6 +36,8 @@ class BVHArrays(NamedTuple):
     leaf_degree: (L, 2) int64, (p, q) of the piece.
     leaf_planar: (L,) bool, the piece's control points lie in one plane
       (its oriented box has no thickness beyond the padding).
+    leaf_kept: (L,) bool, the surface's trims keep all of the piece's
+      rectangle (trim.rect_state INSIDE; True on untrimmed surfaces).
     """
 
     node_bounds: np.ndarray
@@ -51,3 +53,4 @@ class BVHArrays(NamedTuple):
     leaf_net_row: np.ndarray
     leaf_degree: np.ndarray
     leaf_planar: np.ndarray
+    leaf_kept: np.ndarray

@@ -55,7 +55,7 @@ from numba.core import caching, config  # noqa: E402
 __all__ = ["CACHE_EPOCH", "KernelCacheLocator", "cache_root", "njit"]
 
 #: bump when a type the kernels take as an argument (a NamedTuple) moves to another module
-CACHE_EPOCH = 3
+CACHE_EPOCH = 4
 _PACKAGE = __name__.rsplit(".", 1)[0]  # "bsrt.kernels"
 _checked: set[str] = set()  # folders whose epoch marker was checked in this process
 _writable: set[str] = set()  # folders found writable in this process

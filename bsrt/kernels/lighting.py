@@ -13,7 +13,9 @@ nearest-first bookkeeping, and it first tries the piece that blocked the
 previous shadow ray toward the same light in the same slice (neighbouring
 points are mostly shadowed by the same piece). Whether a ray is blocked is the
 same answer trace_one gives: a piece that yields a valid root would yield it
-inside the walk too, and the walk skips what trace_one skips.
+inside the walk too, and the walk skips what trace_one skips. (numba's cache
+keys a kernel on its own file only: after editing traverse.py's per-piece
+solve, edit this file too, or shade_hits keeps the old code.)
 """
 
 from __future__ import annotations

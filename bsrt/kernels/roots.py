@@ -73,9 +73,12 @@ def ray_frame(dx, dy, dz):
 def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, stop_on_growth):
     """One item from (u, v) on surface m.
 
-    Returns (converged, u, v, patch, t, residual, iterations): the final
-    parameters (in the domain), their patch, the distance along the ray and
-    the ray-surface distance there.
+    Returns (converged, u, v, patch, t, residual, iterations, cosine): the
+    final parameters (in the domain), their patch, the distance along the ray
+    and the ray-surface distance there; for NEWTON (derivatives at every
+    point), |cos| of the angle between d and the normal S_u x S_v at the last
+    point (the hierarchy's grazing test, from the frame already at hand), for
+    the other methods NaN.
 
     (Long: one loop serves the three methods, which share the evaluation,
     the acceptance test and the clipping; it is inlined into its callers, so
@@ -183,13 +186,19 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
         if not inside_patch(P, k, u, v):
             k = locate(P, m, u, v)
     t = dx * (x - ox) + dy * (y - oy) + dz * (z - oz)
+    cosine = np.nan
+    if method == NEWTON:  # the same arithmetic as evaluating the frame again (traverse._cosine)
+        nx = yu * zv - zu * yv
+        ny = zu * xv - xu * zv
+        nz = xu * yv - yu * xv
+        cosine = abs(nx * dx + ny * dy + nz * dz) / max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
     if not converged and method != NEWTON and wa < np.inf and not w <= wa:
         # report the best point seen (its S is not at hand: evaluate it)
         u, v, k = ua, va, ka
         x, y, z = point(P, k, u, v)
         t = dx * (x - ox) + dy * (y - oy) + dz * (z - oz)
         w = wa
-    return converged, u, v, k, t, np.sqrt(w), iterations
+    return converged, u, v, k, t, np.sqrt(w), iterations, cosine
 
 
 @njit(cache=True, nogil=True, error_model="numpy", _nrt=False)
@@ -221,7 +230,7 @@ def solve_items(
     tol2 = tolerance * tolerance
     for i in range(start, stop):
         r = ray[i]
-        ok, uu, vv, k, tt, res, its = solve_one(
+        ok, uu, vv, k, tt, res, its, _ = solve_one(
             P,
             surface[i],
             u0[i],

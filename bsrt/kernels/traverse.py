@@ -12,7 +12,8 @@ trims. A piece whose centre start finds nothing, or finds a grazing root
 (|cos| < 0.3: the ray may cross it twice), is cut into quarters by de
 Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
 points do not straddle the ray (in the ray's frame) or lie beyond the root
-found are culled, and Newton restarts from the survivors' centres.
+found are culled, and Newton restarts from the survivors' centres. A planar
+piece (it meets a ray once) is cut only when its centre start finds nothing.
 """
 
 from __future__ import annotations
@@ -109,9 +110,10 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
 
 
 @njit(cache=True, no_cpython_wrapper=True)
-def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
+def _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
     """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either); 3: a root of the piece
-    that is not a hit (outside (t_min, t_max) or trimmed away).
+    that is not a hit (outside (t_min, t_max) or trimmed away). kept: the trims keep all of the
+    piece's rectangle (BVHArrays.leaf_kept), so a root inside it needs no trim test.
 
     A root that is the secondary ray's own start counts as 2 even when Newton
     reached it from a neighbouring piece; the piece is then retried (quarters)
@@ -125,7 +127,7 @@ def _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_r
         return 0
     if not (t_min < t < t_max):
         return 3
-    if not point_kept(T, m, u, v):
+    if not (kept and rect[0] <= u <= rect[1] and rect[2] <= v <= rect[3]) and not point_kept(T, m, u, v):
         return 3
     return 1
 
@@ -164,9 +166,9 @@ def _solve_piece(
     nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
     for the retries, S = scratch_size(retry_depth)."""
     m = B.leaf_surface[leaf]
-    rect = B.leaf_rect[leaf]
+    rect, kept = B.leaf_rect[leaf], B.leaf_kept[leaf]
     tol2 = tol * tol
-    ok, u, v, k, t, res, its = solve_one(
+    ok, u, v, k, t, res, its, c = solve_one(
         P,
         m,
         0.5 * (rect[0] + rect[1]),
@@ -183,14 +185,15 @@ def _solve_piece(
         True,
     )
     iterations = its
-    state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+    state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
     found = state == 1
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
+    best_c = c  # |cos| at the best root (solve_one's, from the frame it ended on)
     # No retry after a root that is not grazing. The start root of a secondary ray is retried too when
     # the ray leaves it grazing: the leaf's normals lie within its cone, so a ray that meets the leaf
     # again (a cupped surface shadowing itself) leaves it at |cos| below GRAZING_COSINE. The same holds
     # for a root that is not a hit (trimmed away, beyond t_max): not grazing, it is the piece's only one.
-    if retry_depth == 0 or (state != 0 and not _grazing(P, k, u, v, dx, dy, dz)):
+    if retry_depth == 0 or (state != 0 and not c < GRAZING_COSINE):
         return found, best_t, best_u, best_v, best_k, best_res, iterations
     # Retry on quarters (depth-first; at most 3 siblings wait per level), in the caller's scratch.
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
@@ -199,7 +202,10 @@ def _solve_piece(
     for k in range(4):
         rects[0, k] = rect[k]
     depth[0] = 0
-    top = 1
+    # A planar piece meets a ray once (one normal): a root of it, grazing or not, is its only one, so
+    # only a planar piece where Newton found none is cut (grazing roots on the planar faces of CAD
+    # parts were most of the retries of random rays). Its grazing root still takes the step below.
+    top = 1 if state == 0 or not B.leaf_planar[leaf] else 0
     while top > 0:
         top -= 1
         if depth[top] >= retry_depth or top + 6 > size:
@@ -221,7 +227,7 @@ def _solve_piece(
             if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
                 continue
             sr = rects[s]
-            ok, u, v, k, t, res, its = solve_one(
+            ok, u, v, k, t, res, its, c = solve_one(
                 P,
                 m,
                 0.5 * (sr[0] + sr[1]),
@@ -238,13 +244,13 @@ def _solve_piece(
                 True,
             )
             iterations += its
-            state = _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+            state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
             again = True
             if state != 0:  # a root of this quarter: cut further only if it is grazing
                 if state == 1 and t < best_t:
                     found = True
-                    best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
-                again = _grazing(P, k, u, v, dx, dy, dz)
+                    best_t, best_u, best_v, best_k, best_res, best_c = t, u, v, k, res, c
+                again = c < GRAZING_COSINE
             if again and d < retry_depth:  # keep it: move it down to the stack's top
                 if s != top:
                     copy_net(nets[s], nets[top], p, q)
@@ -252,16 +258,16 @@ def _solve_piece(
                         rects[top, k] = rects[s, k]
                 depth[top] = d
                 top += 1
-    cosine = _cosine(P, best_k, best_u, best_v, dx, dy, dz) if found else 1.0
+    cosine = best_c if found else 1.0
     if cosine < GRAZING_COSINE:
         # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
         # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
-        ok, u, v, k, t, res, its = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
+        ok, u, v, k, t, res, its, _ = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
         iterations += its
         if (
             res < best_res
             and abs(t - best_t) * cosine <= 4.0 * best_res
-            and _root_in(P, T, m, rect, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1
+            and _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1
         ):
             best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
     return found, best_t, best_u, best_v, best_k, best_res, iterations

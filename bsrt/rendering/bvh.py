@@ -78,7 +78,10 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    straddle the ray in the ray's frame (or lie beyond the root found) are
    culled and Newton restarts from the survivors' centres, recursively;
    quarters whose root is again grazing are cut further too (the nearer of
-   two crossings may be in the same quarter). A grazing root then takes one
+   two crossings may be in the same quarter). A planar piece (``leaf_planar``)
+   meets a ray once, so it is cut only when its centre start finds no root
+   (its grazing roots were most of the retries of random rays at the
+   160-face as1 assembly, whose plates are planar). A grazing root then takes one
    more Newton step (kept if it is still a valid root of the piece, that
    near): its t is off by up to its residual / |cos|, and the step takes the
    residual from the tolerance down to rounding. The piece holding a
@@ -121,7 +124,7 @@ from bsrt.kernels.hierarchy import BVHArrays
 from bsrt.kernels.tables import permute_rows
 from bsrt.kernels.threads import run_chunks
 from bsrt.kernels.traverse import Exclusion, trace_rays
-from bsrt.kernels.trim import OUTSIDE, rect_states
+from bsrt.kernels.trim import INSIDE, OUTSIDE, rect_states
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.solve import Rays
 
@@ -297,12 +300,12 @@ def build_bvh(
     if padding is None:
         padding = 1e-8 * diag
     patch, rect, depth, degree, (patch_net, piece_net, row) = flatten(patches, flatness, max_depth, padding)
+    kept = np.ones(patch.size, dtype=bool)
     if patches.trimmed:  # pieces the trims remove entirely hold no hit (their nets stay, unused)
-        keep = (
-            rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3])
-            != OUTSIDE
-        )
+        state = rect_states(patches.trims, patches.surface[patch], rect[:, 0], rect[:, 1], rect[:, 2], rect[:, 3])
+        keep = state != OUTSIDE
         patch, rect, depth, degree, row = patch[keep], rect[keep], depth[keep], degree[keep], row[keep]
+        kept = state[keep] == INSIDE
     box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
     run_chunks(leaf_boxes, patch.size, patch_net, piece_net, row, degree, float(padding), box_min, box_max, obb)
     order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
@@ -324,6 +327,7 @@ def build_bvh(
             leaf_net_row=row[order],
             leaf_degree=degree[order],
             leaf_planar=obb[:, 14] <= padding * (1.0 + 1e-6) + 1e-12 * diag,
+            leaf_kept=kept[order],
         ),
         leaf_patch=patch[order],
         leaf_min=box_min[order],
