@@ -266,7 +266,9 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
     Exact, in NumPy: the curve's rational Bezier spans are halved (de
     Casteljau, all at once) until each control polygon lies inside the box
     (then the span does: convex hull, positive weights) or has a point of the
-    curve itself (an end) outside it; spans still undecided after 30
+    curve itself (an end) outside it; a quadratic span (a conic: a circle
+    touching the box, which halving would only approach) is decided by its
+    own extremes (:func:`_quadratic_inside`); spans still undecided after 30
     halvings (within 1e-9 of their length of the box's edge) count as inside.
     """
     u0, u1, v0, v1 = box
@@ -285,6 +287,8 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
             span, end = np.argwhere(ends)[0]
             return xy[span, 0 if end == 0 else -1].copy()
         keep = out.any(axis=1)
+        if p == 2:  # a conic span: the curve itself may be shown inside at once (a circle touching the box)
+            keep &= ~_quadratic_inside(nets, u0, u1, v0, v1)
         if not keep.all():
             nets = nets[keep]
         if nets.shape[0] == 0:
@@ -297,6 +301,19 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
             halves[0, :, r], halves[1, :, p - r] = level[:, 0], level[:, -1]
         nets = halves.reshape(-1, p + 1, 3)
     return None
+
+
+def _quadratic_inside(nets: np.ndarray, u0: float, u1: float, v0: float, v1: float) -> np.ndarray:
+    """(S,) bool: the rational quadratic spans (S, 3, 3) (homogeneous nets) whose ends lie in the box
+    that lie wholly in it. Against each edge line x = c the curve's side is the sign of the quadratic
+    q(t) = sum a_i B_i(t), a_i = w_i (x_i - c) (positive weights); with a_0, a_2 <= 0 (the ends inside)
+    its largest value on [0, 1] is <= 0 exactly when a_1 <= 0 or a_1^2 <= a_0 a_2."""
+    inside = np.ones(nets.shape[0], dtype=bool)
+    w = nets[:, :, 2]
+    for axis, c, sign in ((0, u0, -1.0), (0, u1, 1.0), (1, v0, -1.0), (1, v1, 1.0)):
+        a = sign * (nets[:, :, axis] - c * w)  # (S, 3): <= 0 at a point inside, on this edge's side
+        inside &= (a[:, 1] <= 0) | (a[:, 1] * a[:, 1] <= a[:, 0] * a[:, 2])
+    return inside
 
 
 # ---------------------------------------------------------------------------
