@@ -656,7 +656,7 @@ def test_once_round_loop_with_nothing_to_close_it_is_a_warning(tmp_path):
 
 
 def test_invert_recovers_parameters_from_nearby_starts():
-    """iges_invert.invert (the closest-point inverter the OpenCASCADE import can share):
+    """bsrt.io.invert.invert (the closest-point inverter both CAD readers share):
     points S(u, v) on a rational surface are carried back to (u, v) from starts 0.05 off."""
     from bsrt.io.invert import invert
 

@@ -3,7 +3,7 @@
 Loops, in this order:
 
 1. Parameter-space curves are taken as written (a composite's members one by
-   one); model-space ones are carried into (u, v) (``iges_invert``: exactly for
+   one); model-space ones are carried into (u, v) (``pcurves``, ``bsrt.io.invert``: exactly for
    planes, polylines within ``INVERSION_TOL`` otherwise, one warning per file).
    On a B-spline closed in a direction (its two edges across it coincide), a
    carried curve's samples on the seam take the side of their neighbours, and a
@@ -43,9 +43,10 @@ from bsrt.geometry.bspline import evaluate as evaluate_surface
 from bsrt.geometry.trim import TrimLoop, make_trim_curve
 from bsrt.io.iges.bspline import Curve, clamp, ends, evaluate, line_curve, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, pieces
-from bsrt.io.iges.invert import SurfaceInverse, invert_curve, map_curve
+from bsrt.io.iges.pcurves import invert_curve, map_curve
 from bsrt.io.iges.seams import Open, close_once_round
 from bsrt.io.iges.surfaces import SurfaceDef
+from bsrt.io.invert import SurfaceInverse
 
 GAP = 1e-4  # largest loop gap closed, as a fraction of the domain's diagonal
 OVERSHOOT = 1e-3  # largest excursion out of the domain pulled back, likewise
