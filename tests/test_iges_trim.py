@@ -757,3 +757,31 @@ def test_invert_beyond_the_domain_edge_and_far_from_the_surface():
     )
     x, y = invert(plane, np.array([[1.5, 1.5, 0.0]]), [0.9], [0.1], 3.0)
     assert (x[0], y[0]) == pytest.approx((0.5, 1.0), abs=1e-14)
+
+
+def test_revolution_inverse_matches_the_newton_inverter():
+    """bsrt.io.invert.RevolutionInverse (closed form, a segment turned about an axis): on a cone
+    (apex on the axis) turned 300 degrees, points S(x, y) come back to (x, y) (1e-12), points off
+    the surface go where SurfaceInverse's Newton goes (1e-9), the apex's y is NaN, and a segment
+    out of the axis's plane (a hyperboloid) gets no closed form."""
+    from bsrt.io.iges import analytic
+    from bsrt.io.iges.bspline import line_curve
+    from bsrt.io.invert import RevolutionInverse, SurfaceInverse
+
+    origin, axis = np.array([1.0, -2.0, 0.5]), np.array([0.0, 0.6, 0.8])
+    apex, rim = origin + 0.5 * axis, origin + 2.0 * axis + [3.0, 0.0, 0.0]
+    gen = line_curve(apex, rim, 0.25, 1.75)
+    a0, a1 = 0.3, 0.3 + math.radians(300)
+    s, _, mv = analytic.revolve(gen, origin, axis, a0, a1, angle_first=False)
+    inv = RevolutionInverse.of(1, gen.knots, gen.points, None, origin, axis, (a0, a1), mv, mv.inverse)
+    assert inv is not None and inv.seams[1][2] is False
+    rng = np.random.default_rng(11)
+    x, y = rng.uniform(*s.domain_u, 200), rng.uniform(*s.domain_v, 200)
+    pts, su, sv = evaluate(s, x, y)
+    assert np.abs(inv(pts) - np.stack([x, y], 1)).max() < 1e-12
+    normal = np.cross(su, sv)
+    off = pts + 0.05 * normal / np.linalg.norm(normal, axis=1)[:, None]
+    assert np.abs(inv(off) - SurfaceInverse(s)(off)).max() < 1e-9
+    assert np.isnan(inv(apex[None])[0, 1])
+    skew = [origin + 0.5 * axis + [1.0, 0.0, 0.0], origin + 2.0 * axis + np.cross(axis, [1.0, 0.0, 0.0])]
+    assert RevolutionInverse.of(1, gen.knots, np.array(skew), None, origin, axis, (a0, a1), mv, mv.inverse) is None

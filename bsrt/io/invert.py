@@ -180,3 +180,72 @@ class SurfaceInverse:
             still = np.linalg.norm(d, axis=1) * (self.hi[k] - self.lo[k]) <= 1e-9 * self.size
             uv[still, k] = np.nan
         return uv
+
+
+class RevolutionInverse:
+    """Closest points on a surface of revolution whose generatrix is a segment in a half-plane
+    bounded by the axis (a cylinder, a cone, a flat ring), in closed form: points (N, 3) ->
+    the B-spline's (x, y) (N, 2), x along the segment, y = ``to_y(angle)``.
+
+    The closest point lies in the point's own meridian half-plane (at its angle about the
+    axis, taken nearest the hint's and clamped to the turn's range) at the point of the
+    segment nearest it there. NaN in y where that point is on the axis (an apex: any angle).
+    ``seams`` as :class:`SurfaceInverse`'s. Returns None from :meth:`of` for other generatrices.
+    """
+
+    def __init__(self, ends, x_range, origin, axis, angles, to_y, to_angle):
+        self.o, self.a = np.asarray(origin, float), np.asarray(axis, float)
+        g = np.asarray(ends, float) - self.o  # (2, 3)
+        self.z = g @ self.a  # (2,) heights along the axis
+        radial = g - self.z[:, None] * self.a
+        self.rho = np.linalg.norm(radial, axis=1)  # (2,) distances from the axis
+        self.e1 = radial[int(np.argmax(self.rho))] / self.rho.max()  # angle 0: the generatrix's half-plane
+        self.e2 = np.cross(self.a, self.e1)
+        self.x_range, self.angles, self.to_y, self.to_angle = x_range, angles, to_y, to_angle
+        self.size = float(np.linalg.norm(np.ptp(np.asarray(ends, float), axis=0))) + float(self.rho.max())
+        self.closed = (False, angles[1] - angles[0] >= 2 * np.pi * (1 - 1e-12))
+
+    @classmethod
+    def of(cls, degree, knots, points, weights, origin, axis, angles, to_y, to_angle):
+        """The inverse for a generatrix (degree, knots, points (n, 3), weights), or None unless it is
+        one segment (degree 1, two points, even weights) in a half-plane bounded by the axis."""
+        points = np.asarray(points, float)
+        if degree != 1 or points.shape[0] != 2 or (weights is not None and np.ptp(weights) != 0):
+            return None
+        inv = cls(points, (float(knots[1]), float(knots[2])), origin, axis, angles, to_y, to_angle)
+        g = points - inv.o
+        radial = g - inv.z[:, None] * inv.a
+        off_plane = np.abs(radial @ inv.e2).max()
+        if not inv.rho.max() > 0 or off_plane > 1e-12 * inv.size or (radial @ inv.e1).min() < -1e-12 * inv.size:
+            return None
+        return inv
+
+    @property
+    def seams(self):
+        """((x0, x1, False), (y0, y1, closed in y)) for ``invert_curve``."""
+        y0, y1 = (float(v) for v in self.to_y(np.array(self.angles)))
+        return ((*self.x_range, False), (y0, y1, self.closed[1]))
+
+    def __call__(self, pts, hint=None):
+        p = np.asarray(pts, float) - self.o
+        z = p @ self.a
+        d = p - z[:, None] * self.a
+        angle = np.arctan2(d @ self.e2, d @ self.e1)
+        a0, a1 = self.angles
+        if hint is not None:  # the turn nearest the hint's angle
+            near = self.to_angle(np.asarray(hint, float)[:, 1])
+            angle = angle + 2 * np.pi * np.round((near - angle) / (2 * np.pi))
+        else:
+            angle = a0 + np.mod(angle - a0, 2 * np.pi)
+            past = angle > a1  # outside a partial turn: the nearer end
+            angle[past] = np.where(angle[past] - a1 <= a0 + 2 * np.pi - angle[past], a1, a0)
+        angle = np.clip(angle, a0, a1)
+        rho = np.hypot(*np.stack([d @ self.e1, d @ self.e2]))
+        (r0, r1), (z0, z1) = self.rho, self.z
+        dr, dz = r1 - r0, z1 - z0
+        f = np.clip(((rho - r0) * dr + (z - z0) * dz) / (dr * dr + dz * dz), 0.0, 1.0)
+        x0, x1 = self.x_range
+        uv = np.stack([x0 + f * (x1 - x0), self.to_y(angle)], axis=1)
+        on_axis = (r0 + f * dr) * (a1 - a0) <= 1e-9 * self.size
+        uv[on_axis, 1] = np.nan
+        return uv

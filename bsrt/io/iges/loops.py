@@ -138,7 +138,7 @@ class LoopBuilder:
         key = ("inverse", sd.entity.de)
         if key not in self.f.cache:
             s, space = sd.inverse_target()
-            self.f.cache[key] = (SurfaceInverse(s), space)
+            self.f.cache[key] = (sd.closed_inverse or SurfaceInverse(s), space)
         inverse, space = self.f.cache[key]
         return Piece(invert_curve(c, inverse, tol), space, source, True)
 
