@@ -260,34 +260,46 @@ def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
     return t[(t > lo) & (t < hi)]
 
 
+_LEVELS = 8  # halvings per evaluation of the curve in _crossings
+
+
 def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
     """Curve parameters where coordinate ``axis`` equals one of ``lines`` (``points``: the curve's
-    :func:`evaluator`; sign changes on the samples, then bisection, all crossings at once). They only help the fit converge (its error is checked),
-    so a bracket of 1e-7 of a sample step is enough."""
+    :func:`evaluator`; sign changes on the samples, then 24 halvings of each bracket, to 1e-7 of a
+    sample step: they only help the fit converge (its error is checked), and the map is C1 at its
+    breaks). One evaluation serves _LEVELS halvings: it takes the middles of every bracket they
+    may reach (a tree, each middle 0.5 (lo + hi) of its bracket's ends, as one halving at a time
+    would compute it), and the signs there choose the way down."""
     if lines.size == 0:
         return np.zeros(0)
     d = samples[:, None] - lines[None, :]  # (S, L)
     k, j = np.nonzero(d[:-1] * d[1:] < 0)
     exact = t[np.nonzero(d == 0)[0]]
-    a, b = t[k], t[k + 1]
-    fa = d[k, j]
+    n = k.size
+    if n == 0:
+        return exact
+    a, b, fa = t[k].tolist(), t[k + 1].tolist(), d[k, j].tolist()
     value = lines[j]
-    n = a.size
-    for _ in range(12):  # 24 halvings, to 1e-7 of a sample step: the map is C1 at its breaks, plenty for the fit
-        if n == 0:
-            break
-        # two halvings per evaluation: the middle c and both middles the next halving may take
-        c = 0.5 * (a + b)
-        c_left, c_right = 0.5 * (a + c), 0.5 * (c + b)
-        f = points(np.concatenate([c, c_left, c_right]))[:, axis]
-        fc = f[:n] - value
-        left = (fc < 0) == (fa < 0)  # the sign at c is a's: the crossing is in [c, b]
-        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
-        c = np.where(left, c_right, c_left)  # = 0.5 * (a + b) now
-        fc = np.where(left, f[2 * n :], f[n : 2 * n]) - value
-        left = (fc < 0) == (fa < 0)
-        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
-    return np.concatenate([0.5 * (a + b), exact])
+    for _ in range(24 // _LEVELS):
+        lo, hi = np.array([a]), np.array([b])  # (nodes of a level, n): the brackets
+        middles = []
+        for _ in range(_LEVELS):  # heap order: a node's halves are nodes 2 i + 1 (left) and 2 i + 2
+            m = 0.5 * (lo + hi)
+            middles.append(m)
+            lo, hi = np.stack([lo, m], axis=1).reshape(-1, n), np.stack([m, hi], axis=1).reshape(-1, n)
+        tree = np.concatenate(middles)  # (2^_LEVELS - 1, n)
+        f = (points(tree.ravel())[:, axis].reshape(tree.shape) - value).T.tolist()  # (n, nodes)
+        tree = tree.T.tolist()
+        for i in range(n):
+            node, ai, bi, fai, fi, ti = 0, a[i], b[i], fa[i], f[i], tree[i]
+            for _ in range(_LEVELS):
+                c, fc = ti[node], fi[node]
+                if (fc < 0) == (fai < 0):  # the sign at c is a's: the crossing is in [c, b]
+                    ai, fai, node = c, fc, 2 * node + 2
+                else:
+                    bi, node = c, 2 * node + 1
+            a[i], b[i], fa[i] = ai, bi, fai
+    return np.concatenate([0.5 * (np.array(a) + np.array(b)), exact])
 
 
 def _bernstein(d: int, s: np.ndarray) -> np.ndarray:
