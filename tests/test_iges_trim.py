@@ -21,10 +21,11 @@ from bsrt.errors import InputError
 from bsrt.geometry.bspline import evaluate
 from bsrt.geometry.trim import check_loops
 from bsrt.io import load_model
-from bsrt.io.iges.bspline import ParamMap, arc_curve, reverse
+from bsrt.io.iges.bspline import arc_curve, reverse
 from bsrt.io.iges.bspline import evaluate as curve_eval
 from bsrt.io.iges.curves import curve
 from bsrt.io.iges.records import IgesFile
+from bsrt.io.param_map import ParamMap
 
 HERE = Path(__file__).parent / "data" / "iges"
 MODELS = Path(__file__).parent / "data" / "models" / "iges"

@@ -3,7 +3,7 @@
 Pure geometry, no file format: planes, surfaces of revolution (cylinder,
 cone, sphere, torus and the general one), extrusions, ruled surfaces and
 piecewise bicubic patches. Each constructor returns the surface and, per
-parameter direction, a :class:`~bsrt.io.iges.bspline.ParamMap` from the
+parameter direction, a :class:`~bsrt.io.param_map.ParamMap` from the
 analytic parameter (an angle, a height, a curve's own parameter) to the
 B-spline's. The maps are affine except along circles, where the B-spline
 parameter equals the angle at every knot (every <= 90 degrees) and follows
@@ -24,7 +24,6 @@ import numpy as np
 from bsrt.geometry.bspline import BSplineSurface, make_surface
 from bsrt.io.iges.bspline import (
     Curve,
-    ParamMap,
     clamp,
     common_breaks,
     elevate,
@@ -32,6 +31,7 @@ from bsrt.io.iges.bspline import (
     reparametrised,
     unit_arc,
 )
+from bsrt.io.param_map import ParamMap
 
 
 def _surface(pu: int, pv: int, ku, kv, h: np.ndarray) -> BSplineSurface:

@@ -7,20 +7,16 @@ knot insertion, reversal, restriction to a sub-range, degree elevation,
 joining curves end to end, products of B-spline functions, affine maps, and
 conics as rational quadratics.
 
-A :class:`ParamMap` records how an IGES entity's own parameter (an arc's
-angle, say) maps onto the B-spline's parameter. For polynomial entities the
-map is affine; for circles and ellipses it is the closed form of the
-rational quadratic arc: on a piece of angle span ``d`` around ``m`` with the
-usual weights (1, cos(d/2), 1), the angle at the local parameter t in [0, 1] is
-``m + 2 atan(tan(d/4) (2t - 1))``, and for a hyperbola ``m + 2 atanh(tanh(d/4)
-(2t - 1))`` in its hyperbolic parameter. The maps are monotone and invertible
-in closed form, which is what lets trim curves given in an analytic
-surface's (angle, height) parameters be placed on its NURBS exactly.
+Each curve may carry a :class:`bsrt.io.param_map.ParamMap` (the one type both
+CAD readers use): how the IGES entity's own parameter (an arc's angle, say)
+maps onto the B-spline's parameter, affine for polynomial entities and the
+closed form of the rational quadratic arc for conics. The maps are monotone
+and invertible in closed form, which is what lets trim curves given in an
+analytic surface's (angle, height) parameters be placed on its NURBS exactly.
 """
 
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass, replace
 
@@ -28,118 +24,7 @@ import numpy as np
 
 from bsrt.geometry.basis import basis_values
 from bsrt.geometry.bspline import basis_functions, find_span, insert_knot
-
-_KINDS = ("linear", "tan", "tanh")
-
-
-@dataclass(frozen=True, eq=False)
-class ParamMap:
-    """A monotone, piecewise map x (an IGES parameter) -> s (a B-spline parameter).
-
-    x, s: (k + 1,) float64, increasing breakpoints; piece i maps [x[i], x[i+1]]
-    onto [s[i], s[i+1]]. kinds: k strings, "linear", "tan" (a circular arc of
-    angle span x[i+1] - x[i]) or "tanh" (a hyperbolic arc). Outside [x[0], x[-1]]
-    the end pieces are extended (linear ones exactly; angular ones are clipped).
-    """
-
-    x: np.ndarray
-    s: np.ndarray
-    kinds: tuple[str, ...]
-
-    @staticmethod
-    def identity(a: float, b: float) -> ParamMap:
-        return ParamMap(np.array([a, b], float), np.array([a, b], float), ("linear",))
-
-    def _piece(self, x):
-        return np.clip(np.searchsorted(self.x, x, side="right") - 1, 0, len(self.kinds) - 1)
-
-    def __call__(self, x) -> np.ndarray:
-        """s at x: (N,) -> (N,)."""
-        x = np.atleast_1d(np.asarray(x, float))
-        out = np.empty_like(x)
-        piece = self._piece(x)
-        for i in np.unique(piece):
-            sel = piece == i
-            out[sel] = self._local(i, x[sel])
-        return out
-
-    def _local(self, i, x):
-        x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
-        kind = self.kinds[i]
-        if kind == "linear":
-            return s0 + (x - x0) * ((s1 - s0) / (x1 - x0))
-        d, m = x1 - x0, 0.5 * (x0 + x1)
-        y = np.clip(x - m, -0.5 * d, 0.5 * d) / 2
-        if kind == "tan":
-            t = 0.5 * (1.0 + np.tan(y) / math.tan(d / 4))
-        else:
-            t = 0.5 * (1.0 + np.tanh(y) / math.tanh(d / 4))
-        return s0 + t * (s1 - s0)
-
-    def inverse(self, s) -> np.ndarray:
-        """x at s (the inverse map): (N,) -> (N,)."""
-        s = np.atleast_1d(np.asarray(s, float))
-        piece = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.kinds) - 1)
-        out = np.empty_like(s)
-        for i in np.unique(piece):
-            sel = piece == i
-            x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
-            t = (s[sel] - s0) / (s1 - s0)
-            d, m = x1 - x0, 0.5 * (x0 + x1)
-            if self.kinds[i] == "linear":
-                out[sel] = x0 + t * (x1 - x0)
-            elif self.kinds[i] == "tan":
-                out[sel] = m + 2 * np.arctan(math.tan(d / 4) * (2 * np.clip(t, 0, 1) - 1))
-            else:
-                out[sel] = m + 2 * np.arctanh(math.tanh(d / 4) * (2 * np.clip(t, 0, 1) - 1))
-        return out
-
-    def derivative(self, x) -> np.ndarray:
-        """ds/dx at x: (N,) -> (N,)."""
-        x = np.atleast_1d(np.asarray(x, float))
-        out = np.empty_like(x)
-        piece = self._piece(x)
-        for i in np.unique(piece):
-            sel = piece == i
-            x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
-            d, m, kind = x1 - x0, 0.5 * (x0 + x1), self.kinds[i]
-            if kind == "linear":
-                out[sel] = (s1 - s0) / (x1 - x0)
-            elif kind == "tan":
-                c = np.cos(np.clip(x[sel] - m, -0.5 * d, 0.5 * d) / 2)
-                out[sel] = (s1 - s0) / (4 * math.tan(d / 4) * c * c)
-            else:
-                c = np.cosh(np.clip(x[sel] - m, -0.5 * d, 0.5 * d) / 2)
-                out[sel] = (s1 - s0) / (4 * math.tanh(d / 4) * c * c)
-        return out
-
-    def affine_on(self, lo: float, hi: float, tol: float = 0.0):
-        """(scale, offset) with s = scale x + offset on [lo, hi] if the map is affine there, else None."""
-        last = len(self.kinds) - 1
-        if last == 0:
-            i = j = 0
-        else:
-            xs = self.x.tolist()
-            i = min(max(bisect.bisect_right(xs, lo + tol) - 1, 0), last)
-            j = min(max(bisect.bisect_right(xs, hi - tol) - 1, 0), last)
-        if i != j or self.kinds[i] != "linear":
-            return None
-        scale = (self.s[i + 1] - self.s[i]) / (self.x[i + 1] - self.x[i])
-        return scale, self.s[i] - scale * self.x[i]
-
-    def shifted(self, dx: float, ds: float) -> ParamMap:
-        return ParamMap(self.x + dx, self.s + ds, self.kinds)
-
-    def scaled_x(self, a: float, b: float) -> ParamMap:
-        """The map of x' where x = a x' + b (a > 0)."""
-        return ParamMap((self.x - b) / a, self.s, self.kinds)
-
-
-def concat_maps(maps: list[ParamMap]) -> ParamMap:
-    """Maps of consecutive x and s ranges (each starting where the previous ends) as one."""
-    x = [maps[0].x[:1]] + [m.x[1:] for m in maps]
-    s = [maps[0].s[:1]] + [m.s[1:] for m in maps]
-    return ParamMap(np.concatenate(x), np.concatenate(s), sum((m.kinds for m in maps), ()))
+from bsrt.io.param_map import ParamMap, concat_maps
 
 
 @dataclass(frozen=True, eq=False)

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.io.iges.bspline import Curve, ParamMap, clamp, evaluate, from_bezier, line_curve, polyline_curve
+from bsrt.io.iges.bspline import Curve, clamp, evaluate, from_bezier, line_curve, polyline_curve
+from bsrt.io.param_map import ParamMap
 
 TWO_PI = 2 * np.pi
 _MAX_POINTS = 100_000

@@ -52,10 +52,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from bsrt.io.iges import analytic
-from bsrt.io.iges.bspline import ParamMap, affine, clamp, ends, reverse
+from bsrt.io.iges.bspline import affine, clamp, ends, reverse
 from bsrt.io.iges.bspline import ends as ends_of
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, curve, direction, point
 from bsrt.io.invert import RevolutionInverse
+from bsrt.io.param_map import ParamMap
 
 SURFACE_TYPES = frozenset({108, 114, 118, 120, 122, 128, 190, 192, 194, 196, 198})
 TWO_PI = 2 * math.pi

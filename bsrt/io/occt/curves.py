@@ -4,7 +4,7 @@
 (u, v), converted exactly to a (rational) B-spline by ``Geom2dConvert`` over
 the edge's range and reversed for a reversed edge, so the curves of a wire
 run end to end. ``map_curve(curve, pmap, tolerance)`` carries it into the
-converted B-spline's (x, y) through the face's :class:`ParamMap`:
+converted B-spline's (x, y) through the face's :class:`~bsrt.io.param_map.FaceMap`:
 
 * where both directions keep their parameter (up to a whole period), the
   control points move by the shift: exact;
@@ -28,8 +28,8 @@ from bsrt.errors import InputError
 from bsrt.geometry.basis import basis_values
 from bsrt.geometry.bspline import BSplineSurface
 from bsrt.geometry.trim import TrimCurve, make_trim_curve
-from bsrt.io.occt.param_map import ParamMap
 from bsrt.io.occt.surfaces import flat_knots
+from bsrt.io.param_map import FaceMap
 
 FIT_DEGREE = 7
 FIT_TOLERANCE = 1e-10  # fitted pcurves: largest 3-D error, as a fraction of the model's size
@@ -212,7 +212,7 @@ def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
     return out[0], out[1]
 
 
-def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
+def map_curve(curve: TrimCurve, pmap: FaceMap, tolerance) -> TrimCurve:
     """The pcurve (original (u, v)) as a curve in the B-spline's (x, y).
 
     tolerance: the largest error allowed in x and in y (a fitted curve's
@@ -251,7 +251,7 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
 
 def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
     """The original parameters in [lo, hi] where f passes one of the B-spline's knots (its smoothness breaks)."""
-    b = fmap.breaks
+    b = fmap.s
     if fmap.period > 0:
         first = np.floor((float(fmap(np.array([lo]))[0]) - b[0]) / fmap.period) - 1
         last = np.ceil((float(fmap(np.array([hi]))[0]) - b[0]) / fmap.period) + 1
@@ -314,7 +314,7 @@ _CHECKS = (np.arange(24) + 0.5) / 24
 _AT_CHECKS = _bernstein(FIT_DEGREE, _CHECKS)
 
 
-def _fit(points, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
+def _fit(points, pmap: FaceMap, breaks: np.ndarray, tolerance) -> TrimCurve:
     """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t)) (``points``: the
     curve's :func:`evaluator`)."""
     d = FIT_DEGREE
