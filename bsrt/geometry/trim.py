@@ -87,39 +87,54 @@ DOMAIN_TOLERANCE = 1e-5  # how far a curve may stray outside the domain, as a fr
 
 @dataclass(frozen=True, eq=False)
 class TrimCurve:
-    """One 2-D B-spline curve of a trim loop.
+    """A (rational) B-spline curve: a curve of a trim loop, and the one curve type of the readers.
 
     degree: p >= 1. knots: (n + p + 1,) float64, non-decreasing.
-    points: (n, 2) float64, (u, v) in the surface's knot domain.
+    points: (n, d) float64: in a trim loop d = 2, (u, v) in the surface's knot
+      domain; a reader's model-space curve has d = 3.
     weights: (n,) float64, all > 0, or None (non-rational).
+    pmap: how the file's own parameter of the curve maps onto this one's (a
+      reader's :class:`bsrt.io.param_map.ParamMap`: an IGES arc's angle), or
+      None where they are equal (every curve of a trim loop).
     """
 
     degree: int
     knots: np.ndarray
     points: np.ndarray
     weights: np.ndarray | None = None
+    pmap: object | None = None
+
+    @property
+    def n(self) -> int:
+        """The number of control points."""
+        return self.points.shape[0]
+
+    @property
+    def dim(self) -> int:
+        """d, the number of coordinates of a point."""
+        return self.points.shape[1]
 
     @property
     def domain(self) -> tuple[float, float]:
         return float(self.knots[self.degree]), float(self.knots[self.points.shape[0]])
 
     def homogeneous(self) -> np.ndarray:
-        """(n, 3) float64: (w u, w v, w)."""
+        """(n, d + 1) float64: (w x, ..., w)."""
         w = np.ones(self.points.shape[0]) if self.weights is None else self.weights
         return np.concatenate([self.points * w[:, None], w[:, None]], axis=1)
 
     def evaluate(self, s) -> np.ndarray:
-        """(N, 2) points at curve parameters s (N,) (reference Cox-de Boor)."""
+        """(N, d) points at curve parameters s (N,) (reference Cox-de Boor)."""
         s = np.atleast_1d(np.asarray(s, dtype=np.float64))
         p, n = self.degree, self.points.shape[0]
         span = find_span(self.knots, p, n, s)
         basis, _ = basis_functions(self.knots, p, span, s)
-        ctrl = self.homogeneous()[(span - p)[:, None] + np.arange(p + 1)[None, :]]  # (N, p+1, 3)
+        ctrl = self.homogeneous()[(span - p)[:, None] + np.arange(p + 1)[None, :]]  # (N, p+1, d + 1)
         h = np.einsum("na,nak->nk", basis, ctrl)
-        return h[:, :2] / h[:, 2:3]
+        return h[:, :-1] / h[:, -1:]
 
     def ends(self) -> np.ndarray:
-        """(2, 2): the curve's first and last point."""
+        """(2, d): the curve's first and last point."""
         p, k = self.degree, self.knots
         if k[0] == k[p] and k[-1] == k[-1 - p]:  # clamped: the end control points
             return self.points[[0, -1]].copy()

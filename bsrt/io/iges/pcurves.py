@@ -27,14 +27,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.io.iges.bspline import Curve, clamp, evaluate, from_bezier, line_curve, polyline_curve
+from bsrt.geometry.trim import TrimCurve
+from bsrt.io.iges.bspline import clamp, evaluate, from_bezier, line_curve, polyline_curve
 from bsrt.io.param_map import ParamMap
 
 TWO_PI = 2 * np.pi
 _MAX_POINTS = 100_000
 
 
-def _start_samples(c: Curve) -> np.ndarray:
+def _start_samples(c: TrimCurve) -> np.ndarray:
     lo, hi = c.domain
     breaks = np.unique(np.clip(c.knots, lo, hi))
     t = [np.linspace(a, b, 9)[:-1] for a, b in zip(breaks[:-1], breaks[1:])]
@@ -50,7 +51,7 @@ def _near(values, reference, angular):
     return out
 
 
-def invert_curve(c: Curve, to_uv, tol: float, angular=(False, False)) -> Curve | None:
+def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> TrimCurve | None:
     """The 3-D curve c as a 2-D polyline in the parameters given by to_uv(points, hint).
 
     to_uv: (N, 3) points and (N, 2) hints (or None) -> (N, 2), NaN where a
@@ -123,7 +124,7 @@ def _monotone(values) -> bool:
     return bool(np.all(d >= 0) or np.all(d <= 0))
 
 
-def map_curve(c: Curve, mu: ParamMap, mv: ParamMap, tol: float) -> tuple[Curve, bool]:
+def map_curve(c: TrimCurve, mu: ParamMap, mv: ParamMap, tol: float) -> tuple[TrimCurve, bool]:
     """The 2-D curve c (in the maps' x) in the maps' s: (curve, exact).
 
     Exact when both maps are affine over the curve, or when the curve is an
@@ -137,7 +138,7 @@ def map_curve(c: Curve, mu: ParamMap, mv: ParamMap, tol: float) -> tuple[Curve, 
     if (au is not None or iso_x) and (av is not None or iso_y):
         nx = au[0] * x + au[1] if au is not None else np.full_like(x, mu(x[:1])[0])
         ny = av[0] * y + av[1] if av is not None else np.full_like(y, mv(y[:1])[0])
-        return Curve(c.degree, c.knots, np.stack([nx, ny], 1), c.weights), True
+        return TrimCurve(c.degree, c.knots, np.stack([nx, ny], 1), c.weights), True
     if (iso_x and _monotone(y)) or (iso_y and _monotone(x)):
         a, b = clamp(c).points[[0, -1]]
         ends = np.stack([mu(np.array([a[0], b[0]])), mv(np.array([a[1], b[1]]))], 1)
@@ -145,7 +146,7 @@ def map_curve(c: Curve, mu: ParamMap, mv: ParamMap, tol: float) -> tuple[Curve, 
     return _hermite(c, mu, mv, tol), False
 
 
-def _hermite(c: Curve, mu: ParamMap, mv: ParamMap, tol: float) -> Curve:
+def _hermite(c: TrimCurve, mu: ParamMap, mv: ParamMap, tol: float) -> TrimCurve:
     def g(t):
         p, dp = evaluate(c, t, derivative=True)
         val = np.stack([mu(p[:, 0]), mv(p[:, 1])], 1)

@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bsrt.io.iges import analytic
-from bsrt.io.iges.bspline import affine, clamp, ends, reverse
+from bsrt.io.iges.bspline import affine, clamp, ends, param_map, reverse
 from bsrt.io.iges.bspline import ends as ends_of
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, curve, direction, point
 from bsrt.io.invert import RevolutionInverse
@@ -324,7 +324,7 @@ def _tabulated(f, entity, params, m) -> SurfaceDef:
     end = params.reals(3, "a coordinate of L")
     if m is not None:
         end = m[:3, :3] @ end + m[:3, 3]
-    pmap = c.param_map()
+    pmap = param_map(c)
     t0, t1 = pmap.x[0], pmap.x[-1]
     start = ends(c)[0]
     s, mu, mv = analytic.extrusion(c, end - start, pmap.scaled_x(t1 - t0, t0))
