@@ -786,3 +786,25 @@ def test_revolution_inverse_matches_the_newton_inverter():
     assert np.isnan(inv(apex[None])[0, 1])
     skew = [origin + 0.5 * axis + [1.0, 0.0, 0.0], origin + 2.0 * axis + np.cross(axis, [1.0, 0.0, 0.0])]
     assert RevolutionInverse.of(1, gen.knots, np.array(skew), None, origin, axis, (a0, a1), mv, mv.inverse) is None
+
+
+def test_one_param_map_for_both_readers():
+    """bsrt.io.param_map.ParamMap, the one map type: a circle's rational quadratic B-spline (IGES's
+    unit_arc) at s = f(angle) is (cos, sin)(angle), for the IGES map and for the same map made on the
+    knots as the OpenCASCADE import does (extended, not clipped, past its ends; periodic:
+    f(x + 2 pi) = f(x) + 2 pi); inverse undoes it."""
+    from bsrt.geometry.trim import TrimCurve
+    from bsrt.io.iges.bspline import evaluate as curve_eval
+    from bsrt.io.iges.bspline import unit_arc
+
+    knots, pts, w, iges_map = unit_arc(0.0, 2 * math.pi)
+    circle = TrimCurve(2, knots, pts, w)
+    on_knots = ParamMap.on_knots("tan", iges_map.x, 2 * math.pi)
+    angle = np.linspace(0.0, 2 * math.pi, 101)
+    for f in (iges_map, on_knots):
+        p = curve_eval(circle, f(angle))
+        assert np.abs(p - np.stack([np.cos(angle), np.sin(angle)], 1)).max() < 1e-14
+        assert np.abs(f.inverse(f(angle)) - angle).max() < 1e-14
+    assert np.abs(on_knots(angle + 2 * math.pi) - on_knots(angle) - 2 * math.pi).max() < 1e-13
+    ahead = ParamMap.on_knots("tan", iges_map.x)  # not periodic: extended past 2 pi by the arc's formula
+    assert ahead(np.array([2 * math.pi + 0.1]))[0] > 2 * math.pi + 0.1 > iges_map(np.array([2 * math.pi + 0.1]))[0]

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -91,12 +92,23 @@ class ParamMap:
         if self.kinds[0] == "identity":
             return x
         x, wraps, i = self._wrapped(x, self.x)
-        kind = self.kinds[0] if len(set(self.kinds)) == 1 else None
-        out = np.empty_like(x)
-        for k in (kind,) if kind is not None else set(self.kinds):
-            sel = slice(None) if kind is not None else np.array([self.kinds[j] == k for j in range(len(self.kinds))])[i]
-            out[sel] = self._local(k, i[sel], x[sel])
+        if self._uniform is not None:
+            out = self._local(self._uniform, i, x)
+        else:
+            out = np.empty_like(x)
+            for k in set(self.kinds):
+                sel = self._of_kind(k)[i]
+                out[sel] = self._local(k, i[sel], x[sel])
         return out if wraps is None else out + wraps * self.period
+
+    @cached_property
+    def _uniform(self) -> str | None:
+        """The pieces' kind if they all have one, else None."""
+        return self.kinds[0] if self.kinds.count(self.kinds[0]) == len(self.kinds) else None
+
+    def _of_kind(self, kind: str) -> np.ndarray:
+        """(k,) bool: the pieces of that kind."""
+        return np.array([k == kind for k in self.kinds])
 
     def _local(self, kind: str, i: np.ndarray, x: np.ndarray) -> np.ndarray:
         x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
@@ -116,8 +128,8 @@ class ParamMap:
             return s - self.shift
         s, wraps, i = self._wrapped(s, self.s)
         out = np.empty_like(s)
-        for k in set(self.kinds):
-            sel = np.array([self.kinds[j] == k for j in range(len(self.kinds))])[i]
+        for k in (self._uniform,) if self._uniform is not None else set(self.kinds):
+            sel = slice(None) if self._uniform is not None else self._of_kind(k)[i]
             j = i[sel]
             x0, x1, s0, s1 = self.x[j], self.x[j + 1], self.s[j], self.s[j + 1]
             if k == "table":
@@ -147,7 +159,7 @@ class ParamMap:
         d, m = x1 - x0, 0.5 * (x0 + x1)
         out = (s1 - s0) / d  # linear
         for k, (f, _) in _ANGULAR.items():
-            sel = np.array([kind == k for kind in self.kinds])[i]
+            sel = self._of_kind(k)[i]
             if sel.any():
                 y = x[sel] - m[sel] if self.extend else np.clip(x[sel] - m[sel], -0.5 * d[sel], 0.5 * d[sel])
                 c = (np.cos if k == "tan" else np.cosh)(0.5 * y)
