@@ -170,8 +170,8 @@ def make_trim_curve(degree, knots, points, weights=None) -> TrimCurve:
         raise InputError("knots: expected finite, non-decreasing numbers")
     if not k[p] < k[n]:
         raise InputError(f"knots: the curve's domain [{k[p]:g}, {k[n]:g}] is empty")
-    inner = k[(k > k[p]) & (k < k[n])]
-    if inner.size and np.unique(inner, return_counts=True)[1].max() > p:
+    inner = k[(k > k[p]) & (k < k[n])]  # sorted: a value repeated more than p times equals the one p further on
+    if inner.size > p and np.any(inner[p:] == inner[:-p]):
         raise InputError(f"knots: an interior knot is repeated more than the degree {p}")
     w = None
     if weights is not None:
