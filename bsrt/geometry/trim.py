@@ -136,8 +136,8 @@ class TrimCurve:
     def ends(self) -> np.ndarray:
         """(2, d): the curve's first and last point."""
         p, k = self.degree, self.knots
-        if k[0] == k[p] and k[-1] == k[-1 - p]:  # clamped: the end control points
-            return self.points[[0, -1]].copy()
+        if k[0] == k[p] and k[-1] == k[-1 - p]:  # clamped: the end control points (n >= 2: a slice)
+            return self.points[:: self.points.shape[0] - 1].copy()
         return self.evaluate(np.array(self.domain))
 
 

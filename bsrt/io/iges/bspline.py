@@ -64,7 +64,7 @@ def ends(c: TrimCurve) -> np.ndarray:
     """(2, d): the first and last point."""
     p = c.degree
     if c.knots[0] == c.knots[p] and c.knots[-1] == c.knots[-1 - p]:  # clamped: the end control points
-        return c.points[[0, -1]]
+        return c.points[:: c.n - 1].copy()  # (n >= 2: a slice)
     return evaluate(c, np.array(c.domain))
 
 
