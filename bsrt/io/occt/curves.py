@@ -260,16 +260,14 @@ def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
     return t[(t > lo) & (t < hi)]
 
 
-_LEVELS = 8  # halvings per evaluation of the curve in _crossings
-
-
 def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
     """Curve parameters where coordinate ``axis`` equals one of ``lines`` (``points``: the curve's
     :func:`evaluator`; sign changes on the samples, then 24 halvings of each bracket, to 1e-7 of a
     sample step: they only help the fit converge (its error is checked), and the map is C1 at its
-    breaks). One evaluation serves _LEVELS halvings: it takes the middles of every bracket they
-    may reach (a tree, each middle 0.5 (lo + hi) of its bracket's ends, as one halving at a time
-    would compute it), and the signs there choose the way down."""
+    breaks). One evaluation serves several halvings (8 for up to 2 crossings, 4 for up to 16, else
+    2: 2^levels - 1 points a crossing): it takes the middles of every bracket they may reach (a
+    tree, each middle 0.5 (lo + hi) of its bracket's ends, as one halving at a time would compute
+    it), and the signs there choose the way down."""
     if lines.size == 0:
         return np.zeros(0)
     d = samples[:, None] - lines[None, :]  # (S, L)
@@ -280,19 +278,20 @@ def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.
         return exact
     a, b, fa = t[k].tolist(), t[k + 1].tolist(), d[k, j].tolist()
     value = lines[j]
-    for _ in range(24 // _LEVELS):
+    levels = 8 if n <= 2 else 4 if n <= 16 else 2
+    for _ in range(24 // levels):
         lo, hi = np.array([a]), np.array([b])  # (nodes of a level, n): the brackets
         middles = []
-        for _ in range(_LEVELS):  # heap order: a node's halves are nodes 2 i + 1 (left) and 2 i + 2
+        for _ in range(levels):  # heap order: a node's halves are nodes 2 i + 1 (left) and 2 i + 2
             m = 0.5 * (lo + hi)
             middles.append(m)
             lo, hi = np.stack([lo, m], axis=1).reshape(-1, n), np.stack([m, hi], axis=1).reshape(-1, n)
-        tree = np.concatenate(middles)  # (2^_LEVELS - 1, n)
+        tree = np.concatenate(middles)  # (2^levels - 1, n)
         f = (points(tree.ravel())[:, axis].reshape(tree.shape) - value).T.tolist()  # (n, nodes)
         tree = tree.T.tolist()
         for i in range(n):
             node, ai, bi, fai, fi, ti = 0, a[i], b[i], fa[i], f[i], tree[i]
-            for _ in range(_LEVELS):
+            for _ in range(levels):
                 c, fc = ti[node], fi[node]
                 if (fc < 0) == (fai < 0):  # the sign at c is a's: the crossing is in [c, b]
                     ai, fai, node = c, fc, 2 * node + 2
