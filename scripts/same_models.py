@@ -7,7 +7,8 @@ STEP, IGES and BREP file (``bsrt.io.load_model(path, cache=False)``, one
 process per checkout for all files), and every array of every surface (degree,
 knots, points, weights, each trim curve's), the names, colours, warnings,
 skipped counts and untrimmed count are compared exactly (floats by their
-bits; every field of the Model but ``load``). Prints one line per file that
+bits; every field of the Model but ``load``; a dataclass field that is None is
+left out, so a new optional field, None throughout, does not count as a change). Prints one line per file that
 differs, naming the fields and the first surface that differ, and exits 1 if
 any does.
 """
@@ -37,7 +38,9 @@ DUMP = textwrap.dedent("""
         if isinstance(x, dict):
             return ("dict", sorted((str(k), plain(v)) for k, v in x.items()))
         if hasattr(x, "__dataclass_fields__"):
-            return (type(x).__name__, [(f, plain(getattr(x, f))) for f in x.__dataclass_fields__ if f != "load"])
+            # (fields that are None are left out: a field added with default None compares as before)
+            fields = [f for f in x.__dataclass_fields__ if f != "load" and getattr(x, f) is not None]
+            return (type(x).__name__, [(f, plain(getattr(x, f))) for f in fields])
         if isinstance(x, float):
             return ("float", x.hex())
         return x

@@ -21,10 +21,11 @@ from bsrt.errors import InputError
 from bsrt.geometry.bspline import evaluate
 from bsrt.geometry.trim import check_loops
 from bsrt.io import load_model
-from bsrt.io.iges.bspline import ParamMap, arc_curve, reverse
+from bsrt.io.iges.bspline import arc_curve, reverse
 from bsrt.io.iges.bspline import evaluate as curve_eval
 from bsrt.io.iges.curves import curve
 from bsrt.io.iges.records import IgesFile
+from bsrt.io.param_map import ParamMap
 
 HERE = Path(__file__).parent / "data" / "iges"
 MODELS = Path(__file__).parent / "data" / "models" / "iges"
@@ -656,7 +657,7 @@ def test_once_round_loop_with_nothing_to_close_it_is_a_warning(tmp_path):
 
 
 def test_invert_recovers_parameters_from_nearby_starts():
-    """iges_invert.invert (the closest-point inverter the OpenCASCADE import can share):
+    """bsrt.io.invert.invert (the closest-point inverter both CAD readers share):
     points S(u, v) on a rational surface are carried back to (u, v) from starts 0.05 off."""
     from bsrt.io.invert import invert
 
@@ -757,3 +758,53 @@ def test_invert_beyond_the_domain_edge_and_far_from_the_surface():
     )
     x, y = invert(plane, np.array([[1.5, 1.5, 0.0]]), [0.9], [0.1], 3.0)
     assert (x[0], y[0]) == pytest.approx((0.5, 1.0), abs=1e-14)
+
+
+def test_revolution_inverse_matches_the_newton_inverter():
+    """bsrt.io.invert.RevolutionInverse (closed form, a segment turned about an axis): on a cone
+    (apex on the axis) turned 300 degrees, points S(x, y) come back to (x, y) (1e-12), points off
+    the surface go where SurfaceInverse's Newton goes (1e-9), the apex's y is NaN, and a segment
+    out of the axis's plane (a hyperboloid) gets no closed form."""
+    from bsrt.io.iges import analytic
+    from bsrt.io.iges.bspline import line_curve
+    from bsrt.io.invert import RevolutionInverse, SurfaceInverse
+
+    origin, axis = np.array([1.0, -2.0, 0.5]), np.array([0.0, 0.6, 0.8])
+    apex, rim = origin + 0.5 * axis, origin + 2.0 * axis + [3.0, 0.0, 0.0]
+    gen = line_curve(apex, rim, 0.25, 1.75)
+    a0, a1 = 0.3, 0.3 + math.radians(300)
+    s, _, mv = analytic.revolve(gen, origin, axis, a0, a1, angle_first=False)
+    inv = RevolutionInverse.of(1, gen.knots, gen.points, None, origin, axis, (a0, a1), mv, mv.inverse)
+    assert inv is not None and inv.seams[1][2] is False
+    rng = np.random.default_rng(11)
+    x, y = rng.uniform(*s.domain_u, 200), rng.uniform(*s.domain_v, 200)
+    pts, su, sv = evaluate(s, x, y)
+    assert np.abs(inv(pts) - np.stack([x, y], 1)).max() < 1e-12
+    normal = np.cross(su, sv)
+    off = pts + 0.05 * normal / np.linalg.norm(normal, axis=1)[:, None]
+    assert np.abs(inv(off) - SurfaceInverse(s)(off)).max() < 1e-9
+    assert np.isnan(inv(apex[None])[0, 1])
+    skew = [origin + 0.5 * axis + [1.0, 0.0, 0.0], origin + 2.0 * axis + np.cross(axis, [1.0, 0.0, 0.0])]
+    assert RevolutionInverse.of(1, gen.knots, np.array(skew), None, origin, axis, (a0, a1), mv, mv.inverse) is None
+
+
+def test_one_param_map_for_both_readers():
+    """bsrt.io.param_map.ParamMap, the one map type: a circle's rational quadratic B-spline (IGES's
+    unit_arc) at s = f(angle) is (cos, sin)(angle), for the IGES map and for the same map made on the
+    knots as the OpenCASCADE import does (extended, not clipped, past its ends; periodic:
+    f(x + 2 pi) = f(x) + 2 pi); inverse undoes it."""
+    from bsrt.geometry.trim import TrimCurve
+    from bsrt.io.iges.bspline import evaluate as curve_eval
+    from bsrt.io.iges.bspline import unit_arc
+
+    knots, pts, w, iges_map = unit_arc(0.0, 2 * math.pi)
+    circle = TrimCurve(2, knots, pts, w)
+    on_knots = ParamMap.on_knots("tan", iges_map.x, 2 * math.pi)
+    angle = np.linspace(0.0, 2 * math.pi, 101)
+    for f in (iges_map, on_knots):
+        p = curve_eval(circle, f(angle))
+        assert np.abs(p - np.stack([np.cos(angle), np.sin(angle)], 1)).max() < 1e-14
+        assert np.abs(f.inverse(f(angle)) - angle).max() < 1e-14
+    assert np.abs(on_knots(angle + 2 * math.pi) - on_knots(angle) - 2 * math.pi).max() < 1e-13
+    ahead = ParamMap.on_knots("tan", iges_map.x)  # not periodic: extended past 2 pi by the arc's formula
+    assert ahead(np.array([2 * math.pi + 0.1]))[0] > 2 * math.pi + 0.1 > iges_map(np.array([2 * math.pi + 0.1]))[0]

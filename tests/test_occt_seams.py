@@ -1006,12 +1006,14 @@ def test_chains_once_round_are_closed_into_the_band_between_them(flip):
     from bsrt.geometry.bspline import make_surface
     from bsrt.geometry.trim import TrimLoop, kept
     from bsrt.io.occt.curves import segment
-    from bsrt.io.occt.param_map import AxisMap, ParamMap
     from bsrt.io.occt.topology import _close, _closed_around
+    from bsrt.io.param_map import FaceMap, ParamMap
 
     period = 2 * math.pi
-    identity = AxisMap("identity", np.array([0.0, period]))
-    pmap = ParamMap(identity, AxisMap("identity", np.array([-1.0, 2.0])), (0.0, period, -1.0, 2.0), period, 0.0)
+    identity = ParamMap.on_knots("identity", np.array([0.0, period]))
+    pmap = FaceMap(
+        identity, ParamMap.on_knots("identity", np.array([-1.0, 2.0])), (0.0, period, -1.0, 2.0), period, 0.0
+    )
     low = [segment((0.3, 0.0), (period + 0.3, 0.0))]  # starts off the seam, runs +u
     high = [segment((period - 0.7, 1.0), (-0.7, 1.0))]  # runs -u
     if flip:

@@ -22,37 +22,27 @@ def basis_functions(knots: np.ndarray, p: int, span: np.ndarray, u: np.ndarray):
     """The p + 1 non-zero basis functions at u and their first derivatives.
 
     span, u: (N,). Returns (values, derivatives), each (N, p + 1); column k is
-    N_{span - p + k, p}(u). Cox-de Boor's triangular scheme, vectorised over N.
+    N_{span - p + k, p}(u). Cox-de Boor's triangular scheme, vectorised over N
+    (zero where a denominator is: an empty span, not in a valid knot vector).
     """
     u = np.asarray(u, dtype=np.float64)
-    n_pts = u.shape[0]
-    left = np.empty((n_pts, p + 1))
-    right = np.empty((n_pts, p + 1))
-    vals = np.zeros((n_pts, p + 1))
-    vals[:, 0] = 1.0
-    prev = vals[:, :1].copy()
-    for j in range(1, p + 1):
-        left[:, j] = u - knots[span + 1 - j]
-        right[:, j] = knots[span + j] - u
-        saved = np.zeros(n_pts)
-        for r in range(j):
-            denom = right[:, r + 1] + left[:, j - r]
-            temp = np.divide(vals[:, r], denom, out=np.zeros(n_pts), where=denom != 0)
-            vals[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        vals[:, j] = saved
-        if j == p - 1:
-            prev = vals[:, :p].copy()
-    # dN_{i,p} = p (N_{i,p-1} / (k[i+p] - k[i]) - N_{i+1,p-1} / (k[i+p+1] - k[i+1]))
-    ders = np.zeros((n_pts, p + 1))
-    for k in range(p + 1):
-        i = span - p + k
-        if k >= 1:
-            d = knots[i + p] - knots[i]
-            ders[:, k] += np.divide(prev[:, k - 1], d, out=np.zeros(n_pts), where=d != 0)
-        if k <= p - 1:
-            d = knots[i + p + 1] - knots[i + 1]
-            ders[:, k] -= np.divide(prev[:, k], d, out=np.zeros(n_pts), where=d != 0)
+    vals = np.empty((u.shape[0], p + 1))
+    for guard in (False, True):  # unguarded first: a zero denominator shows as a non-finite value
+        vals[:, 0] = 1.0
+        if p > 1:
+            _triangle(knots, p - 1, span, u, vals[:, :p], guard)
+        prev = vals[:, :p].copy()  # the degree p - 1 functions, for the derivatives
+        _triangle(knots, p, span, u, vals, guard, first=p)
+        if guard or np.isfinite(vals).all():
+            break
+    # dN_{i,p} = p (N_{i,p-1} / (k[i+p] - k[i]) - N_{i+1,p-1} / (k[i+p+1] - k[i+1])), all k at once:
+    # q[:, m] = N_{span-p+m+1,p-1} / (k[span+m+1] - k[span-p+m+1]) (0 where the knots coincide)
+    steps = np.arange(1, p + 1)
+    d = knots[span[:, None] + steps] - knots[span[:, None] - p + steps]
+    q = np.divide(prev, d, out=np.zeros_like(prev), where=d != 0)
+    ders = np.zeros((u.shape[0], p + 1))
+    ders[:, 1:] += q
+    ders[:, :p] -= q
     return vals, p * ders
 
 
@@ -97,13 +87,13 @@ def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
     return span, vals
 
 
-def _triangle(knots, p, span, x, vals, guard: bool) -> np.ndarray:
-    left = [None] * (p + 1)
-    right = [None] * (p + 1)
+def _triangle(knots, p, span, x, vals, guard: bool, first: int = 1) -> np.ndarray:
+    """Levels first..p of Cox-de Boor's triangle, in place on vals (N, p + 1) holding level first - 1
+    (level 0: the column 1.0). guard: zero, not a non-finite value, where a denominator is zero."""
+    left = [None] + [x - knots[span + 1 - j] for j in range(1, p + 1)]
+    right = [None] + [knots[span + j] - x for j in range(1, p + 1)]
     with np.errstate(divide="ignore", invalid="ignore"):
-        for j in range(1, p + 1):
-            left[j] = x - knots[span + 1 - j]
-            right[j] = knots[span + j] - x
+        for j in range(first, p + 1):
             saved = 0.0
             for r in range(j):
                 denom = right[r + 1] + left[j - r]

@@ -87,42 +87,57 @@ DOMAIN_TOLERANCE = 1e-5  # how far a curve may stray outside the domain, as a fr
 
 @dataclass(frozen=True, eq=False)
 class TrimCurve:
-    """One 2-D B-spline curve of a trim loop.
+    """A (rational) B-spline curve: a curve of a trim loop, and the one curve type of the readers.
 
     degree: p >= 1. knots: (n + p + 1,) float64, non-decreasing.
-    points: (n, 2) float64, (u, v) in the surface's knot domain.
+    points: (n, d) float64: in a trim loop d = 2, (u, v) in the surface's knot
+      domain; a reader's model-space curve has d = 3.
     weights: (n,) float64, all > 0, or None (non-rational).
+    pmap: how the file's own parameter of the curve maps onto this one's (a
+      reader's :class:`bsrt.io.param_map.ParamMap`: an IGES arc's angle), or
+      None where they are equal (every curve of a trim loop).
     """
 
     degree: int
     knots: np.ndarray
     points: np.ndarray
     weights: np.ndarray | None = None
+    pmap: object | None = None
+
+    @property
+    def n(self) -> int:
+        """The number of control points."""
+        return self.points.shape[0]
+
+    @property
+    def dim(self) -> int:
+        """d, the number of coordinates of a point."""
+        return self.points.shape[1]
 
     @property
     def domain(self) -> tuple[float, float]:
         return float(self.knots[self.degree]), float(self.knots[self.points.shape[0]])
 
     def homogeneous(self) -> np.ndarray:
-        """(n, 3) float64: (w u, w v, w)."""
+        """(n, d + 1) float64: (w x, ..., w)."""
         w = np.ones(self.points.shape[0]) if self.weights is None else self.weights
         return np.concatenate([self.points * w[:, None], w[:, None]], axis=1)
 
     def evaluate(self, s) -> np.ndarray:
-        """(N, 2) points at curve parameters s (N,) (reference Cox-de Boor)."""
+        """(N, d) points at curve parameters s (N,) (reference Cox-de Boor)."""
         s = np.atleast_1d(np.asarray(s, dtype=np.float64))
         p, n = self.degree, self.points.shape[0]
         span = find_span(self.knots, p, n, s)
         basis, _ = basis_functions(self.knots, p, span, s)
-        ctrl = self.homogeneous()[(span - p)[:, None] + np.arange(p + 1)[None, :]]  # (N, p+1, 3)
+        ctrl = self.homogeneous()[(span - p)[:, None] + np.arange(p + 1)[None, :]]  # (N, p+1, d + 1)
         h = np.einsum("na,nak->nk", basis, ctrl)
-        return h[:, :2] / h[:, 2:3]
+        return h[:, :-1] / h[:, -1:]
 
     def ends(self) -> np.ndarray:
-        """(2, 2): the curve's first and last point."""
+        """(2, d): the curve's first and last point."""
         p, k = self.degree, self.knots
-        if k[0] == k[p] and k[-1] == k[-1 - p]:  # clamped: the end control points
-            return self.points[[0, -1]].copy()
+        if k[0] == k[p] and k[-1] == k[-1 - p]:  # clamped: the end control points (n >= 2: a slice)
+            return self.points[:: self.points.shape[0] - 1].copy()
         return self.evaluate(np.array(self.domain))
 
 
@@ -155,8 +170,8 @@ def make_trim_curve(degree, knots, points, weights=None) -> TrimCurve:
         raise InputError("knots: expected finite, non-decreasing numbers")
     if not k[p] < k[n]:
         raise InputError(f"knots: the curve's domain [{k[p]:g}, {k[n]:g}] is empty")
-    inner = k[(k > k[p]) & (k < k[n])]
-    if inner.size and np.unique(inner, return_counts=True)[1].max() > p:
+    inner = k[(k > k[p]) & (k < k[n])]  # sorted: a value repeated more than p times equals the one p further on
+    if inner.size > p and np.any(inner[p:] == inner[:-p]):
         raise InputError(f"knots: an interior knot is repeated more than the degree {p}")
     w = None
     if weights is not None:
@@ -266,7 +281,9 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
     Exact, in NumPy: the curve's rational Bezier spans are halved (de
     Casteljau, all at once) until each control polygon lies inside the box
     (then the span does: convex hull, positive weights) or has a point of the
-    curve itself (an end) outside it; spans still undecided after 30
+    curve itself (an end) outside it; a quadratic span (a conic: a circle
+    touching the box, which halving would only approach) is decided by its
+    own extremes (:func:`_quadratic_inside`); spans still undecided after 30
     halvings (within 1e-9 of their length of the box's edge) count as inside.
     """
     u0, u1, v0, v1 = box
@@ -285,6 +302,8 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
             span, end = np.argwhere(ends)[0]
             return xy[span, 0 if end == 0 else -1].copy()
         keep = out.any(axis=1)
+        if p == 2:  # a conic span: the curve itself may be shown inside at once (a circle touching the box)
+            keep &= ~_quadratic_inside(nets, u0, u1, v0, v1)
         if not keep.all():
             nets = nets[keep]
         if nets.shape[0] == 0:
@@ -297,6 +316,19 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
             halves[0, :, r], halves[1, :, p - r] = level[:, 0], level[:, -1]
         nets = halves.reshape(-1, p + 1, 3)
     return None
+
+
+def _quadratic_inside(nets: np.ndarray, u0: float, u1: float, v0: float, v1: float) -> np.ndarray:
+    """(S,) bool: the rational quadratic spans (S, 3, 3) (homogeneous nets) whose ends lie in the box
+    that lie wholly in it. Against each edge line x = c the curve's side is the sign of the quadratic
+    q(t) = sum a_i B_i(t), a_i = w_i (x_i - c) (positive weights); with a_0, a_2 <= 0 (the ends inside)
+    its largest value on [0, 1] is <= 0 exactly when a_1 <= 0 or a_1^2 <= a_0 a_2."""
+    inside = np.ones(nets.shape[0], dtype=bool)
+    w = nets[:, :, 2]
+    for axis, c, sign in ((0, u0, -1.0), (0, u1, 1.0), (1, v0, -1.0), (1, v1, 1.0)):
+        a = sign * (nets[:, :, axis] - c * w)  # (S, 3): <= 0 at a point inside, on this edge's side
+        inside &= (a[:, 1] <= 0) | (a[:, 1] * a[:, 1] <= a[:, 0] * a[:, 2])
+    return inside
 
 
 # ---------------------------------------------------------------------------

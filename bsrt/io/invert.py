@@ -1,14 +1,16 @@
 """The closest point of a B-spline surface to given points: (x, y) with S(x, y) nearest each point.
 
-One inverter for every reader that needs one (the OpenCASCADE import's
-tabulated parameter maps, the IGES reader's curves on surfaces).
+One inverter for every reader that needs one: :func:`invert` (from given
+starts: the OpenCASCADE import's tabulated parameter maps) and
+:class:`SurfaceInverse` (from a hint or the nearest point of a grid: the IGES
+reader's model-space curves on surfaces).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, evaluate
+from bsrt.geometry.bspline import BSplineSurface, basis_functions, evaluate, find_span
 
 _DAMP = 1e-14  # the smallest damping (relative to the normal matrix's diagonal): Gauss-Newton
 
@@ -89,3 +91,161 @@ def invert(surface: BSplineSurface, points: np.ndarray, x, y, size: float, itera
         mu[idx] = np.maximum(mu[idx] * 0.1, _DAMP)
         active[idx[done]] = False
     return x, y
+
+
+def _grid_points(s: BSplineSurface, gu, gv) -> np.ndarray:
+    """(len(gu), len(gv), 3) float64: S at the grid gu x gv, as a tensor product (one
+    basis matrix per direction)."""
+    mats = []
+    for g, knots, p, n in ((gu, s.knots_u, s.degree[0], s.shape[0]), (gv, s.knots_v, s.degree[1], s.shape[1])):
+        span = find_span(knots, p, n, g)
+        vals, _ = basis_functions(knots, p, span, g)
+        m = np.zeros((len(g), n))
+        np.add.at(m, (np.arange(len(g))[:, None], span[:, None] - p + np.arange(p + 1)[None, :]), vals)
+        mats.append(m)
+    h = np.einsum("ia,abk->ibk", mats[0], s.homogeneous())
+    h = np.einsum("jb,ibk->ijk", mats[1], h)
+    return h[..., :3] / h[..., 3:]
+
+
+class SurfaceInverse:
+    """Closest-point inversion onto a B-spline surface: points (N, 3) -> (u, v) (N, 2),
+    by :func:`invert` from a hint, or from the nearest point of a grid over the surface
+    (3 points per knot span, at most 256 per direction, less its collapsed rows and
+    columns) where there is no hint or the hint leads to a far-off local minimum."""
+
+    def __init__(self, s: BSplineSurface):
+        self.s = s
+        (u0, u1), (v0, v1) = s.domain_u, s.domain_v
+        self.lo, self.hi = np.array([u0, v0]), np.array([u1, v1])
+        ku = np.unique(np.clip(s.knots_u, u0, u1))
+        kv = np.unique(np.clip(s.knots_v, v0, v1))
+        gu = np.unique(np.concatenate([np.linspace(a, b, 4) for a, b in zip(ku[:-1], ku[1:])]))
+        gv = np.unique(np.concatenate([np.linspace(a, b, 4) for a, b in zip(kv[:-1], kv[1:])]))
+        gu, gv = gu[:: max(1, -(-len(gu) // 256))], gv[:: max(1, -(-len(gv) // 256))]
+        grid = _grid_points(s, gu, gv)
+        self.size = float(np.linalg.norm(np.ptp(s.points.reshape(-1, 3), axis=0)))
+        # rows and columns collapsed to a point (a pole, an apex) are left out: a start there
+        # could not move along the collapsed parameter
+        keep_u = np.ptp(grid, axis=1).max(axis=1) > 1e-12 * self.size
+        keep_v = np.ptp(grid, axis=0).max(axis=1) > 1e-12 * self.size
+        if keep_u.any() and keep_v.any():
+            grid, gu, gv = grid[keep_u][:, keep_v], gu[keep_u], gv[keep_v]
+        uu, vv = np.meshgrid(gu, gv, indexing="ij")
+        self.grid_uv = np.stack([uu.ravel(), vv.ravel()], 1)
+        self.grid = grid.reshape(-1, 3)
+        # closed directions (the surface's two edges across them coincide): their seam samples
+        # are put on the side their neighbours along a curve are on (``invert_curve``)
+        self.closed = tuple(
+            bool(np.abs(np.take(grid, 0, axis=k) - np.take(grid, -1, axis=k)).max() <= 1e-9 * self.size)
+            for k in range(2)
+        )
+        self.grid_t = np.ascontiguousarray(self.grid.T)
+        self.grid_sq = 0.5 * np.einsum("gk,gk->g", self.grid, self.grid)
+
+    def _nearest(self, pts):
+        out = np.empty((len(pts), 2))
+        step = max(1, 1_000_000 // len(self.grid))
+        for a in range(0, len(pts), step):
+            # p.g - |g|^2 / 2: the nearest has the most (einsum: no threaded BLAS, which a busy
+            # machine slows down many times over for this thin product)
+            d = np.einsum("nk,kg->ng", pts[a : a + step], self.grid_t)
+            d -= self.grid_sq
+            out[a : a + step] = self.grid_uv[np.argmax(d, axis=1)]
+        return out
+
+    def _newton(self, pts, uv):
+        """(uv (N, 2), S (N, 3), S_u, S_v there, distances (N,)) from starts uv."""
+        u, v = invert(self.s, pts, uv[:, 0], uv[:, 1], self.size)
+        s, su, sv = evaluate(self.s, u, v)
+        return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)
+
+    @property
+    def seams(self):
+        """((u0, u1, closed in u), (v0, v1, closed in v)) for ``invert_curve``."""
+        return tuple((self.lo[k], self.hi[k], self.closed[k]) for k in range(2))
+
+    def __call__(self, pts, hint=None):
+        """(u, v) of the points' closest points, from ``hint`` or the nearest grid point;
+        NaN in a parameter along which the surface does not move there (a collapsed edge)."""
+        pts = np.asarray(pts, float)
+        uv, su, sv, dist = self._newton(pts, self._nearest(pts) if hint is None else np.clip(hint, self.lo, self.hi))
+        if hint is not None and len(pts):  # far further than the rest: a wrong local minimum?
+            far = np.flatnonzero(dist > 10 * np.median(dist) + 1e-9 * self.size)
+            if far.size:
+                again, su2, sv2, d2 = self._newton(pts[far], self._nearest(pts[far]))
+                better = d2 < dist[far]
+                uv[far[better]], su[far[better]], sv[far[better]] = again[better], su2[better], sv2[better]
+        for k, d in enumerate((su, sv)):
+            still = np.linalg.norm(d, axis=1) * (self.hi[k] - self.lo[k]) <= 1e-9 * self.size
+            uv[still, k] = np.nan
+        return uv
+
+
+class RevolutionInverse:
+    """Closest points on a surface of revolution whose generatrix is a segment in a half-plane
+    bounded by the axis (a cylinder, a cone, a flat ring), in closed form: points (N, 3) ->
+    the B-spline's (x, y) (N, 2), x along the segment, y = ``to_y(angle)``.
+
+    The closest point lies in the point's own meridian half-plane (at its angle about the
+    axis, taken nearest the hint's and clamped to the turn's range) at the point of the
+    segment nearest it there. NaN in y where that point is on the axis (an apex: any angle).
+    ``seams`` as :class:`SurfaceInverse`'s. Returns None from :meth:`of` for other generatrices.
+    """
+
+    def __init__(self, ends, x_range, origin, axis, angles, to_y, to_angle):
+        self.o, self.a = np.asarray(origin, float), np.asarray(axis, float)
+        g = np.asarray(ends, float) - self.o  # (2, 3)
+        self.z = g @ self.a  # (2,) heights along the axis
+        radial = g - self.z[:, None] * self.a
+        self.rho = np.linalg.norm(radial, axis=1)  # (2,) distances from the axis
+        self.e1 = radial[int(np.argmax(self.rho))] / self.rho.max()  # angle 0: the generatrix's half-plane
+        self.e2 = np.cross(self.a, self.e1)
+        self.x_range, self.angles, self.to_y, self.to_angle = x_range, angles, to_y, to_angle
+        self.size = float(np.linalg.norm(np.ptp(np.asarray(ends, float), axis=0))) + float(self.rho.max())
+        self.closed = (False, angles[1] - angles[0] >= 2 * np.pi * (1 - 1e-12))
+
+    @classmethod
+    def of(cls, degree, knots, points, weights, origin, axis, angles, to_y, to_angle):
+        """The inverse for a generatrix (degree, knots, points (n, 3), weights), or None unless it is
+        one segment (degree 1, two points, even weights) in a half-plane bounded by the axis."""
+        points = np.asarray(points, float)
+        if degree != 1 or points.shape[0] != 2 or (weights is not None and np.ptp(weights) != 0):
+            return None
+        inv = cls(points, (float(knots[1]), float(knots[2])), origin, axis, angles, to_y, to_angle)
+        g = points - inv.o
+        radial = g - inv.z[:, None] * inv.a
+        off_plane = np.abs(radial @ inv.e2).max()
+        if not inv.rho.max() > 0 or off_plane > 1e-12 * inv.size or (radial @ inv.e1).min() < -1e-12 * inv.size:
+            return None
+        return inv
+
+    @property
+    def seams(self):
+        """((x0, x1, False), (y0, y1, closed in y)) for ``invert_curve``."""
+        y0, y1 = (float(v) for v in self.to_y(np.array(self.angles)))
+        return ((*self.x_range, False), (y0, y1, self.closed[1]))
+
+    def __call__(self, pts, hint=None):
+        p = np.asarray(pts, float) - self.o
+        z = p @ self.a
+        d = p - z[:, None] * self.a
+        angle = np.arctan2(d @ self.e2, d @ self.e1)
+        a0, a1 = self.angles
+        if hint is not None:  # the turn nearest the hint's angle
+            near = self.to_angle(np.asarray(hint, float)[:, 1])
+            angle = angle + 2 * np.pi * np.round((near - angle) / (2 * np.pi))
+        else:
+            angle = a0 + np.mod(angle - a0, 2 * np.pi)
+            past = angle > a1  # outside a partial turn: the nearer end
+            angle[past] = np.where(angle[past] - a1 <= a0 + 2 * np.pi - angle[past], a1, a0)
+        angle = np.clip(angle, a0, a1)
+        rho = np.hypot(*np.stack([d @ self.e1, d @ self.e2]))
+        (r0, r1), (z0, z1) = self.rho, self.z
+        dr, dz = r1 - r0, z1 - z0
+        f = np.clip(((rho - r0) * dr + (z - z0) * dz) / (dr * dr + dz * dz), 0.0, 1.0)
+        x0, x1 = self.x_range
+        uv = np.stack([x0 + f * (x1 - x0), self.to_y(angle)], axis=1)
+        on_axis = (r0 + f * dr) * (a1 - a0) <= 1e-9 * self.size
+        uv[on_axis, 1] = np.nan
+        return uv

@@ -3,7 +3,7 @@
 Pure geometry, no file format: planes, surfaces of revolution (cylinder,
 cone, sphere, torus and the general one), extrusions, ruled surfaces and
 piecewise bicubic patches. Each constructor returns the surface and, per
-parameter direction, a :class:`~bsrt.io.iges.bspline.ParamMap` from the
+parameter direction, a :class:`~bsrt.io.param_map.ParamMap` from the
 analytic parameter (an angle, a height, a curve's own parameter) to the
 B-spline's. The maps are affine except along circles, where the B-spline
 parameter equals the angle at every knot (every <= 90 degrees) and follows
@@ -22,16 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.geometry.bspline import BSplineSurface, make_surface
-from bsrt.io.iges.bspline import (
-    Curve,
-    ParamMap,
-    clamp,
-    common_breaks,
-    elevate,
-    product_segments,
-    reparametrised,
-    unit_arc,
-)
+from bsrt.geometry.trim import TrimCurve
+from bsrt.io.iges.bspline import clamp, common_breaks, elevate, param_map, product_segments, reparametrised, unit_arc
+from bsrt.io.param_map import ParamMap
 
 
 def _surface(pu: int, pv: int, ku, kv, h: np.ndarray) -> BSplineSurface:
@@ -49,12 +42,12 @@ def plane(origin, eu, ev, box) -> tuple[BSplineSurface, ParamMap, ParamMap]:
     return s, ParamMap.identity(u0, u1), ParamMap.identity(v0, v1)
 
 
-def revolve(gen: Curve, origin, axis, a0: float, a1: float, angle_first: bool):
+def revolve(gen: TrimCurve, origin, axis, a0: float, a1: float, angle_first: bool):
     """The curve ``gen`` (3-D) turned about the axis (origin, unit axis) from angle a0 to a1.
 
     angle_first: the surface's u is the angle and v the curve's parameter (else
     the other way round). Returns (surface, map_u, map_v); the angle's map takes
-    radians, the curve's is ``gen.param_map()``.
+    radians, the curve's is ``param_map(gen)``.
     """
     gen = clamp(gen)
     o, a = np.asarray(origin, float), np.asarray(axis, float)
@@ -67,7 +60,7 @@ def revolve(gen: Curve, origin, axis, a0: float, a1: float, angle_first: bool):
     gw = np.ones(gen.n) if gen.weights is None else gen.weights
     w = vw[:, None] * gw[None, :]
     h = np.concatenate([pts * w[..., None], w[..., None]], axis=-1)
-    gmap = gen.param_map()
+    gmap = param_map(gen)
     if angle_first:
         return _surface(2, gen.degree, knots, gen.knots, h), amap, gmap
     return _surface(gen.degree, 2, gen.knots, knots, h.transpose(1, 0, 2)), gmap, amap
@@ -90,14 +83,14 @@ def frame(axis, refdir=None):
     return x, np.cross(z, x), z
 
 
-def _line(p0, p1, t0, t1) -> Curve:
-    return Curve(1, np.array([t0, t0, t1, t1], float), np.array([p0, p1], float))
+def _line(p0, p1, t0, t1) -> TrimCurve:
+    return TrimCurve(1, np.array([t0, t0, t1, t1], float), np.array([p0, p1], float))
 
 
-def _arc(centre, e1, e2, r, a0, a1) -> Curve:
+def _arc(centre, e1, e2, r, a0, a1) -> TrimCurve:
     knots, cs, w, pmap = unit_arc(a0, a1)
     pts = np.asarray(centre, float) + r * (cs[:, :1] * e1 + cs[:, 1:] * e2)
-    return Curve(2, knots, pts, w, pmap)
+    return TrimCurve(2, knots, pts, w, pmap)
 
 
 def cylinder(centre, x, y, z, radius, box):
@@ -130,7 +123,7 @@ def torus(centre, x, y, z, major, minor, box):
     return revolve(_arc(c + major * x, x, z, minor, u0, u1), c, z, v0, v1, angle_first=False)
 
 
-def extrusion(directrix: Curve, vector, dmap: ParamMap):
+def extrusion(directrix: TrimCurve, vector, dmap: ParamMap):
     """S(u, v) = C(u) + v D for v in [0, 1]: u is the curve's parameter, mapped by ``dmap``."""
     c = clamp(directrix)
     h = c.homogeneous()
@@ -142,7 +135,7 @@ def extrusion(directrix: Curve, vector, dmap: ParamMap):
     return s, dmap, ParamMap.identity(0.0, 1.0)
 
 
-def ruled(c1: Curve, c2: Curve):
+def ruled(c1: TrimCurve, c2: TrimCurve):
     """S(u, v) = (1 - v) C1(u) + v C2(u), both curves taken on u in [0, 1] (their
     parameters scaled), v in [0, 1]. Rational curves are brought onto a common
     denominator (W1 W2) so that the rulings are straight and v is linear: exact."""
@@ -164,12 +157,12 @@ def ruled(c1: Curve, c2: Curve):
     return s, ParamMap.identity(0.0, 1.0), ParamMap.identity(0.0, 1.0)
 
 
-def _from_segments(breaks, segs) -> Curve:
+def _from_segments(breaks, segs) -> TrimCurve:
     q = segs.shape[1] - 1
     ctrl = np.concatenate([segs[0]] + [s[1:] for s in segs[1:]])
     knots = np.concatenate([[breaks[0]] * (q + 1)] + [[x] * q for x in breaks[1:-1]] + [[breaks[-1]] * (q + 1)])
     w = ctrl[:, -1]
-    return Curve(q, knots, ctrl[:, :-1] / w[:, None], w)
+    return TrimCurve(q, knots, ctrl[:, :-1] / w[:, None], w)
 
 
 def bicubic(tu, tv, coef) -> BSplineSurface:

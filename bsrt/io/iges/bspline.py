@@ -1,193 +1,48 @@
 """Rational B-spline curves for the IGES reader: a small exact algebra.
 
-A :class:`Curve` is a (rational) B-spline curve in 2-D or 3-D. The IGES
+A :class:`TrimCurve` is a (rational) B-spline curve in 2-D or 3-D. The IGES
 reader turns every curve entity into one (``iges_curves.py``) and builds
 surfaces and trim loops from them. Everything here is exact up to rounding:
 knot insertion, reversal, restriction to a sub-range, degree elevation,
 joining curves end to end, products of B-spline functions, affine maps, and
 conics as rational quadratics.
 
-A :class:`ParamMap` records how an IGES entity's own parameter (an arc's
-angle, say) maps onto the B-spline's parameter. For polynomial entities the
-map is affine; for circles and ellipses it is the closed form of the
-rational quadratic arc: on a piece of angle span ``d`` around ``m`` with the
-usual weights (1, cos(d/2), 1), the angle at the local parameter t in [0, 1] is
-``m + 2 atan(tan(d/4) (2t - 1))``, and for a hyperbola ``m + 2 atanh(tanh(d/4)
-(2t - 1))`` in its hyperbolic parameter. The maps are monotone and invertible
-in closed form, which is what lets trim curves given in an analytic
-surface's (angle, height) parameters be placed on its NURBS exactly.
+Each curve may carry a :class:`bsrt.io.param_map.ParamMap` (the one type both
+CAD readers use): how the IGES entity's own parameter (an arc's angle, say)
+maps onto the B-spline's parameter, affine for polynomial entities and the
+closed form of the rational quadratic arc for conics. The maps are monotone
+and invertible in closed form, which is what lets trim curves given in an
+analytic surface's (angle, height) parameters be placed on its NURBS exactly.
 """
 
 from __future__ import annotations
 
-import bisect
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
 from bsrt.geometry.basis import basis_values
 from bsrt.geometry.bspline import basis_functions, find_span, insert_knot
-
-_KINDS = ("linear", "tan", "tanh")
-
-
-@dataclass(frozen=True, eq=False)
-class ParamMap:
-    """A monotone, piecewise map x (an IGES parameter) -> s (a B-spline parameter).
-
-    x, s: (k + 1,) float64, increasing breakpoints; piece i maps [x[i], x[i+1]]
-    onto [s[i], s[i+1]]. kinds: k strings, "linear", "tan" (a circular arc of
-    angle span x[i+1] - x[i]) or "tanh" (a hyperbolic arc). Outside [x[0], x[-1]]
-    the end pieces are extended (linear ones exactly; angular ones are clipped).
-    """
-
-    x: np.ndarray
-    s: np.ndarray
-    kinds: tuple[str, ...]
-
-    @staticmethod
-    def identity(a: float, b: float) -> ParamMap:
-        return ParamMap(np.array([a, b], float), np.array([a, b], float), ("linear",))
-
-    def _piece(self, x):
-        return np.clip(np.searchsorted(self.x, x, side="right") - 1, 0, len(self.kinds) - 1)
-
-    def __call__(self, x) -> np.ndarray:
-        """s at x: (N,) -> (N,)."""
-        x = np.atleast_1d(np.asarray(x, float))
-        out = np.empty_like(x)
-        piece = self._piece(x)
-        for i in np.unique(piece):
-            sel = piece == i
-            out[sel] = self._local(i, x[sel])
-        return out
-
-    def _local(self, i, x):
-        x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
-        kind = self.kinds[i]
-        if kind == "linear":
-            return s0 + (x - x0) * ((s1 - s0) / (x1 - x0))
-        d, m = x1 - x0, 0.5 * (x0 + x1)
-        y = np.clip(x - m, -0.5 * d, 0.5 * d) / 2
-        if kind == "tan":
-            t = 0.5 * (1.0 + np.tan(y) / math.tan(d / 4))
-        else:
-            t = 0.5 * (1.0 + np.tanh(y) / math.tanh(d / 4))
-        return s0 + t * (s1 - s0)
-
-    def inverse(self, s) -> np.ndarray:
-        """x at s (the inverse map): (N,) -> (N,)."""
-        s = np.atleast_1d(np.asarray(s, float))
-        piece = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.kinds) - 1)
-        out = np.empty_like(s)
-        for i in np.unique(piece):
-            sel = piece == i
-            x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
-            t = (s[sel] - s0) / (s1 - s0)
-            d, m = x1 - x0, 0.5 * (x0 + x1)
-            if self.kinds[i] == "linear":
-                out[sel] = x0 + t * (x1 - x0)
-            elif self.kinds[i] == "tan":
-                out[sel] = m + 2 * np.arctan(math.tan(d / 4) * (2 * np.clip(t, 0, 1) - 1))
-            else:
-                out[sel] = m + 2 * np.arctanh(math.tanh(d / 4) * (2 * np.clip(t, 0, 1) - 1))
-        return out
-
-    def derivative(self, x) -> np.ndarray:
-        """ds/dx at x: (N,) -> (N,)."""
-        x = np.atleast_1d(np.asarray(x, float))
-        out = np.empty_like(x)
-        piece = self._piece(x)
-        for i in np.unique(piece):
-            sel = piece == i
-            x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
-            d, m, kind = x1 - x0, 0.5 * (x0 + x1), self.kinds[i]
-            if kind == "linear":
-                out[sel] = (s1 - s0) / (x1 - x0)
-            elif kind == "tan":
-                c = np.cos(np.clip(x[sel] - m, -0.5 * d, 0.5 * d) / 2)
-                out[sel] = (s1 - s0) / (4 * math.tan(d / 4) * c * c)
-            else:
-                c = np.cosh(np.clip(x[sel] - m, -0.5 * d, 0.5 * d) / 2)
-                out[sel] = (s1 - s0) / (4 * math.tanh(d / 4) * c * c)
-        return out
-
-    def affine_on(self, lo: float, hi: float, tol: float = 0.0):
-        """(scale, offset) with s = scale x + offset on [lo, hi] if the map is affine there, else None."""
-        last = len(self.kinds) - 1
-        if last == 0:
-            i = j = 0
-        else:
-            xs = self.x.tolist()
-            i = min(max(bisect.bisect_right(xs, lo + tol) - 1, 0), last)
-            j = min(max(bisect.bisect_right(xs, hi - tol) - 1, 0), last)
-        if i != j or self.kinds[i] != "linear":
-            return None
-        scale = (self.s[i + 1] - self.s[i]) / (self.x[i + 1] - self.x[i])
-        return scale, self.s[i] - scale * self.x[i]
-
-    def shifted(self, dx: float, ds: float) -> ParamMap:
-        return ParamMap(self.x + dx, self.s + ds, self.kinds)
-
-    def scaled_x(self, a: float, b: float) -> ParamMap:
-        """The map of x' where x = a x' + b (a > 0)."""
-        return ParamMap((self.x - b) / a, self.s, self.kinds)
+from bsrt.geometry.trim import TrimCurve
+from bsrt.io.param_map import ParamMap, concat_maps
 
 
-def concat_maps(maps: list[ParamMap]) -> ParamMap:
-    """Maps of consecutive x and s ranges (each starting where the previous ends) as one."""
-    x = [maps[0].x[:1]] + [m.x[1:] for m in maps]
-    s = [maps[0].s[:1]] + [m.s[1:] for m in maps]
-    return ParamMap(np.concatenate(x), np.concatenate(s), sum((m.kinds for m in maps), ()))
+def param_map(c: TrimCurve) -> ParamMap:
+    """The map from the IGES entity's parameter to the curve's (the identity where it has none)."""
+    return c.pmap if c.pmap is not None else ParamMap.identity(*c.domain)
 
 
-@dataclass(frozen=True, eq=False)
-class Curve:
-    """A (rational) B-spline curve.
-
-    degree: p >= 1. knots: (n + p + 1,) float64. points: (n, d) float64, d = 2 or 3.
-    weights: (n,) float64 > 0, or None. pmap: the IGES entity's parameter -> this
-    curve's parameter (None: they are equal).
-    """
-
-    degree: int
-    knots: np.ndarray
-    points: np.ndarray
-    weights: np.ndarray | None = None
-    pmap: ParamMap | None = None
-
-    @property
-    def n(self) -> int:
-        return self.points.shape[0]
-
-    @property
-    def dim(self) -> int:
-        return self.points.shape[1]
-
-    @property
-    def domain(self) -> tuple[float, float]:
-        return float(self.knots[self.degree]), float(self.knots[self.n])
-
-    def homogeneous(self) -> np.ndarray:
-        """(n, d + 1): (w x, ..., w)."""
-        w = np.ones(self.n) if self.weights is None else self.weights
-        return np.concatenate([self.points * w[:, None], w[:, None]], axis=1)
-
-    def param_map(self) -> ParamMap:
-        return self.pmap if self.pmap is not None else ParamMap.identity(*self.domain)
-
-
-def from_homogeneous(degree: int, knots, h: np.ndarray, pmap: ParamMap | None = None) -> Curve:
-    """A Curve from homogeneous control points (n, d + 1); equal weights make it non-rational."""
+def from_homogeneous(degree: int, knots, h: np.ndarray, pmap: ParamMap | None = None) -> TrimCurve:
+    """A TrimCurve from homogeneous control points (n, d + 1); equal weights make it non-rational."""
     h = np.asarray(h, float)
     w = h[:, -1]
     pts = h[:, :-1] / w[:, None]
     weights = None if np.all(w == w[0]) else w / np.max(w)
-    return Curve(int(degree), np.asarray(knots, float), pts, weights, pmap)
+    return TrimCurve(int(degree), np.asarray(knots, float), pts, weights, pmap)
 
 
-def evaluate(c: Curve, t, derivative: bool = False):
+def evaluate(c: TrimCurve, t, derivative: bool = False):
     """Points (N, d) at parameters t (N,); with derivative=True also d/dt (N, d)."""
     t = np.atleast_1d(np.asarray(t, float))
     p = c.degree
@@ -205,15 +60,15 @@ def evaluate(c: Curve, t, derivative: bool = False):
     return pts, (dh[:, :-1] - pts * dh[:, -1:]) / h[:, -1:]
 
 
-def ends(c: Curve) -> np.ndarray:
+def ends(c: TrimCurve) -> np.ndarray:
     """(2, d): the first and last point."""
     p = c.degree
     if c.knots[0] == c.knots[p] and c.knots[-1] == c.knots[-1 - p]:  # clamped: the end control points
-        return c.points[[0, -1]]
+        return c.points[:: c.n - 1].copy()  # (n >= 2: a slice)
     return evaluate(c, np.array(c.domain))
 
 
-def reverse(c: Curve) -> Curve:
+def reverse(c: TrimCurve) -> TrimCurve:
     """The same curve traversed backwards, on the mirrored parameter range."""
     a, b = c.domain
     knots = (a + b) - c.knots[::-1]
@@ -222,7 +77,7 @@ def reverse(c: Curve) -> Curve:
     if c.pmap is not None:  # x -> -x on the IGES side as well
         m = c.pmap
         pmap = ParamMap(-m.x[::-1], (a + b) - m.s[::-1], m.kinds[::-1])
-    return Curve(c.degree, knots, c.points[::-1].copy(), w, pmap)
+    return TrimCurve(c.degree, knots, c.points[::-1].copy(), w, pmap)
 
 
 def _restrict_h(knots: np.ndarray, ctrl: np.ndarray, p: int, a: float, b: float):
@@ -242,20 +97,20 @@ def _restrict_h(knots: np.ndarray, ctrl: np.ndarray, p: int, a: float, b: float)
     return knots, ctrl
 
 
-def restrict(c: Curve, a: float, b: float) -> Curve:
+def restrict(c: TrimCurve, a: float, b: float) -> TrimCurve:
     """The part over [a, b] (clipped to the domain), clamped: its ends are its end control points."""
     knots, ctrl = _restrict_h(c.knots, c.homogeneous(), c.degree, a, b)
     return from_homogeneous(c.degree, knots, ctrl, c.pmap)
 
 
-def clamp(c: Curve) -> Curve:
+def clamp(c: TrimCurve) -> TrimCurve:
     p = c.degree
     if np.all(c.knots[: p + 1] == c.knots[p]) and np.all(c.knots[-(p + 1) :] == c.knots[-1]):
         return c
     return restrict(c, *c.domain)
 
 
-def bezier_segments(c: Curve):
+def bezier_segments(c: TrimCurve):
     """(breaks (k + 1,), segments (k, p + 1, d + 1) homogeneous Bezier control points)."""
     c = clamp(c)
     p, knots, ctrl = c.degree, c.knots, c.homogeneous()
@@ -268,7 +123,7 @@ def bezier_segments(c: Curve):
     return breaks, segs
 
 
-def from_bezier(breaks: np.ndarray, segs: np.ndarray, pmap: ParamMap | None = None) -> Curve:
+def from_bezier(breaks: np.ndarray, segs: np.ndarray, pmap: ParamMap | None = None) -> TrimCurve:
     """Join Bezier segments (k, q + 1, d + 1) over breaks (k + 1,) into one C0 B-spline."""
     k, q1 = segs.shape[:2]
     q = q1 - 1
@@ -287,7 +142,7 @@ def _elevate_bezier(seg: np.ndarray, r: int) -> np.ndarray:
     return out
 
 
-def elevate(c: Curve, degree: int) -> Curve:
+def elevate(c: TrimCurve, degree: int) -> TrimCurve:
     """The same curve as a B-spline of a higher degree (C0 at its former knots)."""
     if degree == c.degree:
         return c
@@ -296,7 +151,7 @@ def elevate(c: Curve, degree: int) -> Curve:
     return from_bezier(breaks, up, c.pmap)
 
 
-def join(curves: list[Curve]) -> Curve:
+def join(curves: list[TrimCurve]) -> TrimCurve:
     """Curves end to end as one curve: each keeps its parameter length, the
     weights are scaled so consecutive pieces share their junction point, whose
     two copies (equal up to the file's gap) are averaged. The parameter map is
@@ -307,7 +162,7 @@ def join(curves: list[Curve]) -> Curve:
     pieces = [elevate(clamp(c), p) for c in curves]
     knots, ctrl, maps = [], [], []
     offset = pieces[0].domain[0]
-    xoffset = curves[0].param_map().x[0]
+    xoffset = param_map(curves[0]).x[0]
     prev_w = None
     for k, c in enumerate(pieces):
         a, b = c.domain
@@ -322,7 +177,7 @@ def join(curves: list[Curve]) -> Curve:
         prev_w = ctrl[-1][-1, -1]
         inner = c.knots[p + 1 : -(p + 1)] - a + offset
         knots.append(([offset] * (p + 1) if k == 0 else [offset] * p) + list(inner))
-        m = curves[k].param_map()
+        m = param_map(curves[k])
         maps.append(m.shifted(xoffset - m.x[0], offset - a))
         xoffset += m.x[-1] - m.x[0]
         offset += b - a
@@ -332,14 +187,14 @@ def join(curves: list[Curve]) -> Curve:
     )
 
 
-def affine(c: Curve, matrix: np.ndarray) -> Curve:
+def affine(c: TrimCurve, matrix: np.ndarray) -> TrimCurve:
     """Points mapped by an affine (d + 1) x (d + 1) matrix (weights unchanged: exact)."""
     d = c.dim
     m = np.asarray(matrix, float)
     return replace(c, points=c.points @ m[:d, :d].T + m[:d, d])
 
 
-def with_points(c: Curve, points: np.ndarray) -> Curve:
+def with_points(c: TrimCurve, points: np.ndarray) -> TrimCurve:
     return replace(c, points=np.asarray(points, float))
 
 
@@ -353,7 +208,7 @@ def product_segments(f: np.ndarray, g: np.ndarray) -> np.ndarray:
     return out
 
 
-def common_breaks(curves: list[Curve]):
+def common_breaks(curves: list[TrimCurve]):
     """Bezier segments of several curves with equal domains, split at all their breakpoints.
 
     Returns (breaks (k + 1,), [segments (k, p_i + 1, d_i + 1)])."""
@@ -370,14 +225,14 @@ def common_breaks(curves: list[Curve]):
     return breaks, out
 
 
-def reparametrised(c: Curve, a: float, b: float) -> Curve:
+def reparametrised(c: TrimCurve, a: float, b: float) -> TrimCurve:
     """The same curve on the parameter range [a, b] (an affine change of parameter)."""
     lo, hi = c.domain
     scale = (b - a) / (hi - lo)
     knots = a + (c.knots - lo) * scale
-    m = c.param_map()
+    m = param_map(c)
     pmap = ParamMap(m.x, a + (m.s - lo) * scale, m.kinds)
-    return Curve(c.degree, knots, c.points, c.weights, pmap)
+    return TrimCurve(c.degree, knots, c.points, c.weights, pmap)
 
 
 # ---------------------------------------------------------------------------
@@ -414,20 +269,20 @@ def unit_arc(a0: float, a1: float, hyperbolic: bool = False):
     return knots, np.array(pts, float), np.array(w, float), pmap
 
 
-def arc_curve(center, e1, e2, r1: float, r2: float, a0: float, a1: float, hyperbolic: bool = False) -> Curve:
+def arc_curve(center, e1, e2, r1: float, r2: float, a0: float, a1: float, hyperbolic: bool = False) -> TrimCurve:
     """center + r1 c(x) e1 + r2 s(x) e2 for x in [a0, a1] (circle, ellipse, hyperbola branch) exactly."""
     knots, uv, w, pmap = unit_arc(a0, a1, hyperbolic)
     center, e1, e2 = (np.asarray(v, float) for v in (center, e1, e2))
     pts = center + (r1 * uv[:, :1]) * e1 + (r2 * uv[:, 1:]) * e2
-    return Curve(2, knots, pts, w, pmap)
+    return TrimCurve(2, knots, pts, w, pmap)
 
 
-def line_curve(p0, p1, t0: float = 0.0, t1: float = 1.0) -> Curve:
+def line_curve(p0, p1, t0: float = 0.0, t1: float = 1.0) -> TrimCurve:
     """The segment p0 -> p1 on the parameter range [t0, t1]."""
-    return Curve(1, np.array([t0, t0, t1, t1], float), np.array([p0, p1], float))
+    return TrimCurve(1, np.array([t0, t0, t1, t1], float), np.array([p0, p1], float))
 
 
-def polyline_curve(points) -> Curve:
+def polyline_curve(points) -> TrimCurve:
     """Degree-1 curve through points (n, d), parameter = point index (consecutive repeats dropped)."""
     pts = np.asarray(points, float)
     keep = np.concatenate([[True], np.any(pts[1:] != pts[:-1], axis=1)])
@@ -436,4 +291,4 @@ def polyline_curve(points) -> Curve:
         pts = np.concatenate([pts, pts])
     n = len(pts)
     knots = np.concatenate([[0.0], np.arange(n, dtype=float), [n - 1.0]])
-    return Curve(1, knots, pts)
+    return TrimCurve(1, knots, pts)

@@ -1,6 +1,6 @@
 """IGES curve entities as exact (rational) B-spline curves.
 
-Each curve becomes an :class:`~bsrt.io.iges.bspline.Curve` in 3-D, mapped by
+Each curve becomes an :class:`~bsrt.io.iges.bspline.TrimCurve` in 3-D, mapped by
 its transformation matrix; a parameter-space curve is the same thing with z
 dropped (its matrix acts in the (u, v) plane). The curve's ``pmap`` maps the
 entity's own IGES parameter onto the B-spline parameter (needed where a
@@ -38,17 +38,8 @@ import math
 
 import numpy as np
 
-from bsrt.io.iges.bspline import (
-    Curve,
-    affine,
-    arc_curve,
-    from_bezier,
-    join,
-    line_curve,
-    polyline_curve,
-    restrict,
-    reverse,
-)
+from bsrt.geometry.trim import TrimCurve
+from bsrt.io.iges.bspline import affine, arc_curve, from_bezier, join, line_curve, polyline_curve, restrict, reverse
 
 CURVE_TYPES = frozenset({100, 102, 104, 106, 110, 112, 126})
 _POLYLINE_FORMS = (1, 2, 3, 11, 12, 13, 63)
@@ -63,7 +54,7 @@ class Unsupported(Exception):
         self.why = why
 
 
-def curve(f, entity) -> Curve:
+def curve(f, entity) -> TrimCurve:
     """The entity as one 3-D curve, mapped by its transformation matrix (memoised)."""
     key = ("curve", entity.de)
     if key not in f.cache:
@@ -79,7 +70,7 @@ def curve(f, entity) -> Curve:
     return f.cache[key]
 
 
-def pieces(f, entity, chain: tuple = ()) -> list[Curve]:
+def pieces(f, entity, chain: tuple = ()) -> list[TrimCurve]:
     """The entity as a list of curves end to end: a composite's members (recursively),
     each mapped by its own matrix and then by the composite's; any other curve alone."""
     if entity.type != 102:
@@ -120,14 +111,14 @@ def mark_used(f, ref, de: int, what: str, chain: tuple = ()) -> None:
             mark_used(f, params, params.pointer("a member pointer"), "member pointer", chain + (entity.de,))
 
 
-def _read(f, entity) -> Curve:
+def _read(f, entity) -> TrimCurve:
     reader = _READERS.get(entity.type)
     if reader is None:
         raise Unsupported(entity, "as a curve")
     return reader(f, entity, f.params(entity))
 
 
-def _arc(f, entity, params) -> Curve:
+def _arc(f, entity, params) -> TrimCurve:
     zt, cx, cy, sx, sy, ex, ey = (params.real(w) for w in ("ZT", "X1", "Y1", "X2", "Y2", "X3", "Y3"))
     r = math.hypot(sx - cx, sy - cy)
     if not r > 0:
@@ -142,7 +133,7 @@ def _arc(f, entity, params) -> Curve:
     return arc_curve([cx, cy, zt], [1, 0, 0], [0, 1, 0], r, r, a0, a1)
 
 
-def _conic(f, entity, params) -> Curve:
+def _conic(f, entity, params) -> TrimCurve:
     a, b, c, d, e, g, zt = (params.real(w) for w in ("A", "B", "C", "D", "E", "F", "ZT"))
     start = np.array([params.real("X1"), params.real("Y1")])
     end = np.array([params.real("X2"), params.real("Y2")])
@@ -177,7 +168,7 @@ def _conic(f, entity, params) -> Curve:
             vertex + kk * s0 * s1 * vx + 0.5 * (s0 + s1) * vy,
             vertex + kk * s1 * s1 * vx + s1 * vy,
         ]
-        return Curve(2, np.array([0, 0, 0, 1, 1, 1], float), np.array([three(p) for p in ctrl]))
+        return TrimCurve(2, np.array([0, 0, 0, 1, 1, 1], float), np.array([three(p) for p in ctrl]))
     centre = np.linalg.solve(q, -0.5 * np.array([d, e]))
     g0 = g + 0.5 * (d * centre[0] + e * centre[1])
     if lam[0] * lam[1] > 0:  # ellipse
@@ -212,7 +203,7 @@ def _conic(f, entity, params) -> Curve:
     return arc if s0 < s1 else reverse(arc)
 
 
-def _copious(f, entity, params) -> Curve:
+def _copious(f, entity, params) -> TrimCurve:
     if entity.form not in _POLYLINE_FORMS:
         raise Unsupported(entity, f"form {entity.form} (not a point list or polyline)")
     ip = params.int("the interpretation flag IP", 1)
@@ -230,14 +221,14 @@ def _copious(f, entity, params) -> Curve:
     return polyline_curve(pts)
 
 
-def _line(f, entity, params) -> Curve:
+def _line(f, entity, params) -> TrimCurve:
     if entity.form != 0:
         raise Unsupported(entity, f"form {entity.form} (an unbounded line) as a curve")
     p = params.reals(6, "an end point coordinate").reshape(2, 3)
     return line_curve(p[0], p[1])
 
 
-def _spline(f, entity, params) -> Curve:
+def _spline(f, entity, params) -> TrimCurve:
     params.int("the spline type CTYPE")
     params.int("the continuity H")
     params.int("the dimension NDIM")
@@ -255,7 +246,7 @@ def _spline(f, entity, params) -> Curve:
     return from_bezier(t, np.stack(segs))
 
 
-def _bspline(f, entity, params) -> Curve:
+def _bspline(f, entity, params) -> TrimCurve:
     k = params.int("the upper index K", 0)
     m = params.int("the degree M", 1)
     for name in ("PROP1", "PROP2", "PROP3", "PROP4"):
@@ -276,7 +267,7 @@ def _bspline(f, entity, params) -> Curve:
         raise params.fail(f"an interior knot is repeated more than the degree {m} (the curve is broken there)")
     if np.any(w <= 0):
         raise params.fail(f"every weight must be > 0, found {w.min():g}")
-    c = Curve(m, knots, pts, None if np.all(w == w[0]) else w)
+    c = TrimCurve(m, knots, pts, None if np.all(w == w[0]) else w)
     tol = 1e-9 * max(1.0, abs(lo), abs(hi))
     a, b = max(v0, lo), min(v1, hi)
     if not (v0 < v1 and lo - tol <= v0 and v1 <= hi + tol):

@@ -3,7 +3,7 @@
 Loops, in this order:
 
 1. Parameter-space curves are taken as written (a composite's members one by
-   one); model-space ones are carried into (u, v) (``iges_invert``: exactly for
+   one); model-space ones are carried into (u, v) (``pcurves``, ``bsrt.io.invert``: exactly for
    planes, polylines within ``INVERSION_TOL`` otherwise, one warning per file).
    On a B-spline closed in a direction (its two edges across it coincide), a
    carried curve's samples on the seam take the side of their neighbours, and a
@@ -40,12 +40,13 @@ import numpy as np
 
 from bsrt.errors import InputError
 from bsrt.geometry.bspline import evaluate as evaluate_surface
-from bsrt.geometry.trim import TrimLoop, make_trim_curve
-from bsrt.io.iges.bspline import Curve, clamp, ends, evaluate, line_curve, reverse
+from bsrt.geometry.trim import TrimCurve, TrimLoop, make_trim_curve
+from bsrt.io.iges.bspline import clamp, ends, evaluate, line_curve, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, pieces
-from bsrt.io.iges.invert import SurfaceInverse, invert_curve, map_curve
+from bsrt.io.iges.pcurves import invert_curve, map_curve
 from bsrt.io.iges.seams import Open, close_once_round
 from bsrt.io.iges.surfaces import SurfaceDef
+from bsrt.io.invert import SurfaceInverse
 
 GAP = 1e-4  # largest loop gap closed, as a fraction of the domain's diagonal
 OVERSHOOT = 1e-3  # largest excursion out of the domain pulled back, likewise
@@ -57,7 +58,7 @@ MAP_TOL = 1e-9  # accuracy of trim curves mapped onto an analytic surface's B-sp
 class Piece:
     """A 2-D trim curve. space: "iges" (the entity's own parameters) or "nurbs"."""
 
-    curve: Curve
+    curve: TrimCurve
     space: str
     source: int  # DE of the entity it came from
     inverted: bool = False  # carried from model space (not written by the file in (u, v))
@@ -107,7 +108,7 @@ class LoopBuilder:
         if target.type not in CURVE_TYPES:
             raise Unsupported(target, "as a parameter-space curve")
         return [
-            Piece(Curve(c.degree, c.knots, c.points[:, :2].copy(), c.weights), "iges", target.de)
+            Piece(TrimCurve(c.degree, c.knots, c.points[:, :2].copy(), c.weights), "iges", target.de)
             for c in pieces(self.f, target)
         ]
 
@@ -123,10 +124,10 @@ class LoopBuilder:
             out = [x if x is BRIDGE else replace(x, curve=reverse(x.curve)) for x in out[::-1]]
         return out
 
-    def _invert(self, c: Curve, source: int) -> Piece:
+    def _invert(self, c: TrimCurve, source: int) -> Piece:
         sd = self.sd
         if sd.plane is not None:  # affine: exact
-            return Piece(Curve(c.degree, c.knots, sd.invert(c.points), c.weights), "iges", source)
+            return Piece(TrimCurve(c.degree, c.knots, sd.invert(c.points), c.weights), "iges", source)
         self.inverted += 1
 
         def tol(uv):  # the curve's own extent: the domain, which holds it, is no smaller
@@ -137,7 +138,7 @@ class LoopBuilder:
         key = ("inverse", sd.entity.de)
         if key not in self.f.cache:
             s, space = sd.inverse_target()
-            self.f.cache[key] = (SurfaceInverse(s), space)
+            self.f.cache[key] = (sd.closed_inverse or SurfaceInverse(s), space)
         inverse, space = self.f.cache[key]
         return Piece(invert_curve(c, inverse, tol), space, source, True)
 
@@ -324,7 +325,7 @@ class LoopBuilder:
             a, b = ends(seq[k][0])
             if dist(prev, b) < dist(prev, a):
                 seq[k][0] = reverse(seq[k][0])
-        curves: list[tuple[Curve, int]] = []
+        curves: list[tuple[TrimCurve, int]] = []
         for k, (c, src, bridge, _) in enumerate(seq):
             if bridge:
                 prev, start = ends(seq[k - 1][0])[1], ends(c)[0]
@@ -398,7 +399,7 @@ def _closed(s, k: int) -> bool:
     return bool(same_w and np.abs(a - b).max() <= 1e-9 * size)
 
 
-def _seam_side(c: Curve, prev, closed: list, s) -> Curve:
+def _seam_side(c: TrimCurve, prev, closed: list, s) -> TrimCurve:
     """A curve lying wholly on the seam of a closed direction, moved to the seam's other
     side when that is where the previous curve ends (prev: its end, (2,))."""
     for k in closed:
@@ -413,7 +414,7 @@ def _seam_side(c: Curve, prev, closed: list, s) -> Curve:
     return c
 
 
-def _set_end(c: Curve, point, last: bool) -> Curve:
+def _set_end(c: TrimCurve, point, last: bool) -> TrimCurve:
     pts = c.points.copy()
     pts[-1 if last else 0] = point
     return replace(c, points=pts)

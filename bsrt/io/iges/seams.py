@@ -27,28 +27,29 @@ import math
 
 import numpy as np
 
-from bsrt.io.iges.bspline import Curve, clamp, ends, evaluate, line_curve, restrict, reverse
+from bsrt.geometry.trim import TrimCurve
+from bsrt.io.iges.bspline import clamp, ends, evaluate, line_curve, restrict, reverse
 
 
 class Open(Exception):
     """A loop on a periodic surface that cannot be closed (the message says why)."""
 
 
-def _shift(c: Curve, k: int, d: float) -> Curve:
+def _shift(c: TrimCurve, k: int, d: float) -> TrimCurve:
     if d == 0:
         return c
     pts = c.points.copy()
     pts[:, k] += d
-    return Curve(c.degree, c.knots, pts, c.weights, c.pmap)
+    return TrimCurve(c.degree, c.knots, pts, c.weights, c.pmap)
 
 
-def _set(c: Curve, k: int, value: float, last: bool) -> Curve:
+def _set(c: TrimCurve, k: int, value: float, last: bool) -> TrimCurve:
     pts = c.points.copy()
     pts[-1 if last else 0, k] = value
-    return Curve(c.degree, c.knots, pts, c.weights, c.pmap)
+    return TrimCurve(c.degree, c.knots, pts, c.weights, c.pmap)
 
 
-def _crossing(c: Curve, k: int, x: float):
+def _crossing(c: TrimCurve, k: int, x: float):
     """A parameter t of c where its coordinate k equals x (None if none is found)."""
     lo, hi = c.domain
     t = np.linspace(lo, hi, 64 * max(c.n, 2) + 1)
@@ -70,8 +71,8 @@ def _crossing(c: Curve, k: int, x: float):
     return 0.5 * (a + b)
 
 
-def _curves(loop: list) -> list[Curve]:
-    return [c for c in loop if isinstance(c, Curve)]
+def _curves(loop: list) -> list[TrimCurve]:
+    return [c for c in loop if isinstance(c, TrimCurve)]
 
 
 def winding(loop: list, period) -> np.ndarray:
@@ -84,7 +85,7 @@ def winding(loop: list, period) -> np.ndarray:
     return np.array([round(d[k] / period[k]) if period[k] else 0 for k in range(2)])
 
 
-def rotate(curves: list[Curve], k: int, a: float, period: float, w: int) -> list[Curve]:
+def rotate(curves: list[TrimCurve], k: int, a: float, period: float, w: int) -> list[TrimCurve]:
     """The loop (going w = +-1 times round along k) starting at coordinate a exactly."""
     tol = 1e-12 * period
     for i, c in enumerate(curves):  # a piece that starts on the seam: no split needed
@@ -118,7 +119,7 @@ def rotate(curves: list[Curve], k: int, a: float, period: float, w: int) -> list
     return out
 
 
-def close_once_round(loops: list[list[Curve]], labels: list[str], period, natural, poles):
+def close_once_round(loops: list[list[TrimCurve]], labels: list[str], period, natural, poles):
     """The loops of one face (each a list of curves, or ``"bridge"`` for a vertex edge,
     chained end to end, in the
     entity's parameters) with those that go once round joined in pairs or closed
@@ -193,6 +194,6 @@ def close_once_round(loops: list[list[Curve]], labels: list[str], period, natura
         for a in cands:
             shifts = [period[k] * math.ceil((a - lo) / period[k] - 1e-9) for lo, _ in boxes]
             if all(hi + s <= a + period[k] + tol for (_, hi), s in zip(boxes, shifts)):
-                rest = [[_shift(c, k, s) if isinstance(c, Curve) else c for c in lp] for lp, s in zip(rest, shifts)]
+                rest = [[_shift(c, k, s) if isinstance(c, TrimCurve) else c for c in lp] for lp, s in zip(rest, shifts)]
                 break
     return out + rest, out_labels + [labels[i] for i in keep]

@@ -52,9 +52,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from bsrt.io.iges import analytic
-from bsrt.io.iges.bspline import ParamMap, affine, ends, reverse
+from bsrt.io.iges.bspline import affine, clamp, ends, param_map, reverse
 from bsrt.io.iges.bspline import ends as ends_of
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, curve, direction, point
+from bsrt.io.invert import RevolutionInverse
+from bsrt.io.param_map import ParamMap
 
 SURFACE_TYPES = frozenset({108, 114, 118, 120, 122, 128, 190, 192, 194, 196, 198})
 TWO_PI = 2 * math.pi
@@ -80,6 +82,9 @@ class SurfaceDef:
     invert: closed-form model points (N, 3) -> (u, v) (N, 2), for analytic surfaces.
     fixed: the B-spline does not depend on the box (its trims are checked against
       ``place(None)``'s domain, or the whole knot domain of a 128).
+    closed_inverse: model points (N, 3) -> ``inverse_target``'s (x, y) (N, 2) in closed
+      form (a 120 turning a segment: :class:`bsrt.io.invert.RevolutionInverse`), else None
+      (:class:`bsrt.io.invert.SurfaceInverse` inverts).
     """
 
     entity: object
@@ -92,6 +97,7 @@ class SurfaceDef:
     invert: Callable | None = None
     fixed: bool = True
     whole: object = None  # a 128's uncut surface
+    closed_inverse: Callable | None = None  # closed-form points -> inverse_target's (x, y), where there is one
 
     @property
     def periodic(self) -> tuple:
@@ -290,7 +296,10 @@ def _revolution(f, entity, params, m) -> SurfaceDef:
         raise f.fail(axis, "the axis line has no length")
     axis_dir = direction_ / np.linalg.norm(direction_)
     s, mu, mv = analytic.revolve(gen, ends[0], axis_dir, sa, ta, angle_first=False)
+    g = clamp(gen)
+    closed = RevolutionInverse.of(g.degree, g.knots, g.points, g.weights, ends[0], axis_dir, (sa, ta), mv, mv.inverse)
     sd = _fixed(entity, s, mu, mv)
+    sd.closed_inverse = closed
     if ta - sa < TWO_PI * (1 - 1e-12):
         return sd
     # a full turn: periodic in v; any window of one turn is the same surface, turned
@@ -307,7 +316,7 @@ def _revolution(f, entity, params, m) -> SurfaceDef:
             return s, mu, mv
         return analytic.revolve(gen, ends[0], axis_dir, box[2], box[3], angle_first=False)
 
-    return SurfaceDef(entity, place, sd.natural, period=(0.0, TWO_PI), poles=poles, fixed=False)
+    return SurfaceDef(entity, place, sd.natural, period=(0.0, TWO_PI), poles=poles, fixed=False, closed_inverse=closed)
 
 
 def _tabulated(f, entity, params, m) -> SurfaceDef:
@@ -315,7 +324,7 @@ def _tabulated(f, entity, params, m) -> SurfaceDef:
     end = params.reals(3, "a coordinate of L")
     if m is not None:
         end = m[:3, :3] @ end + m[:3, 3]
-    pmap = c.param_map()
+    pmap = param_map(c)
     t0, t1 = pmap.x[0], pmap.x[-1]
     start = ends(c)[0]
     s, mu, mv = analytic.extrusion(c, end - start, pmap.scaled_x(t1 - t0, t0))

@@ -7,7 +7,7 @@ Entities (IGES 5.3):
   that the even-odd rule keeps the surface minus the inner loops).
 * 142 curve on a surface: CRTN SPTR BPTR CPTR PREF. The parameter-space curve
   BPTR is used when there is one; otherwise the model-space curve CPTR is
-  carried into (u, v) (``iges_invert``). When a 144's parameter-space loops do
+  carried into (u, v) (``pcurves``). When a 144's parameter-space loops do
   not close and each of its 142s also has a model-space curve, the model-space
   curves trim it instead, with a warning (a writer's parameter-space curves in
   another parametrization of the surface).

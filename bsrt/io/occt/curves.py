@@ -4,7 +4,7 @@
 (u, v), converted exactly to a (rational) B-spline by ``Geom2dConvert`` over
 the edge's range and reversed for a reversed edge, so the curves of a wire
 run end to end. ``map_curve(curve, pmap, tolerance)`` carries it into the
-converted B-spline's (x, y) through the face's :class:`ParamMap`:
+converted B-spline's (x, y) through the face's :class:`~bsrt.io.param_map.FaceMap`:
 
 * where both directions keep their parameter (up to a whole period), the
   control points move by the shift: exact;
@@ -28,8 +28,8 @@ from bsrt.errors import InputError
 from bsrt.geometry.basis import basis_values
 from bsrt.geometry.bspline import BSplineSurface
 from bsrt.geometry.trim import TrimCurve, make_trim_curve
-from bsrt.io.occt.param_map import ParamMap
 from bsrt.io.occt.surfaces import flat_knots
+from bsrt.io.param_map import FaceMap
 
 FIT_DEGREE = 7
 FIT_TOLERANCE = 1e-10  # fitted pcurves: largest 3-D error, as a fraction of the model's size
@@ -212,7 +212,7 @@ def derivative_bounds(surface: BSplineSurface) -> tuple[float, float]:
     return out[0], out[1]
 
 
-def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
+def map_curve(curve: TrimCurve, pmap: FaceMap, tolerance) -> TrimCurve:
     """The pcurve (original (u, v)) as a curve in the B-spline's (x, y).
 
     tolerance: the largest error allowed in x and in y (a fitted curve's
@@ -251,7 +251,7 @@ def map_curve(curve: TrimCurve, pmap: ParamMap, tolerance) -> TrimCurve:
 
 def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
     """The original parameters in [lo, hi] where f passes one of the B-spline's knots (its smoothness breaks)."""
-    b = fmap.breaks
+    b = fmap.s
     if fmap.period > 0:
         first = np.floor((float(fmap(np.array([lo]))[0]) - b[0]) / fmap.period) - 1
         last = np.ceil((float(fmap(np.array([hi]))[0]) - b[0]) / fmap.period) + 1
@@ -262,32 +262,43 @@ def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
 
 def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
     """Curve parameters where coordinate ``axis`` equals one of ``lines`` (``points``: the curve's
-    :func:`evaluator`; sign changes on the samples, then bisection, all crossings at once). They only help the fit converge (its error is checked),
-    so a bracket of 1e-7 of a sample step is enough."""
+    :func:`evaluator`; sign changes on the samples, then 24 halvings of each bracket, to 1e-7 of a
+    sample step: they only help the fit converge (its error is checked), and the map is C1 at its
+    breaks). One evaluation serves several halvings (8 for up to 2 crossings, 4 for up to 16, else
+    2: 2^levels - 1 points a crossing): it takes the middles of every bracket they may reach (a
+    tree, each middle 0.5 (lo + hi) of its bracket's ends, as one halving at a time would compute
+    it), and the signs there choose the way down."""
     if lines.size == 0:
         return np.zeros(0)
     d = samples[:, None] - lines[None, :]  # (S, L)
     k, j = np.nonzero(d[:-1] * d[1:] < 0)
     exact = t[np.nonzero(d == 0)[0]]
-    a, b = t[k], t[k + 1]
-    fa = d[k, j]
+    n = k.size
+    if n == 0:
+        return exact
+    a, b, fa = t[k].tolist(), t[k + 1].tolist(), d[k, j].tolist()
     value = lines[j]
-    n = a.size
-    for _ in range(12):  # 24 halvings, to 1e-7 of a sample step: the map is C1 at its breaks, plenty for the fit
-        if n == 0:
-            break
-        # two halvings per evaluation: the middle c and both middles the next halving may take
-        c = 0.5 * (a + b)
-        c_left, c_right = 0.5 * (a + c), 0.5 * (c + b)
-        f = points(np.concatenate([c, c_left, c_right]))[:, axis]
-        fc = f[:n] - value
-        left = (fc < 0) == (fa < 0)  # the sign at c is a's: the crossing is in [c, b]
-        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
-        c = np.where(left, c_right, c_left)  # = 0.5 * (a + b) now
-        fc = np.where(left, f[2 * n :], f[n : 2 * n]) - value
-        left = (fc < 0) == (fa < 0)
-        a, fa, b = np.where(left, c, a), np.where(left, fc, fa), np.where(left, b, c)
-    return np.concatenate([0.5 * (a + b), exact])
+    levels = 8 if n <= 2 else 4 if n <= 16 else 2
+    for _ in range(24 // levels):
+        lo, hi = np.array([a]), np.array([b])  # (nodes of a level, n): the brackets
+        middles = []
+        for _ in range(levels):  # heap order: a node's halves are nodes 2 i + 1 (left) and 2 i + 2
+            m = 0.5 * (lo + hi)
+            middles.append(m)
+            lo, hi = np.stack([lo, m], axis=1).reshape(-1, n), np.stack([m, hi], axis=1).reshape(-1, n)
+        tree = np.concatenate(middles)  # (2^levels - 1, n)
+        f = (points(tree.ravel())[:, axis].reshape(tree.shape) - value).T.tolist()  # (n, nodes)
+        tree = tree.T.tolist()
+        for i in range(n):
+            node, ai, bi, fai, fi, ti = 0, a[i], b[i], fa[i], f[i], tree[i]
+            for _ in range(levels):
+                c, fc = ti[node], fi[node]
+                if (fc < 0) == (fai < 0):  # the sign at c is a's: the crossing is in [c, b]
+                    ai, fai, node = c, fc, 2 * node + 2
+                else:
+                    bi, node = c, 2 * node + 1
+            a[i], b[i], fa[i] = ai, bi, fai
+    return np.concatenate([0.5 * (np.array(a) + np.array(b)), exact])
 
 
 def _bernstein(d: int, s: np.ndarray) -> np.ndarray:
@@ -302,7 +313,7 @@ _CHECKS = (np.arange(24) + 0.5) / 24
 _AT_CHECKS = _bernstein(FIT_DEGREE, _CHECKS)
 
 
-def _fit(points, pmap: ParamMap, breaks: np.ndarray, tolerance) -> TrimCurve:
+def _fit(points, pmap: FaceMap, breaks: np.ndarray, tolerance) -> TrimCurve:
     """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t)) (``points``: the
     curve's :func:`evaluator`)."""
     d = FIT_DEGREE

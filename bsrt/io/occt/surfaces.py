@@ -14,11 +14,11 @@ surfaces are approximated here by ``GeomConvert_ApproxSurface`` to
 ``OFFSET_TOLERANCE`` of the model's size (checked on a grid; the bound is the
 measured deviation, reported per model).
 
-The map is separable, x = f(u) and y = g(v), one :class:`AxisMap` per
+The map is separable, x = f(u) and y = g(v), one :class:`~bsrt.io.param_map.ParamMap` per
 direction, in closed form:
 
 * ``identity``: x = u + shift (planes' and B-splines' directions, lines);
-* ``arc``: the B-spline's parameter equals the angle at its knots
+* ``tan`` (an arc): the B-spline's parameter equals the angle at its knots
   (b_i, b_i+1) and, in between, follows the rational quadratic arc:
   x = b_i + h (1 + tan((u + shift - m) / 2) / tan(h / 4)) / 2 with
   h = b_i+1 - b_i and m the span's middle (measured: 1e-15 of the radius);
@@ -29,7 +29,7 @@ direction, in closed form:
 ``shift`` is a whole number of periods (OpenCASCADE may convert a torus cut
 at -1 rad over [-1 + 2 pi, ...]). Which kind holds is decided per direction by
 testing points inside every span, and the whole map is checked on a grid
-against the original surface: ``ParamMap.deviation``.
+against the original surface: ``FaceMap.deviation``.
 
 The seam. A face of a periodic direction may straddle the B-spline's own
 seam (a cylinder face from -60 to +60 degrees, converted over [0, 2 pi]), or
@@ -48,7 +48,7 @@ import numpy as np
 from bsrt.errors import InputError
 from bsrt.geometry.bspline import BSplineSurface, grid_points, insert_knot, make_surface
 from bsrt.io.invert import invert
-from bsrt.io.occt.param_map import _TABLE_NODES, AxisMap, ParamMap, _chebyshev_lobatto
+from bsrt.io.param_map import TABLE_NODES, FaceMap, ParamMap, chebyshev_lobatto
 
 EXACT_TOLERANCE = 1e-9  # the conversion counts as exact below this, as a fraction of the model's size
 OFFSET_TOLERANCE = 1e-8  # approximated offsets: the requested tolerance, as a fraction of the model's size
@@ -83,11 +83,11 @@ def _kind(
     size: float,
     arc_first: bool = False,
 ) -> str:
-    """ "identity" or "arc" if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
+    """ "identity" or "tan" (an arc) if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
 
     Tested on the iso-lines of the other direction's knots (where its own
     parameter is unchanged), all of them: one may be degenerate (a pole),
-    where any model fits. arc_first: test "arc" before "identity" (a periodic direction's likelier kind).
+    where any model fits. arc_first: test "tan" before "identity" (a periodic direction's likelier kind).
     """
     s = np.array([0.23, 0.71])
     x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
@@ -98,9 +98,9 @@ def _kind(
         ss = np.tile(s, breaks.size - 1)
         return m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))
 
-    candidates = {"identity": lambda: x, "arc": arc}  # (each computed only if tested)
+    candidates = {"identity": lambda: x, "tan": arc}  # (each computed only if tested)
     if arc_first:  # (the same tests, the likelier first)
-        candidates = {"arc": candidates["arc"], "identity": candidates["identity"]}
+        candidates = {"tan": candidates["tan"], "identity": candidates["identity"]}
     y = np.repeat(others, x.size)
     # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
     got = grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x)
@@ -127,8 +127,8 @@ def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other
         uv = analysis.ValueOfUV(gp_Pnt(*map(float, p)), EXACT_TOLERANCE * size)
         t_breaks[k] = uv.X() if axis == 0 else uv.Y()
     t_breaks = np.maximum.accumulate(t_breaks)  # rounding at the ends of a periodic range
-    t_nodes = _chebyshev_lobatto(t_breaks[:-1], t_breaks[1:], _TABLE_NODES)  # (K - 1, N)
-    x_start = _chebyshev_lobatto(breaks[:-1], breaks[1:], _TABLE_NODES)
+    t_nodes = chebyshev_lobatto(t_breaks[:-1], t_breaks[1:], TABLE_NODES)  # (K - 1, N)
+    x_start = chebyshev_lobatto(breaks[:-1], breaks[1:], TABLE_NODES)
     flat_t = t_nodes.ravel()
     other_t = np.full_like(flat_t, other)
     targets = _points(original, flat_t, other_t) if axis == 0 else _points(original, other_t, flat_t)
@@ -145,8 +145,8 @@ def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other
 # Conversion
 
 
-def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, ParamMap]:
-    """The surface over the face's ``bounds`` as a non-periodic B-spline (local coordinates) and its ParamMap.
+def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, FaceMap]:
+    """The surface over the face's ``bounds`` as a non-periodic B-spline (local coordinates) and its FaceMap.
 
     bounds: (umin, umax, vmin, vmax), the face's parameter bounds (at most
     one period long in a periodic direction). size: the model's size in
@@ -204,11 +204,10 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
             if approximated or identity
             else _kind(original, whole, axis, breaks, other_breaks, size, periods[axis] > 0)
         )
-        fmap = AxisMap(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0)
-        if kind == "table":
-            fmap.table = _table(original, whole, axis, breaks, other, size)
+        table = _table(original, whole, axis, breaks, other, size) if kind == "table" else None
+        fmap = ParamMap.on_knots(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0, table)
         lo, hi = (umin, umax) if axis == 0 else (vmin, vmax)
-        fmap.shift = _shift(fmap, lo, hi, doms[axis], periods[axis])
+        fmap = fmap.with_shift(_shift(fmap, lo, hi, doms[axis], periods[axis]))
         maps.append(fmap)
     fu, fv = maps
     local = whole
@@ -218,7 +217,7 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
         if fmap.period > 0:
             local = _rotated(local, axis, a)
         local = _restricted(local, axis, a, b)
-    pmap = ParamMap(fu, fv, (umin, umax, vmin, vmax), *periods, approximated=approximated)
+    pmap = FaceMap(fu, fv, (umin, umax, vmin, vmax), *periods, approximated=approximated)
     pmap.deviation = max(_deviation(original, local, pmap), approx_error or 0.0)
     if pmap.deviation > EXACT_TOLERANCE * size and not approximated:
         raise FaceError(
@@ -277,7 +276,7 @@ def _approximated(surface, bounds, size: float):
     return approx.Surface(), float(approx.MaxError())
 
 
-def _shift(fmap: AxisMap, lo: float, hi: float, domain, period: float) -> float:
+def _shift(fmap: ParamMap, lo: float, hi: float, domain, period: float) -> float:
     """A whole number of periods to add to t so that f([lo, hi]) falls in the B-spline's domain.
 
     A periodic B-spline (fmap.period > 0) is rotated to start at f(lo), which
@@ -340,7 +339,7 @@ def _restricted(surface: BSplineSurface, axis: int, a: float, b: float) -> BSpli
     return restrict(surface, *ranges)
 
 
-def _deviation(original, local: BSplineSurface, pmap: ParamMap) -> float:
+def _deviation(original, local: BSplineSurface, pmap: FaceMap) -> float:
     """The largest distance between the original surface and the B-spline at mapped points of a grid."""
     umin, umax, vmin, vmax = pmap.bounds
     fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])

@@ -49,13 +49,13 @@ from bsrt.io.occt.curves import (
     segment,
     shifted,
 )
-from bsrt.io.occt.param_map import ParamMap
 from bsrt.io.occt.reading import cast
+from bsrt.io.param_map import FaceMap
 
 _MEET = 1e-7  # ends closer than this (a fraction of the model's size) meet, in space
 
 
-def face_loops(face, original, pmap: ParamMap, local: BSplineSurface, size: float) -> list[TrimLoop]:
+def face_loops(face, original, pmap: FaceMap, local: BSplineSurface, size: float) -> list[TrimLoop]:
     """The face's wires as closed loops in ``local``'s (x, y) domain (see the module doc).
 
     original: the face's OpenCASCADE surface (local coordinates); size: the
@@ -130,7 +130,7 @@ def _tolerance(edges) -> float:
     return worst
 
 
-def _periods(pmap: ParamMap) -> np.ndarray:
+def _periods(pmap: FaceMap) -> np.ndarray:
     return np.array([pmap.u_period, pmap.v_period])
 
 
@@ -148,7 +148,7 @@ def _space_gap(original, a: np.ndarray, b: np.ndarray) -> float:
     return float(pa.Distance(pb))
 
 
-def _chained(curves: list[TrimCurve], original, pmap: ParamMap, meet):
+def _chained(curves: list[TrimCurve], original, pmap: FaceMap, meet):
     """(curves end to end, across the seam; the closing gap (2,) if it goes once round a period, else None).
 
     meet: a function of no arguments giving how far apart (model units) two ends may be in space and
@@ -221,7 +221,7 @@ def _box(chain: list[TrimCurve]) -> np.ndarray:
     return np.array([pts[:, 0].min(), pts[:, 0].max(), pts[:, 1].min(), pts[:, 1].max()])
 
 
-def _placed(chain: list[TrimCurve], pmap: ParamMap) -> list[list[TrimCurve]]:
+def _placed(chain: list[TrimCurve], pmap: FaceMap) -> list[list[TrimCurve]]:
     """A closed chain moved by whole periods into the face's bounds (and a copy a period over where it
     straddles the end of a direction the face goes all the way round)."""
     periods = _periods(pmap)
@@ -254,7 +254,7 @@ def _placed(chain: list[TrimCurve], pmap: ParamMap) -> list[list[TrimCurve]]:
     return copies
 
 
-def _closed_around(around, pmap: ParamMap) -> list[list[TrimCurve]]:
+def _closed_around(around, pmap: FaceMap) -> list[list[TrimCurve]]:
     """Chains that go once round a periodic direction, closed along the domain's edge (see the module doc)."""
     umin, umax, vmin, vmax = pmap.bounds
     loops = []
