@@ -385,7 +385,8 @@ def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
     points clipped onto the domain's edge. If the curve still leaves the
     domain (:func:`~bsrt.geometry.trim.point_outside`, exact), it weaves along
     the edge between the samples, by about the file's tolerance: its
-    control points outside are clipped too. box: the control points'
+    control points outside are clipped too. A curve out by no more than
+    1e-9 of the domain's diagonal is kept as it is. box: the control points'
     ([x_min, y_min], [x_max, y_max]) if known.
     """
     a0, a1, b0, b1 = domain
@@ -399,6 +400,11 @@ def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
         x_lo >= a0 - near and x_hi <= a1 + near and y_lo >= b0 - near and y_hi <= b1 + near
     ):  # out by rounding of the bounds: onto the edge, moved <= that
         return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
+    if point_outside(curve, (a0 - near, a1 + near, b0 - near, b1 + near)) is None:
+        # the curve itself is out by rounding only, while control points lie far past the edge (an arc
+        # touching it): kept as it is; clipping them would bend it (a Pro/E part's 145.6-degree arc,
+        # 1.78e-9 past its plane's bound, lost 43 units of its middle)
+        return curve
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
     curve_at = evaluator(curve)
