@@ -1,5 +1,5 @@
 """The layout's rules (docs/design.md, "Modules"), checked on the source: no import circles, a
-lower floor never imports a higher one, no module over 500 lines. Imports inside functions count
+lower floor never imports a higher one, every module under 500 lines. Imports inside functions count
 (they run too); those under ``if TYPE_CHECKING:`` do not."""
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ FLOORS = (
     ("__main__",),
 )
 FLOOR = {name: level for level, names in enumerate(FLOORS) for name in names}
-MAX_LINES = 500
+MAX_LINES = 499  # modules stay under 500 lines
 
 
 def _modules() -> dict[str, Path]:
@@ -143,6 +143,6 @@ def test_the_rules_catch_an_upward_import_and_a_circle(tmp_path, monkeypatch):
     assert _circles(graph) == [["bsrt.cli.b", "bsrt.kernels.a"]]
 
 
-def test_no_module_over_500_lines():
+def test_every_module_under_500_lines():
     long = {m: n for m, p in _modules().items() if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert long == {}

@@ -4,10 +4,9 @@ The client finds the inputs (:func:`discover`), names their outputs
 (:func:`output_names`), and packs each into a :class:`Job` that carries the
 input's bytes and, for a scene, the bytes of the model files its
 ``[[import]]`` tables name by relative path, laid out as on the client's
-disk. So workers need not share a file system with the client: a worker
-writes the files into a private temporary folder, renders (:func:`render_job`)
-and returns the encoded PNG (and AOVs); the client writes them atomically. An import given by
-absolute path is not carried: the worker reads it where it runs.
+disk. So workers need not share a file system with the client: a worker writes the files into a
+private temporary folder, renders (:func:`render_job`) and returns the encoded PNG (and AOVs); the
+client writes them atomically. An import given by absolute path is not carried: the worker reads it.
 
 Each worker process renders with the process's one headless OpenGL context
 (``gl.headless_context``, created by its first task and reused) and the
