@@ -33,6 +33,7 @@ from bsrt.io.param_map import ParamMap
 
 TWO_PI = 2 * np.pi
 _MAX_POINTS = 100_000
+SEAM_NEAR = 1e-6  # samples this close to a seam (x the period) across it are put on it
 
 
 def _start_samples(c: TrimCurve) -> np.ndarray:
@@ -82,9 +83,9 @@ def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> Tri
         chord = 0.5 * (uv[:-1] + uv[1:])
         mid = to_uv(evaluate(c, mid_t), chord)
         mid = _near(np.where(np.isnan(mid), chord, mid), chord, angular)
-        for k, lo, hi in seams:  # on the seam: the side of the chord
-            on = np.minimum(np.abs(mid[:, k] - lo), np.abs(mid[:, k] - hi)) <= 1e-12 * (hi - lo)
-            mid[on, k] = np.where(np.abs(chord[on, k] - lo) <= np.abs(chord[on, k] - hi), lo, hi)
+        for k, lo, hi in seams:  # the chord's turn; on the seam: the side of the chord
+            mid[:, k] += (hi - lo) * np.round((chord[:, k] - mid[:, k]) / (hi - lo))
+            _onto_seam(mid[:, k], lo, hi)
         bad = _off_segment(mid, uv[:-1], uv[1:]) > tol
         bad &= (t[1:] - t[:-1]) > 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)
         if not bad.any():
@@ -95,16 +96,25 @@ def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> Tri
 
 
 def _snap(x: np.ndarray, lo: float, hi: float) -> None:
-    """Samples x (in order along a curve) on the seam of a closed direction (at lo or hi, the
-    same points of the surface) moved, in place, to the side of their nearest neighbour off
-    the seam (a curve wholly on the seam is left as it is: its loop decides)."""
-    on = np.minimum(np.abs(x - lo), np.abs(x - hi)) <= 1e-12 * (hi - lo)
-    if not on.any() or on.all():
-        return
-    off = np.flatnonzero(~on)
-    for i in np.flatnonzero(on):
-        j = off[np.argmin(np.abs(off - i))]
-        x[i] = lo if abs(x[j] - lo) <= abs(x[j] - hi) else hi
+    """Samples x (in order along a curve) of a closed direction (lo and hi: the same points of
+    the surface) made continuous, in place: unwrapped by the period hi - lo, shifted by whole
+    periods to centre in [lo, hi], and those outside by at most ``SEAM_NEAR`` x the period (a
+    sample on the seam, or just across it, given the far side's value) set on the bound (a curve
+    wholly on the seam keeps its side: its loop decides)."""
+    period = hi - lo
+    x[:] = np.unwrap(x, period=period)
+    centre = 0.5 * (x.min() + x.max())
+    if not lo <= centre <= hi:
+        x -= period * np.floor((centre - lo) / period)
+    _onto_seam(x, lo, hi)
+
+
+def _onto_seam(x: np.ndarray, lo: float, hi: float) -> None:
+    """Values x just across the bounds of a closed direction (by ``SEAM_NEAR`` x the period at
+    most) set on them, in place."""
+    near = SEAM_NEAR * (hi - lo)
+    x[(x < lo) & (x >= lo - near)] = lo
+    x[(x > hi) & (x <= hi + near)] = hi
 
 
 def _off_segment(p, a, b) -> np.ndarray:
