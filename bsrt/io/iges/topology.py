@@ -40,6 +40,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from bsrt.errors import InputError
 from bsrt.io.iges.bspline import reverse
 from bsrt.io.iges.curves import Unsupported, mark_used
 from bsrt.io.iges.loops import BRIDGE, Face, LoopBuilder, OffDomain, OpenLoop, Piece, RawLoop
@@ -121,7 +122,7 @@ def _trimmed_surface(f, entity, model: bool = False) -> Face:
             raise
         try:
             face = _trimmed_surface(f, entity, model=True)
-        except (OpenLoop, OffDomain, Unsupported):
+        except (InputError, Unsupported):
             raise first from None  # the parameter-space loop's own message
         if isinstance(first, OpenLoop):
             why = "does not close on the surface, its model-space boundary does"
