@@ -110,11 +110,11 @@ def _snap(x: np.ndarray, lo: float, hi: float) -> None:
 
 
 def _onto_seam(x: np.ndarray, lo: float, hi: float) -> None:
-    """Values x just across the bounds of a closed direction (by ``SEAM_NEAR`` x the period at
-    most) set on them, in place."""
-    near = SEAM_NEAR * (hi - lo)
-    x[(x < lo) & (x >= lo - near)] = lo
-    x[(x > hi) & (x <= hi + near)] = hi
+    """Values x on the bounds of a closed direction (within 1e-12 x the period: rounding) or
+    just across them (by ``SEAM_NEAR`` x the period at most) set on them, in place."""
+    near, on = SEAM_NEAR * (hi - lo), 1e-12 * (hi - lo)
+    x[(x >= lo - near) & (x <= lo + on)] = lo
+    x[(x >= hi - on) & (x <= hi + near)] = hi
 
 
 def _off_segment(p, a, b) -> np.ndarray:
