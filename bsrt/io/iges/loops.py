@@ -8,7 +8,7 @@ Loops, in this order:
    On a B-spline closed in a direction (its two edges across it coincide), a
    carried curve's samples on the seam take the side of their neighbours, and a
    carried curve lying wholly on the seam the side where the previous curve of
-   its loop ends.
+   its loop ends (the first curve: where the second one meets it).
 2. On 190-198 surfaces, loops whose angles span more than 2 pi (or pass 4 pi)
    are in degrees (OCCT writes them so) and become radians; curves along an
    angle are shifted by whole turns to continue the previous one.
@@ -277,6 +277,9 @@ class LoopBuilder:
     def open(self, message: str):
         return OpenLoop(str(self.fail(message)))
 
+    def off_domain(self, message: str):
+        return OffDomain(str(self.fail(message)))
+
     def _box(self, raw: list[RawLoop]):
         """(u0, u1, v0, v1) the loops use, in the entity's parameters (None: natural)."""
         iges = [x.curve for r in raw for x in r.items if isinstance(x, Piece) and x.space == "iges"]
@@ -382,13 +385,9 @@ class LoopBuilder:
                 )
                 if far > OVERSHOOT * size:
                     which = f"DE {src}" if src > 0 else "a vertex"
-                    raise OffDomain(
-                        str(
-                            self.fail(
-                                f"{label}: the curve from {which} leaves the surface's domain "
-                                f"[{u0:.9g}, {u1:.9g}] x [{v0:.9g}, {v1:.9g}] by {far:.3g}"
-                            )
-                        )
+                    raise self.off_domain(
+                        f"{label}: the curve from {which} leaves the surface's domain "
+                        f"[{u0:.9g}, {u1:.9g}] x [{v0:.9g}, {v1:.9g}] by {far:.3g}"
                     )
                 if far > 1e-10 * size:
                     c = replace(c, points=np.clip(pts, [u0, v0], [u1, v1]))

@@ -7,7 +7,9 @@ unwrapped along the curve) or by closest-point inversion on a B-spline surface
 (:class:`bsrt.io.invert.SurfaceInverse`, the inverter the OpenCASCADE import
 uses too: from the nearest point of a grid over the surface for the first
 samples, and from the midpoint of the neighbouring samples' answers for the
-later ones). Intervals whose midpoint's (u, v) is
+later ones). Along a closed direction of the inverter (a seam: its two bounds
+are the same points) the samples are unwrapped by its period, so that a curve
+touching or just crossing the seam stays on one side of it. Intervals whose midpoint's (u, v) is
 further than ``tol`` from the segment between their ends' are halved until
 none is, and the result is the degree-1 polyline through the samples: within
 ``tol`` of the true parameter-space curve at the tested midpoints. Planes need none of this: their inverse is affine, so the curve's
