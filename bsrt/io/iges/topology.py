@@ -11,7 +11,7 @@ Entities (IGES 5.3):
   not close, or leave the surface's domain, and each of its 142s also has a
   model-space curve, the model-space curves trim it instead, with a warning (a
   writer's parameter-space curves in another parametrization of the surface, or
-  in model x, y). PREF (which curve the writer prefers) is read but not used.
+  in model x, y). PREF (the curve the writer prefers) is not used.
 * 143 bounded surface: TYPE SPTR N and N pointers to 141s; 141 boundary:
   TYPE PREF SPTR N, then per curve CRVPT SENSE K PSCPT(1..K). The K
   parameter-space curves are used (the group reversed when SENSE = 2), else
