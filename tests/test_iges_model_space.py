@@ -159,3 +159,14 @@ def test_physically_dependent_surface_is_not_drawn_on_its_own(tmp_path, status, 
     model = load_model(write(tmp_path, entities))
     assert len(model.surfaces) == drawn
     assert model.names[0].endswith("#D13")  # the trimmed plane is drawn either way
+
+
+def test_file_of_a_dependent_surface_only_is_refused_saying_so(tmp_path):
+    """pyIGES's 142-000.igs: a lone 142 on a dependent surface; OpenCASCADE draws nothing."""
+    entities = [
+        replace(gen.plane_128("D"), status="00010000"),
+        gen.line("seg", (0.2, 0.2), (0.8, 0.8)),
+        E(142, [0, R("D"), R("seg"), 0, 1], name="lone"),
+    ]
+    with pytest.raises(InputError, match="no surfaces bsrt can draw.*; 1 of those surfaces is physically dependent"):
+        load_model(write(tmp_path, entities))

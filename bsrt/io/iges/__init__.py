@@ -64,6 +64,7 @@ from __future__ import annotations
 
 from bsrt.io import Model, fail
 from bsrt.io.iges.records import IgesFile, entity_name
+from bsrt.io.iges.surfaces import SURFACE_TYPES
 
 __all__ = ["IgesFile", "read"]
 
@@ -82,5 +83,11 @@ def read(path: str) -> Model:
         if f.open_loops:  # every surface left out for loops that do not close: the first one says why
             raise f.open_loops[0]
         found = ", ".join(f"{n} x {k}" for k, n in skipped.items()) or "no entities"
+        dependent = sum(e.dependent and e.type in SURFACE_TYPES and e.de not in f.used for e in f.entities.values())
+        if dependent:  # pyIGES's 142-000.igs: the surface of a lone 142
+            are = "is" if dependent == 1 else "are"
+            found += (
+                f"; {dependent} of those surfaces {are} physically dependent (part of another entity): not drawn alone"
+            )
         raise fail(path, None, f"the file holds no surfaces bsrt can draw, only {found}")
     return Model(path, surfaces, names, skipped, warnings, untrimmed=untrimmed)
