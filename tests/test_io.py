@@ -85,6 +85,14 @@ EXPECTED = [
     ("iges/pyIGES-benchmarks/128-004.igs", 1, {(5, 5): 1}, 0, 0),
     ("iges/pyIGES-benchmarks/128-005.igs", 1, {(5, 5): 1}, 0, 0),
     ("iges/pyIGES-benchmarks/128-009.igs", 1, {(3, 2): 1}, 0, 0),
+    ("iges/pyIGES-benchmarks/144-000.igs", 1, {(3, 3): 1}, 0, 1),
+    (
+        "iges/pyIGES-benchmarks/nentity.igs",
+        14,
+        {(1, 1): 1, (2, 2): 1, (2, 1): 1, (3, 5): 1, (3, 1): 3, (7, 7): 2, (3, 3): 2, (5, 5): 2, (3, 2): 1},
+        5,
+        2,
+    ),
     ("iges/pyIGES-benchmarks/surf128.igs", 4, {(3, 3): 4}, 0, 0),
     ("iges/pythonocc-core/sunglasses_lens.igs", 9, {(3, 3): 9}, 0, 0),
     (

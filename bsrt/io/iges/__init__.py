@@ -20,8 +20,8 @@ spliced files are reported rather than half-read.
 * D: two records per entity; the directory entry number (DE) of an entity is
   the sequence number of its first record. Fields used: entity type, P
   pointer and P line count, transformation matrix pointer (field 7), blank
-  status (field 9), form, label (columns 57-64 of the 2nd record) and
-  subscript.
+  status and subordinate switch (field 9), form, label (columns 57-64 of the
+  2nd record) and subscript.
 * P: columns 1-64 hold the parameters, 65-72 the DE back-pointer. Parameters
   after an entity's own ones (back pointers, properties) are ignored.
 
@@ -38,7 +38,10 @@ mapped and z is dropped: x -> u, y -> v).
 What is drawn, in directory order: every trimmed surface (144), bounded
 surface (143) and B-rep face (510), with its trim loops; every surface entity
 no 144/143/510 refers to, whole (128, 114, 118, 120, 122, 196, 198; a 108
-only when bounded by a curve or given a display size); the solids (186) and
+only when bounded by a curve or given a display size), unless it is
+physically dependent (subordinate switch 01 or 11: part of another entity,
+such as the surface of a 142 no trimmed surface uses, which OpenCASCADE does
+not draw either); the solids (186) and
 shells (514) only gather faces, which are drawn as faces. Subfigures: the
 members of a definition (308; DEPTH NAME N and N pointers) -- surfaces,
 trimmed surfaces, faces, and the faces of its solids and shells -- are drawn
@@ -61,6 +64,7 @@ from __future__ import annotations
 
 from bsrt.io import Model, fail
 from bsrt.io.iges.records import IgesFile, entity_name
+from bsrt.io.iges.surfaces import SURFACE_TYPES
 
 __all__ = ["IgesFile", "read"]
 
@@ -79,5 +83,11 @@ def read(path: str) -> Model:
         if f.open_loops:  # every surface left out for loops that do not close: the first one says why
             raise f.open_loops[0]
         found = ", ".join(f"{n} x {k}" for k, n in skipped.items()) or "no entities"
+        dependent = sum(e.dependent and e.type in SURFACE_TYPES and e.de not in f.used for e in f.entities.values())
+        if dependent:  # pyIGES's 142-000.igs: the surface of a lone 142
+            are = "is" if dependent == 1 else "are"
+            found += (
+                f"; {dependent} of those surfaces {are} physically dependent (part of another entity): not drawn alone"
+            )
         raise fail(path, None, f"the file holds no surfaces bsrt can draw, only {found}")
     return Model(path, surfaces, names, skipped, warnings, untrimmed=untrimmed)

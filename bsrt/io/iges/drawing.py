@@ -154,8 +154,8 @@ def draw(f):
                 for s, name in d.instance(e, np.eye(4), ()):
                     surfaces.append(s)
                     names.append(name)
-        elif e.de in owned:
-            continue
+        elif e.de in owned or (e.type in SURFACE_TYPES and e.dependent):
+            continue  # drawn by its instances, or part of another entity (a lone 142's surface)
         elif e.type in _TRIMMERS or e.type in SURFACE_TYPES:
             s = d.entity(e)
             if s is not None:

@@ -8,7 +8,7 @@ Loops, in this order:
    On a B-spline closed in a direction (its two edges across it coincide), a
    carried curve's samples on the seam take the side of their neighbours, and a
    carried curve lying wholly on the seam the side where the previous curve of
-   its loop ends.
+   its loop ends (the first curve: where the second one meets it).
 2. On 190-198 surfaces, loops whose angles span more than 2 pi (or pass 4 pi)
    are in degrees (OCCT writes them so) and become radians; curves along an
    angle are shifted by whole turns to continue the previous one.
@@ -28,7 +28,7 @@ Loops, in this order:
    warning naming the entity). Periodic surfaces: see ``iges_seams``. Curves that stray out of the
    domain by up to ``OVERSHOOT`` x its diagonal are pulled back (their outside
    control points clamped to the domain; hammer.iges needs 6.4e-5); further,
-   an error.
+   an error (``OffDomain``).
 """
 
 from __future__ import annotations
@@ -69,6 +69,10 @@ BRIDGE = "bridge"  # a vertex edge without a parameter-space curve
 
 class OpenLoop(InputError):
     """A trim loop that does not close (the message names the entity and says why)."""
+
+
+class OffDomain(InputError):
+    """A trim curve that leaves the surface's domain (the message names the entity and the curve)."""
 
 
 class Unbounded(Exception):
@@ -273,6 +277,9 @@ class LoopBuilder:
     def open(self, message: str):
         return OpenLoop(str(self.fail(message)))
 
+    def off_domain(self, message: str):
+        return OffDomain(str(self.fail(message)))
+
     def _box(self, raw: list[RawLoop]):
         """(u0, u1, v0, v1) the loops use, in the entity's parameters (None: natural)."""
         iges = [x.curve for r in raw for x in r.items if isinstance(x, Piece) and x.space == "iges"]
@@ -313,11 +320,13 @@ class LoopBuilder:
         if pending:
             seq[0][2] = True
         dist = lambda p, q: float(np.hypot(*(p - q)))  # noqa: E731
+        closed = [k for k in range(2) if _closed(s, k)]
+        if len(seq) > 1 and seq[0][3] and not seq[1][2]:  # the first curve's seam side, from its neighbour
+            seq[0][0] = _seam_side(seq[0][0], _meeting_end(seq[1][0], seq[0][0], closed, s), closed, s)
         if len(seq) > 1 and not seq[1][2]:  # the first curve's sense, from its neighbour
             (a0, b0), (a1, b1) = ends(seq[0][0]), ends(seq[1][0])
             if min(dist(a0, a1), dist(a0, b1)) < min(dist(b0, a1), dist(b0, b1)):
                 seq[0][0] = reverse(seq[0][0])
-        closed = [k for k in range(2) if _closed(s, k)]
         for k in range(1, len(seq)):
             prev = ends(seq[k - 1][0])[1]
             if seq[k][3]:  # a model-space curve on the seam: its side was arbitrary
@@ -376,7 +385,7 @@ class LoopBuilder:
                 )
                 if far > OVERSHOOT * size:
                     which = f"DE {src}" if src > 0 else "a vertex"
-                    raise self.fail(
+                    raise self.off_domain(
                         f"{label}: the curve from {which} leaves the surface's domain "
                         f"[{u0:.9g}, {u1:.9g}] x [{v0:.9g}, {v1:.9g}] by {far:.3g}"
                     )
@@ -412,6 +421,21 @@ def _seam_side(c: TrimCurve, prev, closed: list, s) -> TrimCurve:
                 c = replace(c, points=pts)
                 break
     return c
+
+
+def _meeting_end(c: TrimCurve, other: TrimCurve, closed: list, s):
+    """The end of c (2,) nearest an end of ``other`` with the closed directions' seams
+    identified (where a loop's first curve, on a seam, meets its second)."""
+    period = np.array(
+        [(s.domain_u, s.domain_v)[k][1] - (s.domain_u, s.domain_v)[k][0] if k in closed else 0 for k in range(2)]
+    )
+
+    def gap(p, q):
+        d = np.abs(p - q)
+        return float(np.hypot(*np.where(period > 0, np.minimum(d, period - d), d)))
+
+    a, b = ends(c)
+    return min((a, b), key=lambda p: min(gap(p, q) for q in ends(other)))
 
 
 def _set_end(c: TrimCurve, point, last: bool) -> TrimCurve:

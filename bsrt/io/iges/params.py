@@ -32,6 +32,7 @@ class _Entity:
     label: str
     form: int = 0  # form number (2nd record, columns 33-40)
     blanked: bool = False  # blank status 01 (status number, columns 65-66): hidden in the sending system
+    dependent: bool = False  # subordinate switch 01 or 11 (columns 67-68): physically part of another entity
 
 
 class _Params:

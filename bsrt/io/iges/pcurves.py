@@ -7,7 +7,9 @@ unwrapped along the curve) or by closest-point inversion on a B-spline surface
 (:class:`bsrt.io.invert.SurfaceInverse`, the inverter the OpenCASCADE import
 uses too: from the nearest point of a grid over the surface for the first
 samples, and from the midpoint of the neighbouring samples' answers for the
-later ones). Intervals whose midpoint's (u, v) is
+later ones). Along a closed direction of the inverter (a seam: its two bounds
+are the same points) the samples are unwrapped by its period, so that a curve
+touching or just crossing the seam stays on one side of it. Intervals whose midpoint's (u, v) is
 further than ``tol`` from the segment between their ends' are halved until
 none is, and the result is the degree-1 polyline through the samples: within
 ``tol`` of the true parameter-space curve at the tested midpoints. Planes need none of this: their inverse is affine, so the curve's
@@ -33,6 +35,7 @@ from bsrt.io.param_map import ParamMap
 
 TWO_PI = 2 * np.pi
 _MAX_POINTS = 100_000
+SEAM_NEAR = 1e-6  # samples this close to a seam (x the period) across it are put on it
 
 
 def _start_samples(c: TrimCurve) -> np.ndarray:
@@ -82,9 +85,9 @@ def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> Tri
         chord = 0.5 * (uv[:-1] + uv[1:])
         mid = to_uv(evaluate(c, mid_t), chord)
         mid = _near(np.where(np.isnan(mid), chord, mid), chord, angular)
-        for k, lo, hi in seams:  # on the seam: the side of the chord
-            on = np.minimum(np.abs(mid[:, k] - lo), np.abs(mid[:, k] - hi)) <= 1e-12 * (hi - lo)
-            mid[on, k] = np.where(np.abs(chord[on, k] - lo) <= np.abs(chord[on, k] - hi), lo, hi)
+        for k, lo, hi in seams:  # the chord's turn; on the seam: the side of the chord
+            mid[:, k] += (hi - lo) * np.round((chord[:, k] - mid[:, k]) / (hi - lo))
+            _onto_seam(mid[:, k], lo, hi)
         bad = _off_segment(mid, uv[:-1], uv[1:]) > tol
         bad &= (t[1:] - t[:-1]) > 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)
         if not bad.any():
@@ -95,16 +98,25 @@ def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> Tri
 
 
 def _snap(x: np.ndarray, lo: float, hi: float) -> None:
-    """Samples x (in order along a curve) on the seam of a closed direction (at lo or hi, the
-    same points of the surface) moved, in place, to the side of their nearest neighbour off
-    the seam (a curve wholly on the seam is left as it is: its loop decides)."""
-    on = np.minimum(np.abs(x - lo), np.abs(x - hi)) <= 1e-12 * (hi - lo)
-    if not on.any() or on.all():
-        return
-    off = np.flatnonzero(~on)
-    for i in np.flatnonzero(on):
-        j = off[np.argmin(np.abs(off - i))]
-        x[i] = lo if abs(x[j] - lo) <= abs(x[j] - hi) else hi
+    """Samples x (in order along a curve) of a closed direction (lo and hi: the same points of
+    the surface) made continuous, in place: unwrapped by the period hi - lo, shifted by whole
+    periods to centre in [lo, hi], and those outside by at most ``SEAM_NEAR`` x the period (a
+    sample on the seam, or just across it, given the far side's value) set on the bound (a curve
+    wholly on the seam keeps its side: its loop decides)."""
+    period = hi - lo
+    x[:] = np.unwrap(x, period=period)
+    centre = 0.5 * (x.min() + x.max())
+    if not lo <= centre <= hi:
+        x -= period * np.floor((centre - lo) / period)
+    _onto_seam(x, lo, hi)
+
+
+def _onto_seam(x: np.ndarray, lo: float, hi: float) -> None:
+    """Values x on the bounds of a closed direction (within 1e-12 x the period: rounding) or
+    just across them (by ``SEAM_NEAR`` x the period at most) set on them, in place."""
+    near, on = SEAM_NEAR * (hi - lo), 1e-12 * (hi - lo)
+    x[(x >= lo - near) & (x <= lo + on)] = lo
+    x[(x >= hi - on) & (x <= hi + near)] = hi
 
 
 def _off_segment(p, a, b) -> np.ndarray:

@@ -252,7 +252,8 @@ def _directory(path: str, records: list[tuple[int, str]], n_params: int) -> dict
                 f"{pstart}..{pstart + pcount - 1} are not within the {n_params} P lines",
             )
         blanked = a[64:66] == "01"
-        out[k + 1] = _Entity(k + 1, line, etype, pstart, xform, pcount, label, form, blanked)
+        dependent = a[66:68] in ("01", "11")
+        out[k + 1] = _Entity(k + 1, line, etype, pstart, xform, pcount, label, form, blanked, dependent)
     return out
 
 

@@ -8,9 +8,10 @@ Entities (IGES 5.3):
 * 142 curve on a surface: CRTN SPTR BPTR CPTR PREF. The parameter-space curve
   BPTR is used when there is one; otherwise the model-space curve CPTR is
   carried into (u, v) (``pcurves``). When a 144's parameter-space loops do
-  not close and each of its 142s also has a model-space curve, the model-space
-  curves trim it instead, with a warning (a writer's parameter-space curves in
-  another parametrization of the surface).
+  not close, or leave the surface's domain, and each of its 142s also has a
+  model-space curve, the model-space curves trim it instead, with a warning (a
+  writer's parameter-space curves in another parametrization of the surface, or
+  in model x, y). PREF (the curve the writer prefers) is not used.
 * 143 bounded surface: TYPE SPTR N and N pointers to 141s; 141 boundary:
   TYPE PREF SPTR N, then per curve CRVPT SENSE K PSCPT(1..K). The K
   parameter-space curves are used (the group reversed when SENSE = 2), else
@@ -39,9 +40,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from bsrt.errors import InputError
 from bsrt.io.iges.bspline import reverse
 from bsrt.io.iges.curves import Unsupported, mark_used
-from bsrt.io.iges.loops import BRIDGE, Face, LoopBuilder, OpenLoop, Piece, RawLoop
+from bsrt.io.iges.loops import BRIDGE, Face, LoopBuilder, OffDomain, OpenLoop, Piece, RawLoop
 from bsrt.io.iges.surfaces import SURFACE_TYPES, SurfaceDef, surface
 
 # ---------------------------------------------------------------------------
@@ -95,7 +97,8 @@ def _trimmed_surface(f, entity, model: bool = False) -> Face:
     into (u, v)) instead, with a note: a writer's parameter-space curves in another
     parametrization of the surface than IGES's (bug22566_test_Bad.igs: a 120's arc
     parameter counted from 0 at the arc's start, not from its start angle) close only
-    where the surface collapses in theirs."""
+    where the surface collapses in theirs. Likewise for one that leaves the surface's domain
+    (144-000.igs: a 100 arc in model x, y as the parameter-space curve)."""
     params = f.params(entity)
     sd = _surface_of(f, params, "surface pointer PTS")
     b = LoopBuilder(f, entity, sd)
@@ -114,18 +117,22 @@ def _trimmed_surface(f, entity, model: bool = False) -> Face:
         boundaries.append(de)
     try:
         return b.build(raw, outer_is_domain=not n1 and bool(raw))
-    except OpenLoop as first:
+    except (OpenLoop, OffDomain) as first:
         if model or not boundaries or not all(_has_both(f, de) for de in boundaries):
             raise
         try:
             face = _trimmed_surface(f, entity, model=True)
-        except (OpenLoop, Unsupported):
+        except (InputError, Unsupported):
             raise first from None  # the parameter-space loop's own message
+        if isinstance(first, OpenLoop):
+            why = "does not close on the surface, its model-space boundary does"
+        else:
+            why = "leaves the surface's domain, its model-space boundary does not"
         return replace(
             face,
             note=(
-                f"entity 144 (DE {entity.de}): its parameter-space boundary does not close on the surface, "
-                f"its model-space boundary does: the surface is trimmed by the model-space curves"
+                f"entity 144 (DE {entity.de}): its parameter-space boundary {why}: "
+                f"the surface is trimmed by the model-space curves"
             ),
         )
 
