@@ -38,8 +38,10 @@ SHARED = {
 }
 
 _spec = importlib.util.spec_from_file_location("iges_generate", HERE / "generate.py")
-gen = sys.modules.setdefault("iges_generate", importlib.util.module_from_spec(_spec))
-_spec.loader.exec_module(gen)
+gen = sys.modules.get("iges_generate")
+if gen is None:  # loaded once: a second run of the module would make new classes (E, R) that isinstance misses
+    gen = sys.modules["iges_generate"] = importlib.util.module_from_spec(_spec)
+    _spec.loader.exec_module(gen)
 
 
 def loop_points(loop, n: int = 40) -> np.ndarray:
