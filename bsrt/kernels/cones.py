@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.kernels.jit import njit
+from bsrt.kernels.jit import njit, njit_typed
 
 # Coefficients shorter than this fraction of the longest are taken for rounding (module doc).
 ROUNDING = 1e-6
@@ -58,7 +58,7 @@ def binomials(n):
 
 # Explicit signatures: called with literal and variable component indices, numba would compile
 # one specialisation per kind of call site (tests/test_compile.py wants one per kernel).
-@njit(
+@njit_typed(
     "void(float64[:, :, ::1], int64, int64, int64, float64[:, :, ::1], int64, int64, int64, float64, "
     "float64[:, :, ::1], int64, float64[:, ::1])",
     cache=True,
@@ -78,7 +78,7 @@ def _mul_add(f, fc, fu, fv, g, gc, gu, gv, sign, out, oc, binom):
                     out[oc, i + k, j + m] += b * binom[gv, m] * g[gc, k, m]
 
 
-@njit("void(float64[:, :, ::1], int64, int64, int64, float64[:, ::1])", cache=True, no_cpython_wrapper=True)
+@njit_typed("void(float64[:, :, ::1], int64, int64, int64, float64[:, ::1])", cache=True, no_cpython_wrapper=True)
 def _normalise(out, c, du, dv, binom):
     for k in range(du + 1):
         for m in range(dv + 1):

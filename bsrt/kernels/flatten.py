@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.kernels.jit import njit
+from bsrt.kernels.jit import njit, njit_typed
 
 from .cones import normal_cone_within, scratch
 
@@ -96,7 +96,7 @@ def measures(net, p, q):
 
 # Explicit signatures: called with a literal axis (traverse) and a variable one (_cut), or a
 # literal fill/first and variable ones, numba would compile one specialisation per call site.
-@njit(
+@njit_typed(
     "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], int64, int64, int64, float64[::1])",
     cache=True,
     no_cpython_wrapper=True,
@@ -130,7 +130,7 @@ def copy_net(src, dst, p, q):
 
 
 # (explicit signature: see split_half)
-@njit(
+@njit_typed(
     "int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, float64, int64, boolean, float64[:, ::1], "
     "int64[::1], float64[:, :, :, ::1], int64[::1])",
     cache=True,
