@@ -32,7 +32,7 @@ INLINED = {
     "patches._horner",
     "roots.solve_one",
     "prelim._decode",
-    "flatten.leaf_net",
+    "nets.leaf_net",
 }  # inline="always": copied into their callers, never compiled alone
 
 

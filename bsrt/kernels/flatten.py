@@ -25,6 +25,7 @@ import numpy as np
 from bsrt.kernels.jit import njit, njit_typed
 
 from .cones import normal_cone_within, scratch
+from .nets import copy_net, leaf_net, split_half
 
 # A piece's normals must lie within CONE_DEGREES of one axis (bvh.py's module doc); pieces of
 # degree p + q > CONE_MAX_DEGREE (the bound's polynomial has degree (4p - 1, 4q - 1)) keep the
@@ -94,42 +95,8 @@ def measures(net, p, q):
     return dev, dev_u, dev_v, twist, size
 
 
-# Explicit signatures: called with a literal axis (traverse) and a variable one (_cut), or a
-# literal fill/first and variable ones, numba would compile one specialisation per call site.
-@njit_typed(
-    "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], int64, int64, int64, float64[::1])",
-    cache=True,
-    no_cpython_wrapper=True,
-)
-def split_half(src, lo, hi, p, q, axis, tmp):
-    """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)
-    into lo, hi; tmp: scratch of at least max(p, q) + 1 floats."""
-    n, other = (p, q) if axis == 0 else (q, p)
-    for j in range(other + 1):
-        for c in range(4):
-            for i in range(n + 1):
-                tmp[i] = src[i, j, c] if axis == 0 else src[j, i, c]
-            for r in range(n + 1):
-                if r > 0:
-                    for i in range(n - r + 1):
-                        tmp[i] = 0.5 * (tmp[i] + tmp[i + 1])
-                if axis == 0:
-                    lo[r, j, c] = tmp[0]
-                    hi[n - r, j, c] = tmp[n - r]
-                else:
-                    lo[j, r, c] = tmp[0]
-                    hi[j, n - r, c] = tmp[n - r]
-
-
-@njit(cache=True, no_cpython_wrapper=True)
-def copy_net(src, dst, p, q):
-    for i in range(p + 1):
-        for j in range(q + 1):
-            for c in range(4):
-                dst[i, j, c] = src[i, j, c]
-
-
-# (explicit signature: see split_half)
+# Explicit signature: called with fill a literal False (count_leaves) and True (flatten_patches),
+# numba would compile one specialisation per call site.
 @njit_typed(
     "int64(float64[:, :, ::1], int64, int64, float64[::1], float64, float64, float64, int64, boolean, float64[:, ::1], "
     "int64[::1], float64[:, :, :, ::1], int64[::1])",
@@ -262,7 +229,7 @@ def flatten_patches(
     (L,), row (L,)); net_starts (P + 1,): the same over the cut patches
     (counts > 1) only, into out_net (R, Pm, Qm, 4). A patch that stays
     whole is its own leaf and keeps its net where it is (row -1 - patch,
-    see leaf_net); only the pieces of cut patches get a net of their own
+    see nets.leaf_net); only the pieces of cut patches get a net of their own
     (row r >= 0: out_net[r]), so a model of many small patches holds no
     second copy of its nets.
     """
@@ -294,13 +261,6 @@ def flatten_patches(
                 row[first + i] = net_starts[k] + i
         for i in range(first, starts[k + 1]):
             patch[i] = k
-
-
-@njit(cache=True, inline="always")
-def leaf_net(patch_net, piece_net, row, leaf):
-    """The (Pm, Qm, 4) net of a leaf: its patch's own (row < 0) or its piece's."""
-    r = row[leaf]
-    return piece_net[r] if r >= 0 else patch_net[-1 - r]
 
 
 SAH_BINS = 16

@@ -32,7 +32,7 @@ class BVHArrays(NamedTuple):
     leaf_net: (R, Pm, Qm, 4) float64, the nets of the pieces of cut patches.
     leaf_net_row: (L,) int64, where each leaf's net is: leaf_net[r] for
       r >= 0, patch_net[-1 - r] for a patch that is its own leaf (no copy;
-      flatten.leaf_net).
+      nets.leaf_net).
     leaf_degree: (L, 2) int64, (p, q) of the piece.
     leaf_planar: (L,) bool, the piece's control points lie in one plane
       (its oriented box has no thickness beyond the padding).

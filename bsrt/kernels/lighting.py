@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.kernels.flatten import leaf_net
 from bsrt.kernels.jit import njit
+from bsrt.kernels.nets import leaf_net
 from bsrt.kernels.patches import locate
 from bsrt.kernels.roots import ray_frame
 from bsrt.kernels.shading import radiance, surface_frame

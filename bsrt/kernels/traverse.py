@@ -22,9 +22,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from bsrt.kernels.flatten import copy_net, leaf_net, split_half
 from bsrt.kernels.jit import njit
 from bsrt.kernels.method_ids import NEWTON
+from bsrt.kernels.nets import copy_net, leaf_net, split_half
 from bsrt.kernels.patches import frame, locate
 from bsrt.kernels.roots import ray_frame, solve_one
 from bsrt.kernels.trim import point_kept
