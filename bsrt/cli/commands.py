@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from bsrt import interrupts
-from bsrt.cli.compiling import compile_if_cold, compile_kernels
+from bsrt.cli.compiling import compile_if_cold, compile_kernels, compiling_if_cold
 from bsrt.errors import InputError, RenderError
 from bsrt.methods import METHODS
 from bsrt.settings import flag_values
@@ -106,15 +106,15 @@ def _cmd_render(args) -> int:
     aov = _check_output(args.aov, ".npz") if args.aov else None
     progress = _progress(args)
     try:
-        scene = _load_input(args, progress)
+        with compiling_if_cold(progress):  # the first run: the kernels compile while the model loads
+            scene = _load_input(args, progress)
+            _refuse_overwriting([out] + ([aov] if aov else []), scene)
+            options = RenderOptions.resolve(scene, **given)
+            check_image_path(out, options.transparent, options.bit_depth, f"{scene.path}: film.")  # the scene's own
     except BaseException:
         if progress:
             progress.clear()
         raise
-    _refuse_overwriting([out] + ([aov] if aov else []), scene)
-    options = RenderOptions.resolve(scene, **given)
-    check_image_path(out, options.transparent, options.bit_depth, f"{scene.path}: film.")  # the scene's own
-    compile_if_cold(progress)
     try:
         with interrupts.at_safe_points(), Outputs() as outputs:
             if progress:

@@ -4,6 +4,32 @@ from __future__ import annotations
 
 import sys
 import time
+from contextlib import contextmanager
+
+
+@contextmanager
+def compiling_if_cold(progress=None):
+    """The first render on a machine: the kernels compile in worker processes (said on stderr)
+    while the block runs (the model's load and the checks before the render), and are waited for
+    after it; nothing is done where they are cached. The render then loads the kernels it uses
+    from the cache (those the workers could not compile it compiles itself). An error in the
+    block ends the workers. progress: shown the stage "compile" (bsrt/progress.py keeps it out of
+    the render's time left)."""
+    from bsrt.kernels import compile as kernels
+
+    if kernels.is_cached():
+        yield
+        return
+    _announce(progress)
+    workers = kernels.start()
+    try:
+        yield
+    except BaseException:
+        kernels.finish(workers, stop=True)
+        raise
+    if progress:
+        progress("compile", 0.5)
+    kernels.finish(workers)
 
 
 def compile_if_cold(progress=None, warm: bool = True) -> None:
@@ -28,18 +54,25 @@ def compile_kernels(progress=None, warm: bool = True) -> tuple[str, float]:
     clock = time.perf_counter()
     cached = kernels.is_cached()
     if not cached:
-        if progress:
-            progress.clear()
-        print(
-            f"bsrt: compiling bsrt's kernels once for this machine (about {kernels.estimate_seconds():.0f} s)...",
-            file=sys.stderr,
-            flush=True,
-        )
-        if progress:
-            progress("compile", 0.0)
+        _announce(progress)
         kernels.compile_all()
         if progress:
             progress("compile", 0.9)
     if warm:
         warm_up()
     return ("loaded from the cache" if cached else "compiled"), time.perf_counter() - clock
+
+
+def _announce(progress=None) -> None:
+    """Say on stderr (terminal or not) that the kernels compile now, and for about how long."""
+    from bsrt.kernels import compile as kernels
+
+    if progress:
+        progress.clear()
+    print(
+        f"bsrt: compiling bsrt's kernels once for this machine (about {kernels.estimate_seconds():.0f} s)...",
+        file=sys.stderr,
+        flush=True,
+    )
+    if progress:
+        progress("compile", 0.0)

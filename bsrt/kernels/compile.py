@@ -109,28 +109,40 @@ def estimate_seconds(workers: int | None = None) -> float:
 def compile_all(workers: int | None = None) -> float:
     """Compile every entry kernel into the cache in ``workers`` processes (default: the cores,
     at most 4); returns the seconds it took. Does nothing where the record cannot be read or
-    there is one core: the caller's first calls compile then. The workers inherit the
-    environment (NUMBA_CACHE_DIR, XDG_CACHE_HOME), so they fill the cache the caller reads."""
+    there is one core: the caller's first calls compile then."""
     clock = time.perf_counter()
+    finish(start(workers))
+    return time.perf_counter() - clock
+
+
+def start(workers: int | None = None) -> list[subprocess.Popen]:
+    """Start the worker processes that compile every entry kernel into the cache (``workers``:
+    default the cores, at most 4) and return them at once; none where the record cannot be read
+    or there is one core. The workers inherit the environment (NUMBA_CACHE_DIR, XDG_CACHE_HOME),
+    so they fill the cache the caller reads."""
     record = recorded()
     workers = min(workers or _cores(), 4)
     if record is None or workers < 2:
-        return time.perf_counter() - clock
-    shares = _shares(record["seconds"], workers)
-    children = [
+        return []
+    return [
         subprocess.Popen([sys.executable, "-m", "bsrt.kernels.compile", *share], stdout=subprocess.DEVNULL)
-        for share in shares
+        for share in _shares(record["seconds"], workers)
         if share
     ]
+
+
+def finish(children: list[subprocess.Popen], stop: bool = False) -> None:
+    """Wait for the workers :func:`start` returned; stop: end them instead (a half-written cache
+    entry is never renamed in). Interrupted, the workers are ended too."""
     try:
         for child in children:
-            child.wait()
+            if not stop:
+                child.wait()
     finally:
-        for child in children:  # interrupted: the workers go too (a half-written entry is never renamed in)
+        for child in children:
             if child.poll() is None:
                 child.kill()
                 child.wait()
-    return time.perf_counter() - clock
 
 
 # kernels of one family share heavy callees (compiled once per process that needs them): dealt together.
