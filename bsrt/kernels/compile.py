@@ -11,8 +11,10 @@ numba whose types pickle differently), or with one worker, nothing is done
 here and the first render compiles as it goes.
 
 :func:`bsrt.rendering.warm_up.warm_up` calls every entry kernel on a tiny
-scene (GL included): ``bsrt doctor --compile`` runs both, and ``bsrt
-render`` announces and runs :func:`compile_all` when the cache is cold.
+scene (GL included): ``bsrt doctor --compile`` runs both. ``bsrt render``
+announces the compile when the cache is cold, starts the workers before
+the model loads (:func:`start`) and waits for them before the render
+(:func:`finish`), which then loads only the kernels it uses.
 
     python -m bsrt.kernels.compile NAME...   # a worker: compile these entry kernels
 """
