@@ -67,6 +67,40 @@ def test_a_cli_render_imports_no_opencascade_dask_window_or_preview(tmp_path):
     assert not loaded & set(HEAVY), sorted(loaded & set(HEAVY))
 
 
+def test_importing_the_kernels_compiles_and_loads_none_of_the_explicitly_typed_ones(tmp_path):
+    """njit_typed kernels compile (or load) when a caller first needs them, not at import."""
+    code = (
+        "import sys; sys.path.insert(0, 'tests')\n"
+        "from kernel_signatures import dispatchers\n"
+        "from bsrt.kernels.jit import OneSignatureDispatcher\n"
+        "typed = {n: d for n, d in dispatchers().items() if isinstance(d, OneSignatureDispatcher)}\n"
+        "print(sorted(typed), sorted(n for n, d in typed.items() if d.signatures))"
+    )
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "cache")
+    out = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True, check=True)
+    typed, compiled = out.stdout.split("] [")
+    assert "'flatten._cut'" in typed and "'nets.split_half'" in typed
+    assert compiled == "]\n"
+
+
+def test_an_explicitly_typed_kernel_compiles_its_one_signature_at_the_first_call_from_a_kernel():
+    from numba import njit
+
+    from bsrt.kernels.jit import njit_typed
+
+    @njit_typed("float64(float64, int64)")
+    def scaled(x, k):
+        return x * k
+
+    @njit
+    def caller(x, k):
+        return scaled(x, 2) + scaled(x, k)  # a literal and a variable: one specialisation all the same
+
+    assert scaled.signatures == []
+    assert caller(1.5, 3) == 7.5
+    assert [str(s) for s in scaled.signatures] == ["(float64, int64)"]
+
+
 @pytest.fixture
 def cache_home(tmp_path, monkeypatch):
     """$XDG_CACHE_HOME in tmp_path, no NUMBA_CACHE_DIR (numba read it at import: its config too)."""
