@@ -8,9 +8,12 @@ process and keeps the arguments of every ``kernels.lighting.shade_hits`` call
 the pass again over all of them in this thread, ``repeat`` times, timed by
 ``time.process_time`` (the machine may be shared; one thread, so CPU time is
 the pass's own). Prints the median and the range, the shadow rays and the
-hits. --save DIR writes each scene's colours
-(``SCENE.npy``, (K, 3) float64 linear RGB) so that two checkouts' answers can
-be compared to the bit (--against DIR: the count of colours that differ).
+hits. --save DIR writes each scene's colours (``SCENE.npy``, (K, 3) float64
+linear RGB) and the hits they were shaded from (``SCENE-hits.npz``); --against
+DIR shades those hits instead of this checkout's own (the primary rays of two
+checkouts may differ in the last bits) and counts the colours that differ
+from DIR's, so that two checkouts' passes are compared to the bit on the
+same input.
 Run it with PYTHONPATH set to each checkout, interleaved, to compare them.
 Reports the load average at start and end.
 """
@@ -48,6 +51,21 @@ def captured_calls(scene) -> list[tuple]:
     return list(calls.values())
 
 
+HITS = {"hit": 3, "patch": 4, "surface": 5, "u": 6, "v": 7, "direction": 8}  # shade_hits's inputs (after start, stop)
+
+
+def with_hits(calls: list[tuple], hits) -> list[tuple]:
+    """``calls`` with their hit arrays (HITS) replaced by consecutive parts of the saved ``hits``."""
+    out, a = [], 0
+    for call in calls:
+        call, b = list(call), a + len(call[3])
+        for name, i in HITS.items():
+            call[i] = np.ascontiguousarray(hits[name][a:b])
+        out.append(tuple(call))
+        a = b
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenes", nargs="*", type=Path)
@@ -60,6 +78,8 @@ def main() -> None:
     for path in args.scenes or DEFAULT:
         scene = bsrt.load(path, width=args.size, height=args.size)
         calls = captured_calls(scene)
+        if args.against is not None:
+            calls = with_hits(calls, np.load(args.against / f"{path.stem}-hits.npz"))
         times = []
         for _ in range(args.repeat):
             clock = time.process_time()
@@ -78,6 +98,10 @@ def main() -> None:
         if args.save is not None:
             args.save.mkdir(parents=True, exist_ok=True)
             np.save(args.save / f"{path.stem}.npy", colour)
+            np.savez(
+                args.save / f"{path.stem}-hits.npz",
+                **{k: np.concatenate([c[i] for c in calls]) for k, i in HITS.items()},
+            )
         print(line, flush=True)
     print(f"load average at end: {Path('/proc/loadavg').read_text().split()[:3]}")
 

@@ -16,7 +16,7 @@ from bsrt.kernels.roots import ray_frame
 @njit(cache=False)
 def _once(net, p, q, origin, direction):
     e = ray_frame(direction[0], direction[1], direction[2])
-    g = np.empty(((p + 1) * (q + 1), 2))
+    g = np.empty((p + 1, q + 1, 4))
     return crosses_once(net, p, q, origin[0], origin[1], origin[2], e, g)
 
 

@@ -37,14 +37,14 @@ ROUNDING = float(np.finfo(np.float64).eps)
 def crosses_once(net, p, q, ox, oy, oz, e, g):
     """Does the ray from (ox, oy, oz) with frame e (6,) (ray_frame's) meet the piece with
     homogeneous net ([:p+1, :q+1, 4]) at most once along its whole line? (module doc).
-    g: (>= (p + 1) (q + 1), 2) float64 scratch for the projected coefficients."""
+    g: (>= p + 1, >= q + 1, >= 2) float64 scratch for the projected coefficients (a spare net)."""
     reach = 0.0  # a bound on the coefficients' terms, for their rounding
     for i in range(p + 1):
         for j in range(q + 1):
             w = net[i, j, 3]
             x, y, z = net[i, j, 0] - ox * w, net[i, j, 1] - oy * w, net[i, j, 2] - oz * w
-            g[i * (q + 1) + j, 0] = e[0] * x + e[1] * y + e[2] * z
-            g[i * (q + 1) + j, 1] = e[3] * x + e[4] * y + e[5] * z
+            g[i, j, 0] = e[0] * x + e[1] * y + e[2] * z
+            g[i, j, 1] = e[3] * x + e[4] * y + e[5] * z
             reach = max(reach, abs(net[i, j, 0]) + abs(net[i, j, 1]) + abs(net[i, j, 2]))
             reach = max(reach, (abs(ox) + abs(oy) + abs(oz)) * abs(w))
     # a difference of two coefficients is off by at most slack (a few roundings of 2 reach each):
@@ -53,12 +53,10 @@ def crosses_once(net, p, q, ox, oy, oz, e, g):
     sign = 0.0
     for i in range(p):
         for j in range(q + 1):
-            a, b = i * (q + 1) + j, (i + 1) * (q + 1) + j
-            ax, ay = g[b, 0] - g[a, 0], g[b, 1] - g[a, 1]
+            ax, ay = g[i + 1, j, 0] - g[i, j, 0], g[i + 1, j, 1] - g[i, j, 1]
             for k in range(p + 1):
                 for m in range(q):
-                    c = k * (q + 1) + m
-                    bx, by = g[c + 1, 0] - g[c, 0], g[c + 1, 1] - g[c, 1]
+                    bx, by = g[k, m + 1, 0] - g[k, m, 0], g[k, m + 1, 1] - g[k, m, 1]
                     d = ax * by - ay * bx
                     margin = slack * (abs(ax) + abs(ay) + abs(bx) + abs(by) + 2.0 * slack)
                     if sign == 0.0:
@@ -66,3 +64,10 @@ def crosses_once(net, p, q, ox, oy, oz, e, g):
                     if not d * sign > margin:
                         return False
     return sign != 0.0
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def holds_once(net, p, q, rect, u, v, ox, oy, oz, e, g):
+    """Does the piece with parameter rectangle rect (4,) (u0, u1, v0, v1) hold (u, v), and does the
+    ray's line cross it at most once (crosses_once)? Then a root at (u, v) is the piece's only one."""
+    return rect[0] <= u <= rect[1] and rect[2] <= v <= rect[3] and crosses_once(net, p, q, ox, oy, oz, e, g)

@@ -80,7 +80,8 @@ def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_itera
 
 @njit(cache=True, nogil=True, no_cpython_wrapper=True)
 def _crosses_once(B, leaf, ox, oy, oz, e, g):
-    """crossings.crosses_once for piece ``leaf``: does the ray meet it at most once?"""
+    """crossings.crosses_once for piece ``leaf``: does the ray meet it at most once? g: a scratch net
+    (the retries never use the last: traverse._solve_piece)."""
     net = leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf)
     return crosses_once(net, B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e, g)
 
@@ -101,7 +102,7 @@ def occluded(
     if hint >= 0:
         r = B.leaf_rect[hint]
         start = B.leaf_surface[hint] == ex_m and r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]
-        if not (start and (skip_start or _crosses_once(B, hint, ox, oy, oz, e, s[4]))):
+        if not (start and (skip_start or _crosses_once(B, hint, ox, oy, oz, e, s[0][s[0].shape[0] - 1]))):
             blocked, its = _leaf_blocks(
                 P, T, B, hint, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_iterations, retry_depth, cull_tol, ex, s
             )
@@ -127,7 +128,7 @@ def occluded(
                 if B.leaf_surface[leaf] == ex_m:
                     r = B.leaf_rect[leaf]
                     if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
-                        if skip_start or _crosses_once(B, leaf, ox, oy, oz, e, s[4]):
+                        if skip_start or _crosses_once(B, leaf, ox, oy, oz, e, s[0][s[0].shape[0] - 1]):
                             continue
                 blocked, its = _leaf_blocks(
                     P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_iterations, retry_depth, cull_tol, ex, s
@@ -209,13 +210,7 @@ def shade_hits(
     pm, qm = B.patch_net.shape[1], B.patch_net.shape[2]
     size = 4 * retry_depth + 8
     stack = np.empty(STACK, dtype=np.int64)  # scratch, once per slice
-    s = (
-        np.empty((size, pm, qm, 4)),
-        np.empty((size, 4)),
-        np.empty(size, dtype=np.int64),
-        np.empty(max(pm, qm)),
-        np.empty((pm * qm, 2)),
-    )
+    s = (np.empty((size, pm, qm, 4)), np.empty((size, 4)), np.empty(size, dtype=np.int64), np.empty(max(pm, qm)))
     visibility = np.ones(n_lights)
     hints = np.full(n_lights, -1, dtype=np.int64)  # per light: the leaf that blocked its last shadow ray
     for i in range(start, stop):
