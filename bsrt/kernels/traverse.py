@@ -164,10 +164,10 @@ def _solve_piece(
     rects,
     depth,
     tmp,
+    any_hit,
 ):
-    """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations).
-
-    nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
+    """Nearest valid root of one piece (any_hit: the first found): (found, t, u, v, patch, residual,
+    iterations). nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
     for the retries, S = 4 retry_depth + 8 (the callers')."""
     m = B.leaf_surface[leaf]
     rect, kept = B.leaf_rect[leaf], B.leaf_kept[leaf]
@@ -209,8 +209,8 @@ def _solve_piece(
     # A planar piece meets a ray once (one normal): a root of it, grazing or not, is its only one, so
     # only a planar piece where Newton found none is cut (grazing roots on the planar faces of CAD
     # parts were most of the retries of random rays). Its grazing root still takes the step below.
-    top = 1 if state == 0 or not B.leaf_planar[leaf] else 0
-    while top > 0:
+    top = 0 if found and any_hit else (1 if state == 0 or not B.leaf_planar[leaf] else 0)
+    while top > 0 and not (found and any_hit):
         top -= 1
         if depth[top] >= retry_depth or top + 7 > size:  # the last slot: crosses_once's scratch
             continue
@@ -267,6 +267,8 @@ def _solve_piece(
                         rects[top, k] = rects[s, k]
                 depth[top] = d
                 top += 1
+            if found and any_hit:
+                break
     cosine = best_c if found else 1.0
     if cosine < GRAZING_COSINE:
         # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
@@ -392,6 +394,7 @@ def trace_one(
                     rects,
                     depth,
                     tmp,
+                    any_hit,
                 )
                 iterations += its
                 if found and t < best_t:
