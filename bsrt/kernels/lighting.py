@@ -74,7 +74,7 @@ def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_itera
         s[1],
         s[2],
         s[3],
-        True,
+        retry_depth >= 0,  # True (any hit), as a run-time value: a literal would compile _solve_piece twice
     )
     return found, its
 
