@@ -11,17 +11,22 @@ normal and exclusion box from here.
 per-piece solve as ``traverse.trace_one`` with ``any_hit``, without the
 nearest-first bookkeeping, and it first tries the piece that blocked the
 previous shadow ray toward the same light in the same slice (neighbouring
-points are mostly shadowed by the same piece). Whether a ray is blocked is the
-same answer trace_one gives: a piece that yields a valid root would yield it
-inside the walk too, and the walk skips what trace_one skips. (numba's cache
-keys a kernel on its own file only: after editing traverse.py's per-piece
-solve, edit this file too, or shade_hits keeps the old code.)
+points are mostly shadowed by the same piece). The piece holding the ray's
+start is skipped where trace_one skips it (the ray leaves it steeply), and
+also where the ray's line meets it only once (``crossings.crosses_once``, an
+exact bound): that one crossing is the start, the root every shadow ray
+excludes. Whether a ray is blocked is otherwise the same answer trace_one
+gives: a piece that yields a valid root would yield it inside the walk too.
+(numba's cache keys a kernel on its own file only: after editing
+traverse.py's per-piece solve or crossings.py, edit this file too, or
+shade_hits keeps the old code.)
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from bsrt.kernels.crossings import crosses_once
 from bsrt.kernels.jit import njit
 from bsrt.kernels.nets import leaf_net
 from bsrt.kernels.patches import locate
@@ -69,8 +74,17 @@ def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_itera
         s[1],
         s[2],
         s[3],
+        retry_depth >= 0,  # True (any hit), as a run-time value: a literal would compile _solve_piece twice
     )
     return found, its
+
+
+@njit(cache=True, nogil=True, no_cpython_wrapper=True)
+def _crosses_once(B, leaf, ox, oy, oz, e, g):
+    """crossings.crosses_once for piece ``leaf``: does the ray meet it at most once? g: a scratch net
+    (the retries never use the last: traverse._solve_piece)."""
+    net = leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf)
+    return crosses_once(net, B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e, g)
 
 
 @njit(cache=True, nogil=True, no_cpython_wrapper=True)
@@ -88,8 +102,8 @@ def occluded(
     iterations = 0
     if hint >= 0:
         r = B.leaf_rect[hint]
-        start = skip_start and B.leaf_surface[hint] == ex_m and r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]
-        if not start:
+        start = B.leaf_surface[hint] == ex_m and r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]
+        if not (start and (skip_start or _crosses_once(B, hint, ox, oy, oz, e, s[0][s[0].shape[0] - 1]))):
             blocked, its = _leaf_blocks(
                 P, T, B, hint, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_iterations, retry_depth, cull_tol, ex, s
             )
@@ -112,10 +126,11 @@ def occluded(
             for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
                 if leaf == hint:
                     continue  # tried above (or the start's piece, skipped below too)
-                if skip_start and B.leaf_surface[leaf] == ex_m:
+                if B.leaf_surface[leaf] == ex_m:
                     r = B.leaf_rect[leaf]
                     if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
-                        continue
+                        if skip_start or _crosses_once(B, leaf, ox, oy, oz, e, s[0][s[0].shape[0] - 1]):
+                            continue
                 blocked, its = _leaf_blocks(
                     P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_iterations, retry_depth, cull_tol, ex, s
                 )

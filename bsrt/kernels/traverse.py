@@ -12,8 +12,11 @@ trims. A piece whose centre start finds nothing, or finds a grazing root
 (|cos| < 0.3: the ray may cross it twice), is cut into quarters by de
 Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
 points do not straddle the ray (in the ray's frame) or lie beyond the root
-found are culled, and Newton restarts from the survivors' centres. A planar
-piece (it meets a ray once) is cut only when its centre start finds nothing.
+found are culled, as are those holding a secondary ray's start whose only
+crossing is that start (crossings.py), and Newton restarts from the
+survivors' centres; a quarter whose only crossing is a root that is not a
+hit is not cut again. A planar piece (it meets a ray once) is cut only when
+its centre start finds nothing.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from bsrt.kernels.crossings import holds_once
 from bsrt.kernels.jit import njit
 from bsrt.kernels.method_ids import NEWTON
 from bsrt.kernels.nets import copy_net, leaf_net, split_half
@@ -160,11 +164,11 @@ def _solve_piece(
     rects,
     depth,
     tmp,
+    any_hit,
 ):
-    """Nearest valid root of one piece: (found, t, u, v, patch, residual, iterations).
-
-    nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
-    for the retries, S = scratch_size(retry_depth)."""
+    """Nearest valid root of one piece (any_hit: the first found): (found, t, u, v, patch, residual,
+    iterations). nets (S, Pm, Qm, 4), rects (S, 4), depth (S,), tmp (max(Pm, Qm),): scratch
+    for the retries, S = 4 retry_depth + 8 (the callers')."""
     m = B.leaf_surface[leaf]
     rect, kept = B.leaf_rect[leaf], B.leaf_kept[leaf]
     tol2 = tol * tol
@@ -205,10 +209,10 @@ def _solve_piece(
     # A planar piece meets a ray once (one normal): a root of it, grazing or not, is its only one, so
     # only a planar piece where Newton found none is cut (grazing roots on the planar faces of CAD
     # parts were most of the retries of random rays). Its grazing root still takes the step below.
-    top = 1 if state == 0 or not B.leaf_planar[leaf] else 0
-    while top > 0:
+    top = 0 if found and any_hit else (1 if state == 0 or not B.leaf_planar[leaf] else 0)
+    while top > 0 and not (found and any_hit):
         top -= 1
-        if depth[top] >= retry_depth or top + 6 > size:
+        if depth[top] >= retry_depth or top + 7 > size:  # the last slot: crosses_once's scratch
             continue
         # cut the popped piece into quarters in slots top .. top + 3 (two spare slots for the halves)
         a, b2 = top + 4, top + 5
@@ -227,6 +231,8 @@ def _solve_piece(
             if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
                 continue
             sr = rects[s]
+            if m == ex_m and holds_once(nets[s], p, q, sr, ex_u, ex_v, ox, oy, oz, e, nets[size - 1]):
+                continue  # its one crossing is the start, excluded
             ok, u, v, k, t, res, its, c = solve_one(
                 P,
                 m,
@@ -250,7 +256,10 @@ def _solve_piece(
                 if state == 1 and t < best_t:
                     found = True
                     best_t, best_u, best_v, best_k, best_res, best_c = t, u, v, k, res, c
-                again = c < GRAZING_COSINE
+                # not after a root that is not a hit and is the quarter's only one
+                again = c < GRAZING_COSINE and not (
+                    state != 1 and holds_once(nets[s], p, q, sr, u, v, ox, oy, oz, e, nets[size - 1])
+                )
             if again and d < retry_depth:  # keep it: move it down to the stack's top
                 if s != top:
                     copy_net(nets[s], nets[top], p, q)
@@ -258,6 +267,8 @@ def _solve_piece(
                         rects[top, k] = rects[s, k]
                 depth[top] = d
                 top += 1
+            if found and any_hit:
+                break
     cosine = best_c if found else 1.0
     if cosine < GRAZING_COSINE:
         # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
@@ -383,6 +394,7 @@ def trace_one(
                     rects,
                     depth,
                     tmp,
+                    any_hit,
                 )
                 iterations += its
                 if found and t < best_t:
