@@ -14,6 +14,10 @@ Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
 points do not straddle the ray (in the ray's frame) or lie beyond the root
 found are culled, and Newton restarts from the survivors' centres. A planar
 piece (it meets a ray once) is cut only when its centre start finds nothing.
+
+The per-piece helpers allocate nothing and are compiled without numba's reference counting
+(``_nrt=False``, as kernels/patches.py): a call that passes the tables (tuples of 13-14 arrays)
+would otherwise count a reference to every array on entry and exit, a third of a random ray's time.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ class Exclusion(NamedTuple):
     radius_v: np.ndarray
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _slab(b, ox, oy, oz, ix, iy, iz):
     """Entry and exit distances of a ray (origin, inverse direction) into box b (6,)."""
     t1, t2 = (b[0] - ox) * ix, (b[3] - ox) * ix
@@ -59,7 +63,7 @@ def _slab(b, ox, oy, oz, ix, iy, iz):
     return max(near, min(t1, t2)), min(far, max(t1, t2))
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     """Entry and exit distances of a ray into an oriented box (15,)."""
     rx, ry, rz = ox - obb[0], oy - obb[1], oz - obb[2]
@@ -76,7 +80,7 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     return near, far
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _cosine(P, k, u, v, dx, dy, dz):
     """|cos| of the angle between the unit ray direction and the surface normal at (u, v)."""
     f = frame(P, k, u, v)
@@ -86,12 +90,12 @@ def _cosine(P, k, u, v, dx, dy, dz):
     return abs(nx * dx + ny * dy + nz * dz) / max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _grazing(P, k, u, v, dx, dy, dz):
     return _cosine(P, k, u, v, dx, dy, dz) < GRAZING_COSINE
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     """Can the ray meet the piece with this net before t_far? (its hull, in the ray's frame)."""
     xlo = ylo = zlo = np.inf
@@ -109,7 +113,7 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     return xlo <= tol and xhi >= -tol and ylo <= tol and yhi >= -tol and zhi + tol >= t_min and zlo - tol < t_far
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
     """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either); 3: a root of the piece
     that is not a hit (outside (t_min, t_max)); 4: a hit if surface m's trims keep (u, v) (the
@@ -134,7 +138,7 @@ def _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, e
     return 1
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _solve_piece(
     P,
     T,
