@@ -148,7 +148,8 @@ def intersect(
         )
     names = tuple(s.name for s in scene.surfaces)
     found, exhausted = caster.cast(np.ascontiguousarray(o), unit, lo, hi, tolerance, mode)
-    offsets = np.searchsorted(found.ray, np.arange(n + 1)).astype(np.int64)
+    ranks = np.arange(n + 1, dtype=np.int64)  # nearest and any: one record per ray
+    offsets = np.searchsorted(found.ray, ranks).astype(np.int64) if mode == "all" else ranks
     return Intersections(
         found.hit,
         found.t,

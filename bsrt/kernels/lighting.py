@@ -8,14 +8,14 @@ stay with the caller (rendering/pipeline.py), which gets each hit's position,
 normal and exclusion box from here.
 
 ``occluded`` is the any-hit walk of shadow rays: the same tests and the same
-per-piece solve as ``traverse.trace_one`` with ``any_hit``, without the
+per-piece solve as ``traverse.trace_rays`` with ``any_hit``, without the
 nearest-first bookkeeping, and it first tries the piece that blocked the
 previous shadow ray toward the same light in the same slice (neighbouring
 points are mostly shadowed by the same piece). The piece holding the ray's
-start is skipped where trace_one skips it (the ray leaves it steeply), and
+start is skipped where trace_rays skips it (the ray leaves it steeply), and
 also where the ray's line meets it only once (``crossings.crosses_once``, an
 exact bound): that one crossing is the start, the root every shadow ray
-excludes. Whether a ray is blocked is otherwise the same answer trace_one
+excludes. Whether a ray is blocked is otherwise the same answer trace_rays
 gives: a piece that yields a valid root would yield it inside the walk too.
 (numba's cache keys a kernel on its own file only: after editing
 traverse.py's per-piece solve or crossings.py, edit this file too, or
@@ -37,7 +37,7 @@ from bsrt.kernels.traverse import STACK, _grazing, _obb_slab, _slab, _solve_piec
 
 @njit(cache=True, nogil=True, no_cpython_wrapper=True)
 def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_iterations, retry_depth, cull_tol, ex, s):
-    """(blocked, iterations): does piece ``leaf`` hold a valid root in (0, t_max)? (trace_one's tests:
+    """(blocked, iterations): does piece ``leaf`` hold a valid root in (0, t_max)? (trace_rays's tests:
     oriented box, hull straddle, the piece's solve with its retries). ex: (surface, u, v, ru, rv) of
     the start root; s: the scratch (nets, rects, depth, tmp)."""
     lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
@@ -145,7 +145,7 @@ def occluded(
         n2, f2 = _slab(B.node_bounds[right], ox, oy, oz, ix, iy, iz)
         hit1 = n1 <= f1 and f1 >= 0.0 and n1 <= t_max
         hit2 = n2 <= f2 and f2 >= 0.0 and n2 <= t_max
-        if hit1 and hit2 and top + 2 <= stack.shape[0]:  # a full stack drops what trace_one drops
+        if hit1 and hit2 and top + 2 <= stack.shape[0]:  # a full stack drops what trace_rays drops
             stack[top], stack[top + 1] = right, left
             top += 2
         elif hit1:

@@ -2,7 +2,7 @@
 
 The hierarchy's table: ``hierarchy.BVHArrays``.
 
-Per ray (``trace_one``): a depth-first walk, nearer child first, that skips
+Per ray (``trace_rays``): a depth-first walk, nearer child first, that skips
 nodes entered beyond the nearest root so far (any-hit: stops at the first
 valid root). Every piece whose oriented box the ray enters runs Newton from
 the piece's centre (stop on growth); a root counts if it converged, lies in
@@ -17,6 +17,10 @@ crossing is that start (crossings.py), and Newton restarts from the
 survivors' centres; a quarter whose only crossing is a root that is not a
 hit is not cut again. A planar piece (it meets a ray once) is cut only when
 its centre start finds nothing.
+
+The per-piece helpers allocate nothing and are compiled without numba's reference counting
+(``_nrt=False``, as kernels/patches.py): a call that passes the tables (tuples of 13-14 arrays)
+would otherwise count a reference to every array on entry and exit, a third of a random ray's time.
 """
 
 from __future__ import annotations
@@ -52,7 +56,7 @@ class Exclusion(NamedTuple):
     radius_v: np.ndarray
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _slab(b, ox, oy, oz, ix, iy, iz):
     """Entry and exit distances of a ray (origin, inverse direction) into box b (6,)."""
     t1, t2 = (b[0] - ox) * ix, (b[3] - ox) * ix
@@ -63,7 +67,7 @@ def _slab(b, ox, oy, oz, ix, iy, iz):
     return max(near, min(t1, t2)), min(far, max(t1, t2))
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     """Entry and exit distances of a ray into an oriented box (15,)."""
     rx, ry, rz = ox - obb[0], oy - obb[1], oz - obb[2]
@@ -80,7 +84,7 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
     return near, far
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _cosine(P, k, u, v, dx, dy, dz):
     """|cos| of the angle between the unit ray direction and the surface normal at (u, v)."""
     f = frame(P, k, u, v)
@@ -90,12 +94,12 @@ def _cosine(P, k, u, v, dx, dy, dz):
     return abs(nx * dx + ny * dy + nz * dz) / max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _grazing(P, k, u, v, dx, dy, dz):
     return _cosine(P, k, u, v, dx, dy, dz) < GRAZING_COSINE
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     """Can the ray meet the piece with this net before t_far? (its hull, in the ray's frame)."""
     xlo = ylo = zlo = np.inf
@@ -113,11 +117,13 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     return xlo <= tol and xhi >= -tol and ylo <= tol and yhi >= -tol and zhi + tol >= t_min and zlo - tol < t_far
 
 
-@njit(cache=True, no_cpython_wrapper=True)
-def _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
+def _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv):
     """0: not a hit; 1: a hit; 2: the excluded start root (not a hit either); 3: a root of the piece
-    that is not a hit (outside (t_min, t_max) or trimmed away). kept: the trims keep all of the
-    piece's rectangle (BVHArrays.leaf_kept), so a root inside it needs no trim test.
+    that is not a hit (outside (t_min, t_max)); 4: a hit if surface m's trims keep (u, v) (the
+    caller's point_kept; else 3). The piece's rectangle is (u0, u1, v0, v1);
+    kept: the trims keep all of it (BVHArrays.leaf_kept), so a root inside it needs no trim test.
+    Scalars only: an array argument costs reference counting on every call.
 
     A root that is the secondary ray's own start counts as 2 even when Newton
     reached it from a neighbouring piece; the piece is then retried (quarters)
@@ -125,18 +131,18 @@ def _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru
     cone (bvh.py), so only a grazing ray meets it again."""
     if m == ex_m and abs(u - ex_u) <= ex_ru and abs(v - ex_v) <= ex_rv:
         return 2
-    su = RECT_SLACK * (rect[1] - rect[0])
-    sv = RECT_SLACK * (rect[3] - rect[2])
-    if not (rect[0] - su <= u <= rect[1] + su and rect[2] - sv <= v <= rect[3] + sv):
+    su = RECT_SLACK * (u1 - u0)
+    sv = RECT_SLACK * (v1 - v0)
+    if not (u0 - su <= u <= u1 + su and v0 - sv <= v <= v1 + sv):
         return 0
     if not (t_min < t < t_max):
         return 3
-    if not (kept and rect[0] <= u <= rect[1] and rect[2] <= v <= rect[3]) and not point_kept(T, m, u, v):
-        return 3
+    if not (kept and u0 <= u <= u1 and v0 <= v <= v1):
+        return 4
     return 1
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _solve_piece(
     P,
     T,
@@ -171,12 +177,13 @@ def _solve_piece(
     for the retries, S = 4 retry_depth + 8 (the callers')."""
     m = B.leaf_surface[leaf]
     rect, kept = B.leaf_rect[leaf], B.leaf_kept[leaf]
+    u0, u1, v0, v1 = rect[0], rect[1], rect[2], rect[3]
     tol2 = tol * tol
     ok, u, v, k, t, res, its, c = solve_one(
         P,
         m,
-        0.5 * (rect[0] + rect[1]),
-        0.5 * (rect[2] + rect[3]),
+        0.5 * (u0 + u1),
+        0.5 * (v0 + v1),
         ox,
         oy,
         oz,
@@ -189,7 +196,9 @@ def _solve_piece(
         True,
     )
     iterations = its
-    state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+    state = _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+    if state == 4:
+        state = 1 if point_kept(T, m, u, v) else 3
     found = state == 1
     best_t, best_u, best_v, best_k, best_res = (t, u, v, k, res) if found else (np.inf, 0.0, 0.0, -1, 0.0)
     best_c = c  # |cos| at the best root (solve_one's, from the frame it ended on)
@@ -250,7 +259,11 @@ def _solve_piece(
                 True,
             )
             iterations += its
-            state = _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+            state = (
+                _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
+            )
+            if state == 4:
+                state = 1 if point_kept(T, m, u, v) else 3
             again = True
             if state != 0:  # a root of this quarter: cut further only if it is grazing
                 if state == 1 and t < best_t:
@@ -275,151 +288,11 @@ def _solve_piece(
         # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
         ok, u, v, k, t, res, its, _ = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
         iterations += its
-        if (
-            res < best_res
-            and abs(t - best_t) * cosine <= 4.0 * best_res
-            and _root_in(P, T, m, rect, kept, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) == 1
-        ):
-            best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
+        if res < best_res and abs(t - best_t) * cosine <= 4.0 * best_res:
+            state = _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv)
+            if state == 1 or (state == 4 and point_kept(T, m, u, v)):
+                best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
     return found, best_t, best_u, best_v, best_k, best_res, iterations
-
-
-@njit(cache=True, no_cpython_wrapper=True)
-def trace_one(
-    P,
-    T,
-    B,
-    ox,
-    oy,
-    oz,
-    dx,
-    dy,
-    dz,
-    t_min,
-    t_max,
-    tol,
-    max_iterations,
-    any_hit,
-    retry_depth,
-    cull_tol,
-    ex_m,
-    ex_u,
-    ex_v,
-    ex_ru,
-    ex_rv,
-    stack,
-    stack_t,
-    nets,
-    rects,
-    depth,
-    tmp,
-    budget,
-):
-    """Nearest (or any) valid root of one ray: (hit, t, u, v, patch, residual, iterations).
-
-    budget: the ray's work bound in Newton iterations; once spent, no further
-    piece is solved and the nearest root found so far is the answer (the
-    piece being solved completes: at most its retries' work more)."""
-    e = ray_frame(dx, dy, dz)
-    ix = 1.0 / dx if abs(dx) > 1e-300 else np.copysign(1e300, dx)
-    iy = 1.0 / dy if abs(dy) > 1e-300 else np.copysign(1e300, dy)
-    iz = 1.0 / dz if abs(dz) > 1e-300 else np.copysign(1e300, dz)
-    best_t, best_u, best_v, best_k, best_res = np.inf, np.nan, np.nan, -1, np.nan
-    iterations = 0
-    # The leaf holding the ray's start is skipped unless the ray leaves it grazing: a leaf's normals
-    # lie within its cone (bvh.py), so only a grazing ray meets it again (a cupped surface's shadow).
-    skip_start = ex_m >= 0 and not _grazing(P, locate(P, ex_m, ex_u, ex_v), ex_u, ex_v, dx, dy, dz)
-    near, far = _slab(B.node_bounds[0], ox, oy, oz, ix, iy, iz)
-    if not (near <= far and far >= t_min and near <= t_max):
-        return False, best_t, best_u, best_v, best_k, best_res, iterations
-    stack[0], stack_t[0] = 0, near
-    top = 1
-    while top > 0:
-        top -= 1
-        node, entry = stack[top], stack_t[top]
-        if entry >= best_t:
-            continue
-        left = B.node_left[node]
-        if left < 0:
-            for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
-                if iterations >= budget:
-                    return best_k >= 0, best_t, best_u, best_v, best_k, best_res, iterations
-                if skip_start and B.leaf_surface[leaf] == ex_m:
-                    r = B.leaf_rect[leaf]
-                    if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
-                        continue
-                lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
-                if not (lo <= hi and hi >= t_min and lo <= t_max and lo < best_t):
-                    continue
-                if not _straddles(
-                    leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf),
-                    B.leaf_degree[leaf, 0],
-                    B.leaf_degree[leaf, 1],
-                    ox,
-                    oy,
-                    oz,
-                    e,
-                    dx,
-                    dy,
-                    dz,
-                    t_min,
-                    min(t_max, best_t),
-                    cull_tol,
-                ):
-                    continue  # the piece's hull misses the ray: no root, no Newton
-                found, t, u, v, k, res, its = _solve_piece(
-                    P,
-                    T,
-                    B,
-                    leaf,
-                    ox,
-                    oy,
-                    oz,
-                    dx,
-                    dy,
-                    dz,
-                    e,
-                    t_min,
-                    min(t_max, best_t),
-                    tol,
-                    max_iterations,
-                    retry_depth,
-                    cull_tol,
-                    ex_m,
-                    ex_u,
-                    ex_v,
-                    ex_ru,
-                    ex_rv,
-                    nets,
-                    rects,
-                    depth,
-                    tmp,
-                    any_hit,
-                )
-                iterations += its
-                if found and t < best_t:
-                    best_t, best_u, best_v, best_k, best_res = t, u, v, k, res
-                    if any_hit:
-                        return True, best_t, best_u, best_v, best_k, best_res, iterations
-            continue
-        right = B.node_right[node]
-        n1, f1 = _slab(B.node_bounds[left], ox, oy, oz, ix, iy, iz)
-        n2, f2 = _slab(B.node_bounds[right], ox, oy, oz, ix, iy, iz)
-        hit1 = n1 <= f1 and f1 >= t_min and n1 <= t_max and n1 < best_t
-        hit2 = n2 <= f2 and f2 >= t_min and n2 <= t_max and n2 < best_t
-        if hit1 and hit2 and top + 2 <= stack.shape[0]:
-            if n1 <= n2:  # push the farther first: the nearer is walked first
-                stack[top], stack_t[top], stack[top + 1], stack_t[top + 1] = right, n2, left, n1
-            else:
-                stack[top], stack_t[top], stack[top + 1], stack_t[top + 1] = left, n1, right, n2
-            top += 2
-        elif hit1:
-            stack[top], stack_t[top] = left, n1
-            top += 1
-        elif hit2:
-            stack[top], stack_t[top] = right, n2
-            top += 1
-    return best_k >= 0, best_t, best_u, best_v, best_k, best_res, iterations
 
 
 @njit(cache=True, nogil=True)
@@ -449,11 +322,14 @@ def trace_rays(
     budget,
     halt,
 ):
-    """trace_one for rays start..stop-1 of origin, direction (N, 3) (unit directions),
-    with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays);
-    results into (N,) outputs. budget: each ray's Newton iterations (trace_one).
-    halt: (1,) uint8, read before each ray: set, the slice ends there (an
-    interruption). Called on slices by threads.run_chunks (stoppable)."""
+    """Nearest (or any) valid root of rays start..stop-1 of origin, direction (N, 3) (unit
+    directions), with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays); results
+    (hit, t, u, v, patch, residual, iterations) into (N,) outputs. budget: each ray's work bound in
+    Newton iterations; once spent, no further piece is solved and the nearest root found so far is
+    the answer (the piece being solved completes: at most its retries' work more). halt: (1,)
+    uint8, read before each ray: set, the slice ends there (an interruption). Called on slices by
+    threads.run_chunks (stoppable). One loop, no call per ray: a call passing the tables (tuples
+    of arrays) costs reference counting of every array, per ray."""
     pm, qm = B.patch_net.shape[1], B.patch_net.shape[2]
     size = 4 * retry_depth + 8
     stack = np.empty(STACK, dtype=np.int64)  # scratch, once per slice
@@ -465,34 +341,110 @@ def trace_rays(
     for i in range(start, stop):
         if halt[0]:
             return
-        h, tt, uu, vv, k, res, its = trace_one(
-            P,
-            T,
-            B,
-            origin[i, 0],
-            origin[i, 1],
-            origin[i, 2],
-            direction[i, 0],
-            direction[i, 1],
-            direction[i, 2],
-            t_min[i],
-            t_max[i],
-            tol,
-            max_iterations,
-            any_hit,
-            retry_depth,
-            cull_tol,
-            ex.surface[i],
-            ex.u[i],
-            ex.v[i],
-            ex.radius_u[i],
-            ex.radius_v[i],
-            stack,
-            stack_t,
-            nets,
-            rects,
-            depth,
-            tmp,
-            budget,
-        )
-        hit[i], t[i], u[i], v[i], patch[i], residual[i], iterations[i] = h, tt, uu, vv, k, res, its
+        ox, oy, oz = origin[i, 0], origin[i, 1], origin[i, 2]
+        dx, dy, dz = direction[i, 0], direction[i, 1], direction[i, 2]
+        lo_t, hi_t = t_min[i], t_max[i]
+        ex_m, ex_u, ex_v, ex_ru, ex_rv = ex.surface[i], ex.u[i], ex.v[i], ex.radius_u[i], ex.radius_v[i]
+        e = ray_frame(dx, dy, dz)
+        ix = 1.0 / dx if abs(dx) > 1e-300 else np.copysign(1e300, dx)
+        iy = 1.0 / dy if abs(dy) > 1e-300 else np.copysign(1e300, dy)
+        iz = 1.0 / dz if abs(dz) > 1e-300 else np.copysign(1e300, dz)
+        best_t, best_u, best_v, best_k, best_res = np.inf, np.nan, np.nan, -1, np.nan
+        work = 0
+        # The leaf holding the ray's start is skipped unless the ray leaves it grazing: a leaf's normals
+        # lie within its cone (bvh.py), so only a grazing ray meets it again (a cupped surface's shadow).
+        skip_start = ex_m >= 0 and not _grazing(P, locate(P, ex_m, ex_u, ex_v), ex_u, ex_v, dx, dy, dz)
+        near, far = _slab(B.node_bounds[0], ox, oy, oz, ix, iy, iz)
+        top = 0
+        if near <= far and far >= lo_t and near <= hi_t:
+            stack[0], stack_t[0] = 0, near
+            top = 1
+        while top > 0:  # ends with the stack, or at top = -1: out of budget, or any_hit's root
+            top -= 1
+            node, entry = stack[top], stack_t[top]
+            if entry >= best_t:
+                continue
+            left = B.node_left[node]
+            if left < 0:
+                for leaf in range(B.node_first[node], B.node_first[node] + B.node_count[node]):
+                    if work >= budget:
+                        top = -1
+                        break
+                    if skip_start and B.leaf_surface[leaf] == ex_m:
+                        r = B.leaf_rect[leaf]
+                        if r[0] <= ex_u <= r[1] and r[2] <= ex_v <= r[3]:
+                            continue
+                    lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
+                    if not (lo <= hi and hi >= lo_t and lo <= hi_t and lo < best_t):
+                        continue
+                    if not _straddles(
+                        leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf),
+                        B.leaf_degree[leaf, 0],
+                        B.leaf_degree[leaf, 1],
+                        ox,
+                        oy,
+                        oz,
+                        e,
+                        dx,
+                        dy,
+                        dz,
+                        lo_t,
+                        min(hi_t, best_t),
+                        cull_tol,
+                    ):
+                        continue  # the piece's hull misses the ray: no root, no Newton
+                    found, tt, uu, vv, k, res, its = _solve_piece(
+                        P,
+                        T,
+                        B,
+                        leaf,
+                        ox,
+                        oy,
+                        oz,
+                        dx,
+                        dy,
+                        dz,
+                        e,
+                        lo_t,
+                        min(hi_t, best_t),
+                        tol,
+                        max_iterations,
+                        retry_depth,
+                        cull_tol,
+                        ex_m,
+                        ex_u,
+                        ex_v,
+                        ex_ru,
+                        ex_rv,
+                        nets,
+                        rects,
+                        depth,
+                        tmp,
+                        any_hit,
+                    )
+                    work += its
+                    if found and tt < best_t:
+                        best_t, best_u, best_v, best_k, best_res = tt, uu, vv, k, res
+                        if any_hit:
+                            top = -1
+                            break
+                continue
+            right = B.node_right[node]
+            n1, f1 = _slab(B.node_bounds[left], ox, oy, oz, ix, iy, iz)
+            n2, f2 = _slab(B.node_bounds[right], ox, oy, oz, ix, iy, iz)
+            hit1 = n1 <= f1 and f1 >= lo_t and n1 <= hi_t and n1 < best_t
+            hit2 = n2 <= f2 and f2 >= lo_t and n2 <= hi_t and n2 < best_t
+            if hit1 and hit2 and top + 2 <= stack.shape[0]:
+                if n1 <= n2:  # push the farther first: the nearer is walked first
+                    stack[top], stack_t[top], stack[top + 1], stack_t[top + 1] = right, n2, left, n1
+                else:
+                    stack[top], stack_t[top], stack[top + 1], stack_t[top + 1] = left, n1, right, n2
+                top += 2
+            elif hit1:
+                stack[top], stack_t[top] = left, n1
+                top += 1
+            elif hit2:
+                stack[top], stack_t[top] = right, n2
+                top += 1
+        hit[i], t[i], u[i], v[i], patch[i] = best_k >= 0, best_t, best_u, best_v, best_k
+        residual[i], iterations[i] = best_res, work

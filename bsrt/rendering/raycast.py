@@ -187,15 +187,18 @@ def outward_frames(patches, hits: Hits):
     if not idx.size:
         return position, normal
     patch, u, v = hits.patch[idx], hits.u[idx], hits.v[idx]
-    S, Su, Sv = patches.evaluate(patch, u, v)
-    nrm = np.cross(Su.T, Sv.T)
-    length = np.linalg.norm(nrm, axis=1)
-    b = patches.bounds[patch]  # (K, 4): u0, u1, v0, v1 of the patch
-    extent = np.linalg.norm(patches.box_max[patch] - patches.box_min[patch], axis=1)
-    typical = extent**2 / np.maximum((b[:, 1] - b[:, 0]) * (b[:, 3] - b[:, 2]), 1e-300)
+    S, Su, Sv = patches.evaluate(patch, u, v)  # (3, K) each
+    nrm = np.empty((idx.size, 3))  # S_u x S_v, as np.cross computes it, from the contiguous rows
+    nrm[:, 0] = Su[1] * Sv[2] - Su[2] * Sv[1]
+    nrm[:, 1] = Su[2] * Sv[0] - Su[0] * Sv[2]
+    nrm[:, 2] = Su[0] * Sv[1] - Su[1] * Sv[0]
+    length = np.sqrt(nrm[:, 0] * nrm[:, 0] + nrm[:, 1] * nrm[:, 1] + nrm[:, 2] * nrm[:, 2])
+    b = patches.bounds  # (P, 4): u0, u1, v0, v1 of each patch
+    extent = np.linalg.norm(patches.box_max - patches.box_min, axis=1)
+    typical = (extent**2 / np.maximum((b[:, 1] - b[:, 0]) * (b[:, 3] - b[:, 2]), 1e-300))[patch]  # per patch
     pole = np.flatnonzero(~(length > POLE * typical))
     if pole.size:
-        bp = b[pole]
+        bp = b[patch[pole]]
         cu, cv = 0.5 * (bp[:, 0] + bp[:, 1]), 0.5 * (bp[:, 2] + bp[:, 3])
         pu, pv = u[pole] + 2.0 * POLE_STEP * (cu - u[pole]), v[pole] + 2.0 * POLE_STEP * (cv - v[pole])
         _, Su2, Sv2 = patches.evaluate(patch[pole], pu, pv)
