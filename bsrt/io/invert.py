@@ -8,9 +8,18 @@ reader's model-space curves on surfaces).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, basis_functions, evaluate, find_span
+from bsrt.geometry.bspline import (
+    BSplineSurface,
+    basis_functions,
+    bezier_patches,
+    evaluate,
+    find_span,
+    rational_quotient,
+)
 
 _DAMP = 1e-14  # the smallest damping (relative to the normal matrix's diagonal): Gauss-Newton
 
@@ -249,3 +258,129 @@ class RevolutionInverse:
         on_axis = (r0 + f * dr) * (a1 - a0) <= 1e-9 * self.size
         uv[on_axis, 1] = np.nan
         return uv
+
+
+class _Pieces:
+    """A B-spline surface as its (rational) Bezier pieces, evaluated at many points with a
+    fixed, small number of NumPy calls (no per-degree Python loops): the evaluator of
+    :class:`CurveInverse`'s Newton steps."""
+
+    def __init__(self, s: BSplineSurface):
+        ctrl, bounds = bezier_patches(s)
+        self.degree = s.degree
+        self.nu = np.unique(bounds[:, 0]).size  # pieces along u (u-major order)
+        b = bounds.reshape(self.nu, -1, 4)
+        self.nv = b.shape[1]
+        self.ctrl = ctrl  # (nu * nv, p + 1, q + 1, 4) homogeneous Bezier points
+        self.u_lo, self.u_hi = b[:, 0, 0].copy(), b[:, 0, 1].copy()  # (nu,) each
+        self.v_lo, self.v_hi = b[0, :, 2].copy(), b[0, :, 3].copy()  # (nv,) each
+
+    @staticmethod
+    def _bernstein(p: int, x, lo, hi):
+        """Bernstein values (N, p + 1) at x (N,) on the pieces [lo, hi] and their x-derivatives."""
+        h = hi - lo
+        s = ((x - lo) / h)[:, None]
+        k = np.arange(p + 1)
+        b = _COMB[p, k] * s**k * (1 - s) ** (p - k)
+        if p == 0:
+            return b, np.zeros_like(b)
+        low = _COMB[p - 1, k[:-1]] * s ** k[:-1] * (1 - s) ** (p - 1 - k[:-1])  # degree p - 1
+        d = np.zeros_like(b)
+        d[:, 1:] += low
+        d[:, :-1] -= low
+        return b, d * (p / h)[:, None]
+
+    def __call__(self, u, v):
+        """S, S_u, S_v (each (N, 3)) at u, v (N,) (outside the domain: the end pieces extended)."""
+        p, q = self.degree
+        iu = np.clip(np.searchsorted(self.u_lo, u, side="right") - 1, 0, self.nu - 1)
+        iv = np.clip(np.searchsorted(self.v_lo, v, side="right") - 1, 0, self.nv - 1)
+        bu, dbu = self._bernstein(p, u, self.u_lo[iu], self.u_hi[iu])
+        bv, dbv = self._bernstein(q, v, self.v_lo[iv], self.v_hi[iv])
+        c = self.ctrl[iu * self.nv + iv]  # (N, p + 1, q + 1, 4)
+        rows = np.einsum("nb,nabk->nak", bv, c)
+        h = np.einsum("na,nak->nk", bu, rows)
+        hu = np.einsum("na,nak->nk", dbu, rows)
+        hv = np.einsum("na,nb,nabk->nk", bu, dbv, c)
+        return rational_quotient(h, hu, hv)
+
+
+_COMB = np.array([[math.comb(n, k) for k in range(32)] for n in range(32)], dtype=np.float64)
+
+
+def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float, iterations: int = 60):
+    """(x, y), each (N,) float64: :func:`invert`'s damped, projected Gauss-Newton on a surface
+    given as its Bezier ``pieces`` (domain ((u0, u1), (v0, v1))), stopping where the step is
+    1e-12 of the domain (points off the surface converge linearly: the last digits cost
+    many steps and move (x, y) by less than 1e-10) or the residual 1e-14 of ``size``."""
+    (a0, a1), (b0, b1) = domain
+    x = np.clip(np.array(x, dtype=np.float64), a0, a1)
+    y = np.clip(np.array(y, dtype=np.float64), b0, b1)
+    lo, hi = np.array([a0, b0]), np.array([a1, b1])
+    points = np.asarray(points, dtype=np.float64)
+    n = x.shape[0]
+    scale = max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
+    best = np.full(n, np.inf)  # |residual| at the accepted parameters acc
+    acc = np.stack([x, y], 1)
+    cur = acc.copy()
+    normal = np.zeros((n, 5))  # a, b, c, g0, g1 of the normal equations at acc
+    mu = np.full(n, _DAMP)
+    last = np.full(n, np.inf)  # the size of each point's latest step
+    idx = np.arange(n)
+    for _ in range(iterations):
+        if idx.size == 0:
+            break
+        s, su, sv = pieces(cur[idx, 0], cur[idx, 1])
+        r = points[idx] - s
+        dist = np.sqrt(np.einsum("ni,ni->n", r, r))
+        good = dist <= best[idx] * (1 + 1e-12) + 1e-15 * size
+        g = idx[good]  # accepted: new normal equations there; the others retry with 10x the damping
+        best[g], acc[g] = dist[good], cur[g]
+        su, sv, r = su[good], sv[good], r[good]
+        normal[g] = np.stack(
+            [
+                np.einsum("ni,ni->n", su, su),
+                np.einsum("ni,ni->n", su, sv),
+                np.einsum("ni,ni->n", sv, sv),
+                np.einsum("ni,ni->n", su, r),
+                np.einsum("ni,ni->n", sv, r),
+            ],
+            1,
+        )
+        mu[idx[~good]] *= 10.0
+        a, b, c, g0, g1 = normal[idx].T
+        damp = mu[idx] * (a + c) + 1e-300
+        a, c = a + damp, c + damp
+        det = a * c - b * b
+        det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+        d = np.stack([(c * g0 - b * g1) / det, (a * g1 - b * g0) / det], 1)
+        start = acc[idx]
+        held = ((start <= lo) & (d < 0)) | ((start >= hi) & (d > 0))  # (M, 2)
+        one_d = np.stack([g0 / a, g1 / c], 1)  # the free parameter's step where the other is held
+        d = np.where(held, 0.0, np.where(held[:, ::-1], one_d, d))
+        cur[idx] = np.clip(start + d, lo, hi)
+        moved = np.hypot(*(cur[idx] - start).T)
+        # a step this small that made things worse: rounding, the accepted parameters stand
+        done = np.where(good, moved <= 1e-12 * scale, last[idx] <= 1e-10 * scale)
+        last[idx] = moved
+        back = idx[done & ~good]
+        cur[back] = acc[back]
+        done[good] |= dist[good] <= 1e-14 * size
+        mu[g] = np.maximum(mu[g] * 0.1, _DAMP)
+        idx = idx[~done]
+    return cur[:, 0].copy(), cur[:, 1].copy()
+
+
+class CurveInverse(SurfaceInverse):
+    """:class:`SurfaceInverse` whose Newton steps evaluate the surface as its Bezier pieces
+    (:func:`invert_pieces`): the IGES reader's inverter for model-space trim curves, called
+    with hundreds to thousands of points a few dozen times per face."""
+
+    def __init__(self, s: BSplineSurface):
+        super().__init__(s)
+        self.pieces = _Pieces(s)
+
+    def _newton(self, pts, uv):
+        u, v = invert_pieces(self.pieces, (self.s.domain_u, self.s.domain_v), pts, uv[:, 0], uv[:, 1], self.size)
+        s, su, sv = self.pieces(u, v)
+        return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)

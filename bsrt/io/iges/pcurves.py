@@ -54,47 +54,69 @@ def _near(values, reference, angular):
     return out
 
 
-def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> TrimCurve | None:
-    """The 3-D curve c as a 2-D polyline in the parameters given by to_uv(points, hint).
+def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -> list[TrimCurve | None]:
+    """The 3-D curves as 2-D polylines in the parameters given by to_uv(points, hint), all
+    curves' samples carried together (one call of to_uv per round of halving).
 
     to_uv: (N, 3) points and (N, 2) hints (or None) -> (N, 2), NaN where a
     parameter is undetermined (at a pole or an apex: the neighbouring samples'
     value is taken). angular: which parameters are angles (unwrapped along the
-    curve). tol: see the module text (or a function of the first samples' (u, v)
-    giving it). None if the whole curve lies where a parameter is undetermined
-    (a collapsed edge, which the loop then crosses in a straight line).
+    curve). tol: see the module text (or a function of a curve's first samples' (u, v)
+    giving it). None for a curve that lies wholly where a parameter is undetermined
+    (a collapsed edge, which the loop then crosses in a straight line). Each round
+    carries only the midpoints of the intervals the previous round made (an interval
+    found within ``tol`` stays so).
     """
-    t = _start_samples(c)
-    uv = to_uv(evaluate(c, t), None)
-    for k in range(2):  # NaN: any value (a pole, an apex): the neighbours' one
-        bad = np.isnan(uv[:, k])
-        if bad.all():
-            return None
-        if bad.any():
-            good = np.flatnonzero(~bad)
-            uv[:, k] = uv[good[np.clip(np.searchsorted(good, np.arange(len(uv))), 0, len(good) - 1)], k]
-        if angular[k]:
-            uv[:, k] = np.unwrap(uv[:, k])
+    ts = [_start_samples(c) for c in curves]
+    cuts = np.cumsum([0] + [len(t) for t in ts])
+    uv_all = to_uv(np.concatenate([evaluate(c, t) for c, t in zip(curves, ts)]), None)
     seams = [(k, lo, hi) for k, (lo, hi, closed) in enumerate(getattr(to_uv, "seams", ())) if closed]
-    for k, lo, hi in seams:
-        _snap(uv[:, k], lo, hi)
-    if callable(tol):
-        tol = tol(uv)
-    while len(t) < _MAX_POINTS:
-        mid_t = 0.5 * (t[:-1] + t[1:])
-        chord = 0.5 * (uv[:-1] + uv[1:])
-        mid = to_uv(evaluate(c, mid_t), chord)
+    out: list[TrimCurve | None] = [None] * len(curves)
+    todo = []  # [index, t (M,), uv (M, 2), tol, intervals to test (M - 1,) bool]
+    for i, t in enumerate(ts):
+        uv = uv_all[cuts[i] : cuts[i + 1]]
+        for k in range(2):  # NaN: any value (a pole, an apex): the neighbours' one
+            bad = np.isnan(uv[:, k])
+            if bad.all():
+                break
+            if bad.any():
+                good = np.flatnonzero(~bad)
+                uv[:, k] = uv[good[np.clip(np.searchsorted(good, np.arange(len(uv))), 0, len(good) - 1)], k]
+            if angular[k]:
+                uv[:, k] = np.unwrap(uv[:, k])
+        else:
+            for k, lo, hi in seams:
+                _snap(uv[:, k], lo, hi)
+            todo.append([i, t, uv, tol(uv) if callable(tol) else tol, np.ones(len(t) - 1, bool)])
+    while todo:
+        mids = [(0.5 * (t[:-1] + t[1:])[test], 0.5 * (uv[:-1] + uv[1:])[test]) for _, t, uv, _, test in todo]
+        pts = np.concatenate([evaluate(curves[item[0]], m[0]) for item, m in zip(todo, mids)])
+        chord = np.concatenate([m[1] for m in mids])
+        mid = to_uv(pts, chord)
         mid = _near(np.where(np.isnan(mid), chord, mid), chord, angular)
         for k, lo, hi in seams:  # the chord's turn; on the seam: the side of the chord
             mid[:, k] += (hi - lo) * np.round((chord[:, k] - mid[:, k]) / (hi - lo))
             _onto_seam(mid[:, k], lo, hi)
-        bad = _off_segment(mid, uv[:-1], uv[1:]) > tol
-        bad &= (t[1:] - t[:-1]) > 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)
-        if not bad.any():
-            break
-        t = np.insert(t, np.flatnonzero(bad) + 1, mid_t[bad])
-        uv = np.insert(uv, np.flatnonzero(bad) + 1, mid[bad], axis=0)
-    return polyline_curve(uv)
+        first = 0
+        for item, (mid_t, _) in zip(todo, mids):
+            _, t, uv, tol_i, test = item
+            at = np.flatnonzero(test)
+            m = mid[first : first + len(at)]
+            first += len(at)
+            bad = _off_segment(m, uv[at], uv[at + 1]) > tol_i
+            bad &= (t[at + 1] - t[at]) > 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)
+            split = at[bad]
+            item[1] = np.insert(t, split + 1, mid_t[bad])
+            item[2] = np.insert(uv, split + 1, m[bad], axis=0)
+            test = np.zeros(len(item[1]) - 1, bool)  # the two halves of each split interval
+            test[split + np.arange(len(split))] = True
+            test[split + np.arange(len(split)) + 1] = True
+            item[4] = test
+        for item in todo:
+            if not item[4].any() or len(item[1]) >= _MAX_POINTS:
+                out[item[0]] = polyline_curve(item[2])
+        todo = [item for item in todo if out[item[0]] is None]
+    return out
 
 
 def _snap(x: np.ndarray, lo: float, hi: float) -> None:
