@@ -261,51 +261,51 @@ class RevolutionInverse:
 
 
 class _Pieces:
-    """A B-spline surface as its (rational) Bezier pieces, evaluated at many points with a
-    fixed, small number of NumPy calls (no per-degree Python loops): the evaluator of
-    :class:`CurveInverse`'s Newton steps."""
+    """A B-spline surface as its (rational) Bezier pieces in power form over each piece's local
+    (s, t) in [0, 1]^2, evaluated at many points with a fixed, small number of NumPy calls (no
+    per-degree Python loops): the evaluator of :class:`CurveInverse`'s Newton steps."""
 
     def __init__(self, s: BSplineSurface):
-        ctrl, bounds = bezier_patches(s)
-        self.degree = s.degree
-        self.nu = np.unique(bounds[:, 0]).size  # pieces along u (u-major order)
-        b = bounds.reshape(self.nu, -1, 4)
+        ctrl, bounds = bezier_patches(s)  # (K, p + 1, q + 1, 4), u-major
+        p, q = s.degree
+        nu = np.unique(bounds[:, 0]).size
+        b = bounds.reshape(nu, -1, 4)
         self.nv = b.shape[1]
-        self.ctrl = ctrl  # (nu * nv, p + 1, q + 1, 4) homogeneous Bezier points
-        self.u_lo, self.u_hi = b[:, 0, 0].copy(), b[:, 0, 1].copy()  # (nu,) each
-        self.v_lo, self.v_hi = b[0, :, 2].copy(), b[0, :, 3].copy()  # (nv,) each
+        coef = np.einsum("ka,lb,nklc->nabc", _power_from_bernstein(p), _power_from_bernstein(q), ctrl)
+        self.rational = s.is_rational
+        self.coef = np.ascontiguousarray(coef if self.rational else coef[..., :3])  # (K, p + 1, q + 1, 4 or 3)
+        # per direction: the pieces' inner starts (searched), starts and 1 / lengths (each piece's)
+        self.u = (b[1:, 0, 0].copy(), b[:, 0, 0].copy(), 1.0 / (b[:, 0, 1] - b[:, 0, 0]), np.arange(p + 1))
+        self.v = (b[0, 1:, 2].copy(), b[0, :, 2].copy(), 1.0 / (b[0, :, 3] - b[0, :, 2]), np.arange(q + 1))
 
     @staticmethod
-    def _bernstein(p: int, x, lo, hi):
-        """Bernstein values (N, p + 1) at x (N,) on the pieces [lo, hi] and their x-derivatives."""
-        h = hi - lo
-        s = ((x - lo) / h)[:, None]
-        k = np.arange(p + 1)
-        b = _COMB[p, k] * s**k * (1 - s) ** (p - k)
-        if p == 0:
-            return b, np.zeros_like(b)
-        low = _COMB[p - 1, k[:-1]] * s ** k[:-1] * (1 - s) ** (p - 1 - k[:-1])  # degree p - 1
-        d = np.zeros_like(b)
-        d[:, 1:] += low
-        d[:, :-1] -= low
-        return b, d * (p / h)[:, None]
+    def _powers(x, axis):
+        """(piece index (N,), local powers (N, d + 1), their x-derivatives (N, d + 1)) at x (N,)."""
+        inner, lo, scale, e = axis
+        i = np.searchsorted(inner, x, side="right")
+        k = scale[i]
+        pw = ((x - lo[i]) * k)[:, None] ** e
+        d = np.zeros_like(pw)
+        d[:, 1:] = pw[:, :-1] * e[1:] * k[:, None]
+        return i, pw, d
 
     def __call__(self, u, v):
         """S, S_u, S_v (each (N, 3)) at u, v (N,) (outside the domain: the end pieces extended)."""
-        p, q = self.degree
-        iu = np.clip(np.searchsorted(self.u_lo, u, side="right") - 1, 0, self.nu - 1)
-        iv = np.clip(np.searchsorted(self.v_lo, v, side="right") - 1, 0, self.nv - 1)
-        bu, dbu = self._bernstein(p, u, self.u_lo[iu], self.u_hi[iu])
-        bv, dbv = self._bernstein(q, v, self.v_lo[iv], self.v_hi[iv])
-        c = self.ctrl[iu * self.nv + iv]  # (N, p + 1, q + 1, 4)
-        rows = np.einsum("nb,nabk->nak", bv, c)
-        h = np.einsum("na,nak->nk", bu, rows)
-        hu = np.einsum("na,nak->nk", dbu, rows)
-        hv = np.einsum("na,nb,nabk->nk", bu, dbv, c)
-        return rational_quotient(h, hu, hv)
+        iu, pu, du = self._powers(u, self.u)
+        iv, pv, dv = self._powers(v, self.v)
+        c = self.coef[iu * self.nv + iv]  # (N, p + 1, q + 1, 4 or 3)
+        rows = np.einsum("nb,nabk->nak", pv, c)
+        h = np.einsum("na,nak->nk", pu, rows)
+        hu = np.einsum("na,nak->nk", du, rows)
+        hv = np.einsum("na,nb,nabk->nk", pu, dv, c)
+        return rational_quotient(h, hu, hv) if self.rational else (h, hu, hv)
 
 
-_COMB = np.array([[math.comb(n, k) for k in range(32)] for n in range(32)], dtype=np.float64)
+def _power_from_bernstein(n: int) -> np.ndarray:
+    """(n + 1, n + 1) M with B_{k,n}(s) = sum_j M[k, j] s^j."""
+    k, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    comb = np.vectorize(math.comb)
+    return np.where(j >= k, comb(n, j) * comb(np.maximum(j, k), k) * (-1.0) ** (j - k), 0.0)
 
 
 def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float, iterations: int = 60):
