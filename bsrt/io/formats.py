@@ -57,7 +57,8 @@ READERS: dict[str, Reader] = {
             "iges",
             (".igs", ".iges"),
             "IGES 5.3 (bsrt's own reader): NURBS 128, analytic 108/114/118/120/122 "
-            "and 190-198 as exact NURBS, trimmed 144/142, bounded 143/141, B-rep solids 186, subfigures 308/408",
+            "and 190-198 as exact NURBS, offsets 140, trimmed 144/142, bounded 143/141, B-rep solids 186, "
+            "subfigures 308/408",
             "iges",
             cached=True,
         ),

@@ -8,9 +8,18 @@ reader's model-space curves on surfaces).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from bsrt.geometry.bspline import BSplineSurface, basis_functions, evaluate, find_span
+from bsrt.geometry.bspline import (
+    BSplineSurface,
+    basis_functions,
+    bezier_patches,
+    evaluate,
+    find_span,
+    rational_quotient,
+)
 
 _DAMP = 1e-14  # the smallest damping (relative to the normal matrix's diagonal): Gauss-Newton
 
@@ -249,3 +258,129 @@ class RevolutionInverse:
         on_axis = (r0 + f * dr) * (a1 - a0) <= 1e-9 * self.size
         uv[on_axis, 1] = np.nan
         return uv
+
+
+class _Pieces:
+    """A B-spline surface as its (rational) Bezier pieces in power form over each piece's local
+    (s, t) in [0, 1]^2, evaluated at many points with a fixed, small number of NumPy calls (no
+    per-degree Python loops): the evaluator of :class:`CurveInverse`'s Newton steps."""
+
+    def __init__(self, s: BSplineSurface):
+        ctrl, bounds = bezier_patches(s)  # (K, p + 1, q + 1, 4), u-major
+        p, q = s.degree
+        nu = np.unique(bounds[:, 0]).size
+        b = bounds.reshape(nu, -1, 4)
+        self.nv = b.shape[1]
+        coef = np.einsum("ka,lb,nklc->nabc", _power_from_bernstein(p), _power_from_bernstein(q), ctrl)
+        self.rational = s.is_rational
+        self.coef = np.ascontiguousarray(coef if self.rational else coef[..., :3])  # (K, p + 1, q + 1, 4 or 3)
+        # per direction: the pieces' inner starts (searched), starts and 1 / lengths (each piece's)
+        self.u = (b[1:, 0, 0].copy(), b[:, 0, 0].copy(), 1.0 / (b[:, 0, 1] - b[:, 0, 0]), np.arange(p + 1))
+        self.v = (b[0, 1:, 2].copy(), b[0, :, 2].copy(), 1.0 / (b[0, :, 3] - b[0, :, 2]), np.arange(q + 1))
+
+    @staticmethod
+    def _powers(x, axis):
+        """(piece index (N,), local powers (N, d + 1), their x-derivatives (N, d + 1)) at x (N,)."""
+        inner, lo, scale, e = axis
+        i = np.searchsorted(inner, x, side="right")
+        k = scale[i]
+        pw = ((x - lo[i]) * k)[:, None] ** e
+        d = np.zeros_like(pw)
+        d[:, 1:] = pw[:, :-1] * e[1:] * k[:, None]
+        return i, pw, d
+
+    def __call__(self, u, v):
+        """S, S_u, S_v (each (N, 3)) at u, v (N,) (outside the domain: the end pieces extended)."""
+        iu, pu, du = self._powers(u, self.u)
+        iv, pv, dv = self._powers(v, self.v)
+        c = self.coef[iu * self.nv + iv]  # (N, p + 1, q + 1, 4 or 3)
+        rows = np.einsum("nb,nabk->nak", pv, c)
+        h = np.einsum("na,nak->nk", pu, rows)
+        hu = np.einsum("na,nak->nk", du, rows)
+        hv = np.einsum("na,nb,nabk->nk", pu, dv, c)
+        return rational_quotient(h, hu, hv) if self.rational else (h, hu, hv)
+
+
+def _power_from_bernstein(n: int) -> np.ndarray:
+    """(n + 1, n + 1) M with B_{k,n}(s) = sum_j M[k, j] s^j."""
+    k, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    comb = np.vectorize(math.comb)
+    return np.where(j >= k, comb(n, j) * comb(np.maximum(j, k), k) * (-1.0) ** (j - k), 0.0)
+
+
+def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float, iterations: int = 60):
+    """(x, y), each (N,) float64: :func:`invert`'s damped, projected Gauss-Newton on a surface
+    given as its Bezier ``pieces`` (domain ((u0, u1), (v0, v1))), stopping where the step is
+    1e-12 of the domain (points off the surface converge linearly: the last digits cost
+    many steps and move (x, y) by less than 1e-10) or the residual 1e-14 of ``size``."""
+    (a0, a1), (b0, b1) = domain
+    x = np.clip(np.array(x, dtype=np.float64), a0, a1)
+    y = np.clip(np.array(y, dtype=np.float64), b0, b1)
+    lo, hi = np.array([a0, b0]), np.array([a1, b1])
+    points = np.asarray(points, dtype=np.float64)
+    n = x.shape[0]
+    scale = max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
+    best = np.full(n, np.inf)  # |residual| at the accepted parameters acc
+    acc = np.stack([x, y], 1)
+    cur = acc.copy()
+    normal = np.zeros((n, 5))  # a, b, c, g0, g1 of the normal equations at acc
+    mu = np.full(n, _DAMP)
+    last = np.full(n, np.inf)  # the size of each point's latest step
+    idx = np.arange(n)
+    for _ in range(iterations):
+        if idx.size == 0:
+            break
+        s, su, sv = pieces(cur[idx, 0], cur[idx, 1])
+        r = points[idx] - s
+        dist = np.sqrt(np.einsum("ni,ni->n", r, r))
+        good = dist <= best[idx] * (1 + 1e-12) + 1e-15 * size
+        g = idx[good]  # accepted: new normal equations there; the others retry with 10x the damping
+        best[g], acc[g] = dist[good], cur[g]
+        su, sv, r = su[good], sv[good], r[good]
+        normal[g] = np.stack(
+            [
+                np.einsum("ni,ni->n", su, su),
+                np.einsum("ni,ni->n", su, sv),
+                np.einsum("ni,ni->n", sv, sv),
+                np.einsum("ni,ni->n", su, r),
+                np.einsum("ni,ni->n", sv, r),
+            ],
+            1,
+        )
+        mu[idx[~good]] *= 10.0
+        a, b, c, g0, g1 = normal[idx].T
+        damp = mu[idx] * (a + c) + 1e-300
+        a, c = a + damp, c + damp
+        det = a * c - b * b
+        det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+        d = np.stack([(c * g0 - b * g1) / det, (a * g1 - b * g0) / det], 1)
+        start = acc[idx]
+        held = ((start <= lo) & (d < 0)) | ((start >= hi) & (d > 0))  # (M, 2)
+        one_d = np.stack([g0 / a, g1 / c], 1)  # the free parameter's step where the other is held
+        d = np.where(held, 0.0, np.where(held[:, ::-1], one_d, d))
+        cur[idx] = np.clip(start + d, lo, hi)
+        moved = np.hypot(*(cur[idx] - start).T)
+        # a step this small that made things worse: rounding, the accepted parameters stand
+        done = np.where(good, moved <= 1e-12 * scale, last[idx] <= 1e-10 * scale)
+        last[idx] = moved
+        back = idx[done & ~good]
+        cur[back] = acc[back]
+        done[good] |= dist[good] <= 1e-14 * size
+        mu[g] = np.maximum(mu[g] * 0.1, _DAMP)
+        idx = idx[~done]
+    return cur[:, 0].copy(), cur[:, 1].copy()
+
+
+class CurveInverse(SurfaceInverse):
+    """:class:`SurfaceInverse` whose Newton steps evaluate the surface as its Bezier pieces
+    (:func:`invert_pieces`): the IGES reader's inverter for model-space trim curves, called
+    with hundreds to thousands of points a few dozen times per face."""
+
+    def __init__(self, s: BSplineSurface):
+        super().__init__(s)
+        self.pieces = _Pieces(s)
+
+    def _newton(self, pts, uv):
+        u, v = invert_pieces(self.pieces, (self.s.domain_u, self.s.domain_v), pts, uv[:, 0], uv[:, 1], self.size)
+        s, su, sv = self.pieces(u, v)
+        return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)

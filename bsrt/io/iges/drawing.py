@@ -72,7 +72,8 @@ class _Drawing:
         if e.type in SURFACE_TYPES and e.de not in self.trimmed_targets:
             try:
                 s = _whole(f, e)
-            except Unsupported:
+            except Unsupported as u:  # named once with the reason, left out
+                self.notes.append(f"{u}; the surface is left out")
                 return None
             if s is None:
                 self.unbounded[e.type] = self.unbounded.get(e.type, 0) + 1

@@ -43,10 +43,10 @@ from bsrt.geometry.bspline import evaluate as evaluate_surface
 from bsrt.geometry.trim import TrimCurve, TrimLoop, make_trim_curve
 from bsrt.io.iges.bspline import clamp, ends, evaluate, line_curve, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, pieces
-from bsrt.io.iges.pcurves import invert_curve, map_curve
+from bsrt.io.iges.pcurves import invert_curves, map_curve
 from bsrt.io.iges.seams import Open, close_once_round
 from bsrt.io.iges.surfaces import SurfaceDef
-from bsrt.io.invert import SurfaceInverse
+from bsrt.io.invert import CurveInverse
 
 GAP = 1e-4  # largest loop gap closed, as a fraction of the domain's diagonal
 OVERSHOOT = 1e-3  # largest excursion out of the domain pulled back, likewise
@@ -122,29 +122,31 @@ class LoopBuilder:
         target = self.f.get(ref, de, what)
         if target.type not in CURVE_TYPES:
             raise Unsupported(target, "as a model-space curve")
-        out = [self._invert(c, target.de) for c in pieces(self.f, target)]
+        out = self._invert(pieces(self.f, target), target.de)
         out = [BRIDGE if x.curve is None else x for x in out]  # a collapsed edge: crossed straight
         if backwards:
             out = [x if x is BRIDGE else replace(x, curve=reverse(x.curve)) for x in out[::-1]]
         return out
 
-    def _invert(self, c: TrimCurve, source: int) -> Piece:
+    def _invert(self, curves: list[TrimCurve], source: int) -> list[Piece]:
+        """The 3-D curves in the surface's parameters (all carried together)."""
         sd = self.sd
         if sd.plane is not None:  # affine: exact
-            return Piece(TrimCurve(c.degree, c.knots, sd.invert(c.points), c.weights), "iges", source)
-        self.inverted += 1
+            return [Piece(TrimCurve(c.degree, c.knots, sd.invert(c.points), c.weights), "iges", source) for c in curves]
+        self.inverted += len(curves)
 
         def tol(uv):  # the curve's own extent: the domain, which holds it, is no smaller
             return INVERSION_TOL * max(math.hypot(*np.ptp(uv, axis=0)), 1e-300)
 
         if sd.invert is not None:
-            return Piece(invert_curve(c, lambda p, hint: sd.invert(p), tol, sd.periodic), "iges", source, True)
+            out = invert_curves(curves, lambda p, hint: sd.invert(p), tol, sd.periodic)
+            return [Piece(c, "iges", source, True) for c in out]
         key = ("inverse", sd.entity.de)
         if key not in self.f.cache:
             s, space = sd.inverse_target()
-            self.f.cache[key] = (sd.closed_inverse or SurfaceInverse(s), space)
+            self.f.cache[key] = (sd.closed_inverse or CurveInverse(s), space)
         inverse, space = self.f.cache[key]
-        return Piece(invert_curve(c, inverse, tol), space, source, True)
+        return [Piece(c, space, source, True) for c in invert_curves(curves, inverse, tol)]
 
     # -- loops --------------------------------------------------------------
 

@@ -4,15 +4,17 @@ Inversion (for boundaries written only as 3-D curves): the curve is sampled
 -- 8 points per knot span to start with -- and every sample is carried to
 the surface's parameters, in closed form for the analytic surfaces (angles
 unwrapped along the curve) or by closest-point inversion on a B-spline surface
-(:class:`bsrt.io.invert.SurfaceInverse`, the inverter the OpenCASCADE import
-uses too: from the nearest point of a grid over the surface for the first
-samples, and from the midpoint of the neighbouring samples' answers for the
-later ones). Along a closed direction of the inverter (a seam: its two bounds
+(:class:`bsrt.io.invert.CurveInverse`: the OpenCASCADE import's inverter
+:class:`~bsrt.io.invert.SurfaceInverse` with its Newton steps on the surface's
+Bezier pieces; from the nearest point of a grid over the surface for the first
+samples, and from hints on the polyline for the later ones), all curves of a
+composite together. Along a closed direction of the inverter (a seam: its two bounds
 are the same points) the samples are unwrapped by its period, so that a curve
 touching or just crossing the seam stays on one side of it. Intervals whose midpoint's (u, v) is
-further than ``tol`` from the segment between their ends' are halved until
-none is, and the result is the degree-1 polyline through the samples: within
-``tol`` of the true parameter-space curve at the tested midpoints. Planes need none of this: their inverse is affine, so the curve's
+further than ``tol`` from the segment between their ends' are cut (in 2 to 8 pieces,
+as many as the miss asks for: see ``_Refinement``) until none is, and the result is
+the degree-1 polyline through the samples: within ``tol`` of the true parameter-space
+curve at the tested midpoints. Planes need none of this: their inverse is affine, so the curve's
 control points are mapped exactly.
 
 Mapping (for trim curves written in an analytic surface's (angle, height)
@@ -54,47 +56,113 @@ def _near(values, reference, angular):
     return out
 
 
-def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> TrimCurve | None:
-    """The 3-D curve c as a 2-D polyline in the parameters given by to_uv(points, hint).
+def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -> list[TrimCurve | None]:
+    """The 3-D curves as 2-D polylines in the parameters given by to_uv(points, hint), all
+    curves' samples carried together (one call of to_uv per round of cutting).
 
     to_uv: (N, 3) points and (N, 2) hints (or None) -> (N, 2), NaN where a
     parameter is undetermined (at a pole or an apex: the neighbouring samples'
     value is taken). angular: which parameters are angles (unwrapped along the
-    curve). tol: see the module text (or a function of the first samples' (u, v)
-    giving it). None if the whole curve lies where a parameter is undetermined
+    curve). tol: see the module text (or a function of a curve's first samples' (u, v)
+    giving it). None for a curve that lies wholly where a parameter is undetermined
     (a collapsed edge, which the loop then crosses in a straight line).
     """
-    t = _start_samples(c)
-    uv = to_uv(evaluate(c, t), None)
-    for k in range(2):  # NaN: any value (a pole, an apex): the neighbours' one
-        bad = np.isnan(uv[:, k])
-        if bad.all():
-            return None
-        if bad.any():
-            good = np.flatnonzero(~bad)
-            uv[:, k] = uv[good[np.clip(np.searchsorted(good, np.arange(len(uv))), 0, len(good) - 1)], k]
-        if angular[k]:
-            uv[:, k] = np.unwrap(uv[:, k])
+    ts = [_start_samples(c) for c in curves]
+    cuts = np.cumsum([0] + [len(t) for t in ts])
+    uv_all = to_uv(np.concatenate([evaluate(c, t) for c, t in zip(curves, ts)]), None)
     seams = [(k, lo, hi) for k, (lo, hi, closed) in enumerate(getattr(to_uv, "seams", ())) if closed]
-    for k, lo, hi in seams:
-        _snap(uv[:, k], lo, hi)
-    if callable(tol):
-        tol = tol(uv)
-    while len(t) < _MAX_POINTS:
-        mid_t = 0.5 * (t[:-1] + t[1:])
-        chord = 0.5 * (uv[:-1] + uv[1:])
-        mid = to_uv(evaluate(c, mid_t), chord)
-        mid = _near(np.where(np.isnan(mid), chord, mid), chord, angular)
-        for k, lo, hi in seams:  # the chord's turn; on the seam: the side of the chord
-            mid[:, k] += (hi - lo) * np.round((chord[:, k] - mid[:, k]) / (hi - lo))
-            _onto_seam(mid[:, k], lo, hi)
-        bad = _off_segment(mid, uv[:-1], uv[1:]) > tol
-        bad &= (t[1:] - t[:-1]) > 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)
-        if not bad.any():
-            break
-        t = np.insert(t, np.flatnonzero(bad) + 1, mid_t[bad])
-        uv = np.insert(uv, np.flatnonzero(bad) + 1, mid[bad], axis=0)
-    return polyline_curve(uv)
+    out: list[TrimCurve | None] = [None] * len(curves)
+    todo = []
+    for i, t in enumerate(ts):
+        uv = uv_all[cuts[i] : cuts[i + 1]]
+        for k in range(2):  # NaN: any value (a pole, an apex): the neighbours' one
+            bad = np.isnan(uv[:, k])
+            if bad.all():
+                break
+            if bad.any():
+                good = np.flatnonzero(~bad)
+                uv[:, k] = uv[good[np.clip(np.searchsorted(good, np.arange(len(uv))), 0, len(good) - 1)], k]
+            if angular[k]:
+                uv[:, k] = np.unwrap(uv[:, k])
+        else:
+            for k, lo, hi in seams:
+                _snap(uv[:, k], lo, hi)
+            todo.append(_Refinement(i, t, uv, tol(uv) if callable(tol) else tol))
+    while todo:
+        pts = np.concatenate([evaluate(curves[r.index], r.want_t) for r in todo])
+        hint = np.concatenate([r.want_hint for r in todo])
+        new = to_uv(pts, hint)
+        new = _near(np.where(np.isnan(new), hint, new), hint, angular)
+        for k, lo, hi in seams:  # the hint's turn; on the seam: the side of the hint
+            new[:, k] += (hi - lo) * np.round((hint[:, k] - new[:, k]) / (hi - lo))
+            _onto_seam(new[:, k], lo, hi)
+        first = 0
+        for r in todo:
+            first, mine = first + len(r.want_t), new[first : first + len(r.want_t)]
+            r.take(mine)
+            if not len(r.want_t) or len(r.t) >= _MAX_POINTS:
+                out[r.index] = polyline_curve(r.uv)
+        todo = [r for r in todo if out[r.index] is None]
+    return out
+
+
+class _Refinement:
+    """One curve's polyline being refined: vertices t (M,) and uv (M, 2), vertices to add
+    (parameters ``new_t`` (V,)) and intervals to test (ends ``test_a``, ``test_b`` (T,), both
+    vertices once the new ones are in); ``want_t`` (V + T,) and ``want_hint`` (V + T, 2): the
+    points to carry into (u, v) next, the new vertices and then the tested intervals' midpoints.
+
+    An interval whose midpoint is further than tol from its chord is cut into m = 2, 4, 6 or
+    8 equal pieces, m from the miss (on a smooth curve it falls as the square of the piece's
+    length): the midpoint becomes a vertex at once, the other new vertices and the pieces'
+    midpoints are carried in the next round, from hints on the parabola through the interval's
+    ends and midpoint (so that a curve that needs many points takes few rounds)."""
+
+    def __init__(self, index: int, t, uv, tol: float):
+        self.index, self.t, self.uv, self.tol = index, t, uv, tol
+        self.new_t = np.empty(0)
+        self.test_a, self.test_b = t[:-1], t[1:]
+        self.want_t = 0.5 * (t[:-1] + t[1:])
+        self.want_hint = 0.5 * (uv[:-1] + uv[1:])
+        self.floor = 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)  # intervals no shorter are cut
+
+    def _insert(self, t, uv) -> None:
+        at = np.searchsorted(self.t, t)
+        self.t = np.insert(self.t, at, t)
+        self.uv = np.insert(self.uv, at, uv, axis=0)
+
+    def take(self, new: np.ndarray) -> None:
+        """The carried points' (u, v) (len(want_t), 2): the next round's points chosen."""
+        v = len(self.new_t)
+        if v:
+            self._insert(self.new_t, new[:v])
+        mid = new[v:]
+        ia = np.searchsorted(self.t, self.test_a)
+        a, b = self.uv[ia], self.uv[ia + 1]
+        miss = _off_segment(mid, a, b)
+        bad = (miss > self.tol) & (self.test_b - self.test_a > self.floor)
+        ta, tb, a, b, mid = self.test_a[bad], self.test_b[bad], a[bad], b[bad], mid[bad]
+        m = 2 * np.ceil(np.clip(np.ceil(1.2 * np.sqrt(miss[bad] / self.tol)), 2, 8) / 2).astype(np.int64)
+        self._insert(0.5 * (ta + tb), mid)
+        k = np.repeat(np.arange(len(m)), m + 1)  # the pieces' ends j / m, j = 0..m, of every cut interval
+        j = np.arange(len(k)) - np.repeat(np.cumsum(m + 1) - (m + 1), m + 1)
+        f = j / m[k]
+        ends = ta[k] * (1 - f) + tb[k] * f  # exactly ta, tb and the midpoint at j = 0, m and m / 2
+        hint = _parabola(a[k], mid[k], b[k], f)
+        vertex = (j > 0) & (j < m[k]) & (2 * j != m[k])
+        piece = j < m[k]  # a piece starts here
+        self.new_t = ends[vertex]
+        self.test_a, self.test_b = ends[piece], ends[np.flatnonzero(piece) + 1]
+        fm = (f[piece] + f[np.flatnonzero(piece) + 1]) / 2
+        kp = k[piece]
+        self.want_t = np.concatenate([self.new_t, 0.5 * (self.test_a + self.test_b)])
+        self.want_hint = np.concatenate([hint[vertex], _parabola(a[kp], mid[kp], b[kp], fm)])
+
+
+def _parabola(a, m, b, f):
+    """(N, 2): the parabola through a (at f = 0), m (at 1/2) and b (at 1) (each (N, 2)) at f (N,)."""
+    f = f[:, None]
+    return a * ((2 * f - 1) * (f - 1)) + m * (4 * f * (1 - f)) + b * (f * (2 * f - 1))
 
 
 def _snap(x: np.ndarray, lo: float, hi: float) -> None:

@@ -26,6 +26,7 @@ perpendicular to it, or any perpendicular one for the unparametrised form 0):
   angle turned from the generatrix, right-handed about the axis.
 * 122 tabulated cylinder: DE of the directrix C, LX LY LZ: S(u, v) =
   C(t) + v (L - C(t0)), t = t0 + u (t1 - t0), u and v in [0, 1].
+* 140 offset surface: NX NY NZ D and the base surface: see ``bsrt.io.iges.offset``.
 * 108 plane: A B C D (A x + B y + C z = D) PTR X Y Z SIZE: origin the point of
   the plane nearest the definition-space origin, u and v lengths along X, Y.
 * 190 plane surface: L + u X + v Y (L: DELOC, normal: DENRML, X: DEREFD).
@@ -51,14 +52,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.io.iges import analytic
+from bsrt.io.iges import analytic, offset
 from bsrt.io.iges.bspline import affine, clamp, ends, param_map, reverse
 from bsrt.io.iges.bspline import ends as ends_of
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, curve, direction, point
 from bsrt.io.invert import RevolutionInverse
 from bsrt.io.param_map import ParamMap
 
-SURFACE_TYPES = frozenset({108, 114, 118, 120, 122, 128, 190, 192, 194, 196, 198})
+SURFACE_TYPES = frozenset({108, 114, 118, 120, 122, 128, 140, 190, 192, 194, 196, 198})
 TWO_PI = 2 * math.pi
 
 
@@ -455,6 +456,18 @@ def _axis_surface(f, entity, params, m, kind: str) -> SurfaceDef:
     )
 
 
+def _offset(f, entity, params, m) -> SurfaceDef:
+    params.reals(3, "an offset indicator component")
+    d = params.real("the offset distance D")
+    base = f.get(params, params.pointer("the surface pointer"), "surface pointer")
+    if base.type not in SURFACE_TYPES:
+        raise Unsupported(base, "as a surface")
+    try:
+        return offset.offset_def(surface(f, base), entity, d, m)
+    except offset.OffsetError as e:
+        raise Unsupported(entity, str(e)) from None
+
+
 _READERS = {
     108: _plane,
     114: _spline_surface,
@@ -462,6 +475,7 @@ _READERS = {
     120: _revolution,
     122: _tabulated,
     128: _bspline,
+    140: _offset,
     190: _plane_surface,
     192: lambda f, e, p, m: _axis_surface(f, e, p, m, "cylinder"),
     194: lambda f, e, p, m: _axis_surface(f, e, p, m, "cone"),
