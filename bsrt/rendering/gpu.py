@@ -194,20 +194,35 @@ def find_roots_gpu(
     ray = np.asarray(ray, dtype=np.int64)
     surface = np.asarray(surface)
     with ctx:  # current on this thread for the duration
-        shader = gl.program(ctx, "solve", DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
-        table = _uploaded(ctx, patches)
-        for name, offset in table.offsets.items():
-            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
-        _set(shader, "method", kernel_id)
-        _set(shader, "max_iterations", int(max_iterations))
-        _set(shader, "stop_on_growth", int(bool(stop_on_growth)))
-        _set(shader, "tol2", float(tolerance) * float(tolerance))
-        table.reals.bind_to_storage_buffer(0)
-        table.ints.bind_to_storage_buffer(1)
+        shader = solver(ctx, "solve", patches, kernel_id, tolerance, max_iterations, stop_on_growth)
         for first in range(0, m, SLICE):  # buffers of one slice at a time: bounded, whatever m
             _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + SLICE)), out)
             interrupts.safe_point()  # this slice done: a waiting signal is taken between slices
     return out
+
+
+def solver(ctx, name: str, patches: PatchSet, kernel_id: int, tolerance, max_iterations, stop_on_growth):
+    """The compute shader NAME (one that includes solve_core.glsl) ready to
+    dispatch on ctx (current): compiled with the kernels' constants (and the
+    trim test for a trimmed scene), the patch table uploaded (once per
+    PatchSet) and bound to storage buffers 0 and 1, the solve's uniforms set."""
+    shader = gl.program(ctx, name, DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
+    bind_patch_table(ctx, shader, patches)
+    set_uniform(shader, "method", kernel_id)
+    set_uniform(shader, "max_iterations", int(max_iterations))
+    set_uniform(shader, "stop_on_growth", int(bool(stop_on_growth)))
+    set_uniform(shader, "tol2", float(tolerance) * float(tolerance))
+    return shader
+
+
+def bind_patch_table(ctx, shader, patches: PatchSet) -> None:
+    """patches' table (patches.glsl, trim64.glsl) on ctx (current), uploaded
+    once per PatchSet, bound to storage buffers 0 and 1, its offsets set on shader."""
+    table = _uploaded(ctx, patches)
+    for key, offset in table.offsets.items():
+        set_uniform(shader, key if key == "trim_coef_rows" else f"off_{key}", offset)
+    table.reals.bind_to_storage_buffer(0)
+    table.ints.bind_to_storage_buffer(1)
 
 
 def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: RootResult) -> None:
@@ -218,7 +233,7 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
     items[:, 3:6] = rays.direction[ray[part]]
     items[:, 6] = u[part]
     items[:, 7] = v[part]
-    _set(shader, "item_count", n)
+    set_uniform(shader, "item_count", n)
     buffers = []
     try:
         buffers.append(ctx.buffer(items.tobytes()))
@@ -240,7 +255,7 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
     out.trimmed[part] = ints[:, 3] != 0
 
 
-def _set(shader, name: str, value) -> None:
+def set_uniform(shader, name: str, value) -> None:
     """Set a uniform the compiler kept (an unused one is optimised away)."""
     try:
         shader[name].value = value
@@ -260,15 +275,11 @@ def kept_gpu(ctx: moderngl.Context, patches: PatchSet, surface, u, v) -> np.ndar
     points = np.stack([surface.astype(np.float64), u, v], axis=1)
     with ctx:
         shader = gl.program(ctx, "trim_probe64", compute=True)
-        table = _uploaded(ctx, patches)
-        for name, offset in table.offsets.items():
-            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
-        _set(shader, "point_count", n)
+        bind_patch_table(ctx, shader, patches)
+        set_uniform(shader, "point_count", n)
         buffers = [ctx.buffer(points.tobytes())]
         try:
             buffers.append(ctx.buffer(reserve=4 * n))
-            table.reals.bind_to_storage_buffer(0)
-            table.ints.bind_to_storage_buffer(1)
             buffers[0].bind_to_storage_buffer(2)
             buffers[1].bind_to_storage_buffer(3)
             shader.run(group_x=-(-n // GROUP))  # tests' sizes: one dispatch
