@@ -1,26 +1,29 @@
 // The seeded root finder in float64 for compute shaders: a file that other
 // shaders include (no #version here; patches.glsl and trim64.glsl first).
-// solve_item is bsrt/kernels/roots.py's solve_one (newton, gradient, fast;
+// solve_one is bsrt/kernels/roots.py's solve_one (newton, gradient, fast;
 // its docstring describes the methods) for one (ray, start) item, on the
-// patch table of patches.glsl. GRADIENT, FAST, NEWTON, MAX_HALVINGS and
+// patch table of patches.glsl; solve_item is the seeded solve of one item. GRADIENT, FAST, NEWTON, MAX_HALVINGS and
 // STALL_STEPS are #defined by bsrt/rendering/gpu.py from the kernels'
-// constants; with TRIM_TEST #defined the trims are applied to converged
+// constants; with TRIM_TEST #defined solve_item applies the trims to converged
 // roots (trim64.glsl), as rendering/solve.py's find_roots does on the CPU.
 // Kept in step with roots.py: the CPU kernel is the reference the tests
 // hold this shader to. solve.glsl (items from a buffer) and map_solve.glsl
-// (starts from the preliminary map's textures) run it.
+// (starts from the preliminary map's textures) run solve_item, anyhit.glsl
+// runs solve_one on the hierarchy's pieces.
 
 uniform int method;
 uniform int max_iterations;
 uniform int stop_on_growth;
 uniform double tol2;  // the tolerance squared
 
-// The root of the ray o + t d (d unit) on surface m from the start (u0, v0):
-// root = (u, v, t, |residual|), patch_index = the patch holding (u, v), converged,
-// iterations taken, trimmed (a converged root the trims remove: converged
-// is then false).
-void solve_item(dvec3 o, dvec3 d, int m, double u0, double v0, out dvec4 root, out int patch_index, out bool converged,
-                out int iterations, out bool trimmed) {
+// The root of the ray o + t d (d unit) on surface m from the start (u0, v0)
+// by method (tol2: the tolerance squared): root = (u, v, t, |residual|),
+// patch_index = the patch holding (u, v), converged, iterations taken,
+// cosine = |cos| between d and the normal at the last point for NEWTON
+// (solve_one's, the hierarchy's grazing test), else NaN. No trims here.
+void solve_one(dvec3 o, dvec3 d, int m, double u0, double v0, int method, double tol2, int max_iterations,
+               bool stop_on_growth, out dvec4 root, out int patch_index, out bool converged, out int iterations,
+               out double cosine) {
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
     // e1, e2 perpendicular to d and each other (Duff et al. 2017), as roots.ray_frame
     double sgn = d.z >= 0.0LF ? 1.0LF : -1.0LF;
@@ -64,7 +67,7 @@ void solve_item(dvec3 o, dvec3 d, int m, double u0, double v0, out dvec4 root, o
         }
         double nu, nv;
         if (method == NEWTON) {
-            if (stop_on_growth != 0 && w > w_prev) break;
+            if (stop_on_growth && w > w_prev) break;
             w_prev = w;
             a = e1.x * Su.x + e1.y * Su.y + e1.z * Su.z;
             b = e1.x * Sv.x + e1.y * Sv.y + e1.z * Sv.z;
@@ -141,6 +144,11 @@ void solve_item(dvec3 o, dvec3 d, int m, double u0, double v0, out dvec4 root, o
         if (!inside_patch(k, u, v)) k = locate_patch(m, u, v);
     }
     double t = d.x * (S.x - o.x) + d.y * (S.y - o.y) + d.z * (S.z - o.z);
+    cosine = packDouble2x32(uvec2(0u, 0x7ff80000u));  // NaN
+    if (method == NEWTON) {  // the same arithmetic as evaluating the frame again (anyhit.glsl's cosine)
+        dvec3 n = dvec3(Su.y * Sv.z - Su.z * Sv.y, Su.z * Sv.x - Su.x * Sv.z, Su.x * Sv.y - Su.y * Sv.x);
+        cosine = abs(n.x * d.x + n.y * d.y + n.z * d.z) / max(sqrt(n.x * n.x + n.y * n.y + n.z * n.z), 1e-300LF);
+    }
     if (!converged && method != NEWTON && wa < INF && !(w <= wa)) {  // report the best point seen
         u = ua;
         v = va;
@@ -149,13 +157,23 @@ void solve_item(dvec3 o, dvec3 d, int m, double u0, double v0, out dvec4 root, o
         t = d.x * (S.x - o.x) + d.y * (S.y - o.y) + d.z * (S.z - o.z);
         w = wa;
     }
+    root = dvec4(u, v, t, sqrt(w));
+    patch_index = k;
+}
+
+// The seeded solve of one item with the uniforms' method and settings, the
+// trims applied to a converged root (TRIM_TEST) as rendering/solve.py's
+// find_roots does: trimmed, a converged root they remove (then not converged).
+void solve_item(dvec3 o, dvec3 d, int m, double u0, double v0, out dvec4 root, out int patch_index, out bool converged,
+                out int iterations, out bool trimmed) {
+    double cosine;
+    solve_one(o, d, m, u0, v0, method, tol2, max_iterations, stop_on_growth != 0, root, patch_index, converged,
+              iterations, cosine);
     trimmed = false;
 #ifdef TRIM_TEST
-    if (converged && !trim_kept(m, u, v)) {  // as find_roots: a root the trims remove
+    if (converged && !trim_kept(m, root.x, root.y)) {
         converged = false;
         trimmed = true;
     }
 #endif
-    root = dvec4(u, v, t, sqrt(w));
-    patch_index = k;
 }

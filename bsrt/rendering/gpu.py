@@ -112,6 +112,14 @@ def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, i
     if patches.trimmed:
         tables.append((patches.trims, "trim_", TRIM_REAL_ARRAYS, TRIM_INT_ARRAYS))
         offsets["trim_coef_rows"] = int(patches.trims.coef.shape[1])
+    return pack_tables(tables, offsets)
+
+
+def pack_tables(tables, offsets: dict[str, int]) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """(reals (R,) float64, ints (I,) int32, offsets) of tables: (table, prefix,
+    real names, int names) each, every named array of the table flattened in
+    order into reals or ints, offsets[prefix + name] its first element (added
+    to the offsets given)."""
     reals, ints = [], []
     real_at = int_at = 0
     for table, prefix, real_names, int_names in tables:
@@ -125,23 +133,28 @@ def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, i
                 raise InputError(f'the scene is too large for the GPU path ({prefix}{name}); use device = "cpu"')
             offsets[prefix + name], int_at = int_at, int_at + a.size
             ints.append(a.astype(np.int32))
+    if max(real_at, int_at) > np.iinfo(np.int32).max:
+        raise InputError('the scene is too large for the GPU path (offsets beyond int32); use device = "cpu"')
     reals.append(np.zeros(1))  # never an empty buffer
     ints.append(np.zeros(1, dtype=np.int32))
     return np.concatenate(reals), np.concatenate(ints), offsets
 
 
-class _UploadedPatches:
-    """The packed patch table of one PatchSet in two storage buffers on ctx."""
+class Uploaded:
+    """A packed table (pack_tables' reals, ints, offsets) of source in two
+    storage buffers on ctx; what: its name in the error when too large.
+    dependents: tables of the same source's other parts (the hierarchy of
+    these patches: gpu_shade.py), released with it."""
 
-    def __init__(self, ctx: moderngl.Context, patches: PatchSet):
-        reals, ints, self.offsets = pack_patches(patches)
+    def __init__(self, ctx: moderngl.Context, source, packed, what: str):
+        reals, ints, self.offsets = packed
         limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
         if limit and max(reals.nbytes, ints.nbytes) > limit:
             raise InputError(
-                f"render.device: the scene's patch table ({reals.nbytes / 2**20:.0f} MiB) is larger than the "
+                f"render.device: the scene's {what} ({reals.nbytes / 2**20:.0f} MiB) is larger than the "
                 f'OpenGL context\'s storage buffers hold ({limit / 2**20:.0f} MiB); use device = "cpu"'
             )
-        self.patches = patches
+        self.source, self.dependents = source, {}
         self.reals = ctx.buffer(reals.tobytes())
         try:
             self.ints = ctx.buffer(ints.tobytes())
@@ -152,20 +165,23 @@ class _UploadedPatches:
     def release(self) -> None:
         self.reals.release()
         self.ints.release()
+        for table in self.dependents.values():
+            table.release()
+        self.dependents = {}
 
 
-def _uploaded(ctx: moderngl.Context, patches: PatchSet) -> _UploadedPatches:
+def uploaded(ctx: moderngl.Context, patches: PatchSet) -> Uploaded:
     """The patch table of patches on ctx, uploaded once per PatchSet (the last
     one is kept on the context; gl.release_cached releases it)."""
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     kept = ctx.extra.get("bsrt_gpu_patches")
-    if kept is not None and kept.patches is patches:
+    if kept is not None and kept.source is patches:
         return kept
     if kept is not None:
         kept.release()
         ctx.extra.pop("bsrt_gpu_patches")
-    ctx.extra["bsrt_gpu_patches"] = made = _UploadedPatches(ctx, patches)
+    ctx.extra["bsrt_gpu_patches"] = made = Uploaded(ctx, patches, pack_patches(patches), "patch table")
     return made
 
 
@@ -218,7 +234,7 @@ def solver(ctx, name: str, patches: PatchSet, kernel_id: int, tolerance, max_ite
 def bind_patch_table(ctx, shader, patches: PatchSet) -> None:
     """patches' table (patches.glsl, trim64.glsl) on ctx (current), uploaded
     once per PatchSet, bound to storage buffers 0 and 1, its offsets set on shader."""
-    table = _uploaded(ctx, patches)
+    table = uploaded(ctx, patches)
     for key, offset in table.offsets.items():
         set_uniform(shader, key if key == "trim_coef_rows" else f"off_{key}", offset)
     table.reals.bind_to_storage_buffer(0)

@@ -1,0 +1,128 @@
+"""Shadow rays on the GPU: the hierarchy in storage buffers and the any-hit walk as a compute shader.
+
+``occluded_gpu`` answers, for shadow rays given as arrays, what the CPU's
+any-hit walk (kernels/lighting.py's occluded; bvh.intersect with any_hit)
+answers: blocked or not, and which rays spent their budget (taken as lit).
+``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
+in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
+per hierarchy beside the patch table (gpu.uploaded).
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from bsrt import interrupts
+from bsrt.kernels.hierarchy import BVHArrays
+from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
+from bsrt.rendering import gl
+from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, ray_budget
+from bsrt.rendering.gpu import DEFINES, GROUP, SLICE, Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
+
+
+def hierarchy_arrays(arrays: BVHArrays) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(float64 names, integer names) of BVHArrays' fields, as anyhit.glsl reads them (offsets off_NAME)."""
+    real = tuple(f for f in BVHArrays._fields if getattr(arrays, f).dtype.kind == "f")
+    return real, tuple(f for f in BVHArrays._fields if f not in real)
+
+
+def uploaded_hierarchy(ctx: moderngl.Context, bvh) -> Uploaded:
+    """bvh's table (BVHArrays) on ctx in two storage buffers, uploaded once per
+    hierarchy, kept with its patches' table (gpu.uploaded: released with it)."""
+    table = uploaded(ctx, bvh.patches)
+    kept = table.dependents.get("hierarchy")
+    if kept is not None and kept.source is bvh:
+        return kept
+    if kept is not None:
+        table.dependents.pop("hierarchy").release()
+    real, integer = hierarchy_arrays(bvh.arrays)
+    packed = pack_tables([(bvh.arrays, "", real, integer)], {})
+    table.dependents["hierarchy"] = made = Uploaded(ctx, bvh, packed, "hierarchy")
+    return made
+
+
+def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = DEFAULT_RETRY_DEPTH):
+    """The compute shader NAME (one that includes anyhit.glsl) on ctx (current),
+    compiled for bvh's nets and retry_depth, the patch table bound to storage
+    buffers 0 and 1, the hierarchy to 6 and 7, their offsets set."""
+    pm, qm = bvh.arrays.patch_net.shape[1:3]
+    defines = DEFINES + (
+        f"NET_PM {pm}",
+        f"NET_QM {qm}",
+        f"RETRY_DEPTH {int(retry_depth)}",
+        f"STACK {STACK}",
+        f"GRAZING_COSINE {GRAZING_COSINE!r}LF",
+        f"RECT_SLACK {RECT_SLACK!r}LF",
+    )
+    shader = gl.program(ctx, name, defines + (("TRIM_TEST",) if bvh.patches.trimmed else ()), compute=True)
+    bind_patch_table(ctx, shader, bvh.patches)
+    table = uploaded_hierarchy(ctx, bvh)
+    for key, offset in table.offsets.items():
+        set_uniform(shader, f"off_{key}", offset)
+    table.reals.bind_to_storage_buffer(6)
+    table.ints.bind_to_storage_buffer(7)
+    return shader
+
+
+def set_shadow_uniforms(shader, bvh, tolerance: float, max_iterations: int) -> None:
+    """The shadow rays' solve as bvh.intersect sets it: tolerance (scene units),
+    max_iterations of Newton per piece, the hull test's slack, the ray's budget."""
+    set_uniform(shader, "shadow_tol", float(tolerance))
+    set_uniform(shader, "shadow_iterations", int(max_iterations))
+    set_uniform(shader, "cull_tol", float(bvh.padding + tolerance))
+    set_uniform(shader, "budget", ray_budget(max_iterations))
+
+
+def occluded_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    origins,
+    directions,
+    t_max,
+    tolerance: float,
+    exclude=None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Any-hit shadow rays on ctx (OpenGL 4.5 with float64: gpu.choose_device).
+
+    origins, directions: (N, 3) float64 (directions of unit length); t_max:
+    (N,) or a scalar, a blocker needs 0 < t < t_max; tolerance: scene units;
+    exclude: (surface, u, v, radius_u, radius_v), each (N,), the root each ray
+    starts from (bvh.intersect's). Returns (blocked (N,) bool, exhausted (N,)
+    bool: not blocked within the budget, taken as lit), what bvh.intersect
+    with any_hit and max_iterations (Newton's per piece) answers on the CPU."""
+    d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    n = d.shape[0]
+    rays = np.zeros((n, 12))
+    rays[:, 0:3] = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), (n, 3))
+    rays[:, 3:6] = d
+    rays[:, 6] = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
+    rays[:, 7] = -1.0
+    if exclude is not None:
+        for c, a in enumerate(exclude, start=7):
+            rays[:, c] = a
+    answer = np.empty(n, dtype=np.int32)
+    if n == 0 or bvh.leaf_total == 0:
+        answer[:] = 0
+        return answer == 1, answer == -2
+    with ctx:
+        shader = hierarchy_shader(ctx, "shadow", bvh)
+        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
+        for first in range(0, n, SLICE):
+            count = min(SLICE, n - first)
+            buffers = []
+            try:
+                buffers.append(ctx.buffer(rays[first : first + count].tobytes()))
+                buffers.append(ctx.buffer(reserve=4 * count))
+                buffers[0].bind_to_storage_buffer(2)
+                buffers[1].bind_to_storage_buffer(3)
+                set_uniform(shader, "ray_count", count)
+                shader.run(group_x=-(-count // GROUP))
+                ctx.memory_barrier()
+                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32)
+            finally:
+                for buffer in buffers:
+                    buffer.release()
+            interrupts.safe_point()
+    return answer == 1, answer == -2
