@@ -124,3 +124,77 @@ def test_shadow_rays_agree_with_the_cpu_walk(path):
         rays += origins.shape[0]
     assert rays > 1000
     assert _context().error == "GL_NO_ERROR"
+
+
+def _shade_inputs(scene, result):
+    """shade_hits' arguments for a render's pixel-centre hits, as rendering/pipeline.py passes them."""
+    from bsrt.scene.camera import pixel_rays
+
+    options = result.options
+    h, w = result.pixels.shape[:2]
+    materials = (
+        np.array([m.color for m in scene.materials], dtype=np.float64).reshape(-1, 3),
+        np.array([m.specular for m in scene.materials], dtype=np.float64),
+        np.array([m.shininess for m in scene.materials], dtype=np.float64),
+    )
+    background = np.array(options.background, dtype=np.float64).reshape(3)
+    directions = np.ascontiguousarray(pixel_rays(options.camera, w, h))
+    return directions, materials, light_arrays(scene.lights), background
+
+
+@pytest.mark.parametrize("path", SOURCES + [ROOT / "scenes" / "bench-64.toml"], ids=lambda p: p.stem)
+def test_the_lighting_shader_agrees_with_the_kernel(path):
+    """shade.glsl against kernels/lighting.py's shade_hits on every pixel of a render:
+    the same frames and exclusion boxes (bit for bit: the same float64 steps), the
+    same shadow rays per hit, colours within 1e-5 relative (the specular power is
+    float32 in GLSL), so the 8-bit image within 1/255."""
+    from bsrt.kernels.lighting import shade_hits
+    from bsrt.kernels.threads import run_chunks
+    from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
+    from bsrt.rendering.image import srgb_encode
+
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
+    geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
+    directions, materials, lights, background = _shade_inputs(scene, result)
+    tolerance, eps, n = result.options.tolerance * geometry.diagonal, 1e-6 * geometry.diagonal, len(hits)
+
+    def outputs():
+        return tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + (
+            np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64),
+        )
+
+    cpu, on_gpu = outputs(), outputs()
+    run_chunks(
+        shade_hits, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch,
+        hits.surface, hits.u, hits.v, directions, geometry.material, *materials, *lights, background, eps,
+        float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), *cpu,
+    )  # fmt: skip
+    gpu_shade.shade_hits_gpu(
+        _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, on_gpu
+    )
+    assert _context().error == "GL_NO_ERROR"
+    for name, want, got in zip(("position", "normal", "radius", "shadow_rays", "exhausted"), cpu[1:], on_gpu[1:]):
+        np.testing.assert_array_equal(got, want, err_msg=name)
+    assert cpu[4].sum() > 1000  # shadow rays were traced
+    np.testing.assert_allclose(on_gpu[0], cpu[0], rtol=1e-5, atol=1e-12)
+    assert np.abs(srgb_encode(on_gpu[0]).astype(int) - srgb_encode(cpu[0]).astype(int)).max() <= 1
+
+
+@pytest.mark.parametrize("extra", [{}, {"ao": True, "ground": True}], ids=["mirrors", "ao-ground"])
+def test_a_gpu_render_shades_as_the_cpu(extra):
+    """The column (a mirror among its materials) rendered with device = "gpu": the
+    direct lighting on the GPU, mirrors, ambient occlusion and the ground's contact
+    shadow on the CPU from its positions, normals and exclusion boxes: the same
+    image within 1/255 (the same hits everywhere away from silhouettes:
+    test_gpu.py)."""
+    size = dict(width=48, height=48, spp=1, adaptive_spp=0, **extra)
+    path = ROOT / "scenes" / "column.toml"
+    cpu = bsrt.render(path, device="cpu", **size)
+    on_gpu = bsrt.render(path, device="gpu", **size)
+    assert on_gpu.stats["devices"]["shade"] == "gpu" and cpu.stats["devices"]["shade"] == "cpu"
+    assert on_gpu.stats["shadow_rays"] == cpu.stats["shadow_rays"] > 1000
+    assert on_gpu.stats["reflection_rays"] == cpu.stats["reflection_rays"] > 0
+    np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
+    assert np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max() <= 1

@@ -10,11 +10,14 @@ per hierarchy beside the patch table (gpu.uploaded).
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import moderngl
 import numpy as np
 
 from bsrt import interrupts
 from bsrt.kernels.hierarchy import BVHArrays
+from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
 from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
 from bsrt.rendering import gl
 from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, ray_budget
@@ -54,6 +57,9 @@ def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = D
         f"STACK {STACK}",
         f"GRAZING_COSINE {GRAZING_COSINE!r}LF",
         f"RECT_SLACK {RECT_SLACK!r}LF",
+        f"LIGHT_AMBIENT {LIGHT_KINDS['ambient']}",
+        f"LIGHT_POINT {LIGHT_KINDS['point']}",
+        "POLE_STEPS double[](" + ", ".join(f"{s!r}LF" for s in POLE_STEPS) + ")",
     )
     shader = gl.program(ctx, name, defines + (("TRIM_TEST",) if bvh.patches.trimmed else ()), compute=True)
     bind_patch_table(ctx, shader, bvh.patches)
@@ -126,3 +132,101 @@ def occluded_gpu(
                     buffer.release()
             interrupts.safe_point()
     return answer == 1, answer == -2
+
+
+LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
+LOOK_INT = ("material_of", "kind")
+
+
+def shade_hits_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    hits,
+    directions,
+    material_of,
+    materials,
+    lights,
+    background,
+    eps: float,
+    tolerance: float,
+    max_iterations: int,
+    out,
+) -> None:
+    """kernels/lighting.py's shade_hits for K hits on ctx (OpenGL 4.5 with
+    float64), by shaders/shade.glsl: the same arguments and outputs.
+
+    hits: Hits (K,) (hit, patch, surface, u, v used); directions: (K, 3)
+    unit ray directions; material_of: (S,) int64; materials: (albedo (M, 3),
+    specular (M,), shininess (M,)); lights: rendering/shade.py's
+    light_arrays; background: (3,); eps: the exclusion half-width (scene
+    units); tolerance, max_iterations: the shadow rays' solve (bvh.intersect's).
+    out: (colour (K, 3), position (K, 3), normal (K, 3), radius (K, 2),
+    shadow_rays (K,) int64, exhausted (K,) int64), written here."""
+    colour, position, normal, radius, shadow_rays, exhausted = out
+    n = len(hits)
+    if n == 0:
+        return
+    kind = lights[0]
+    look = SimpleNamespace(
+        material_of=material_of,
+        albedo=materials[0],
+        specular=materials[1],
+        shininess=materials[2],
+        kind=kind,
+        light_position=lights[1],
+        light_direction=lights[2],
+        strength=lights[3],
+        background=background,
+    )
+    look_reals, look_ints, look_offsets = pack_tables([(look, "", LOOK_REAL, LOOK_INT)], {})
+    hit_reals = np.column_stack([hits.u, hits.v, np.asarray(directions, dtype=np.float64).reshape(-1, 3)])
+    hit_ints = np.column_stack([hits.hit, hits.patch, hits.surface]).astype(np.int32)
+    with ctx:
+        shader = hierarchy_shader(ctx, "shade", bvh)
+        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
+        for key, offset in look_offsets.items():
+            set_uniform(shader, f"off_{key}", offset)
+        set_uniform(shader, "light_count", int(kind.shape[0]))
+        set_uniform(shader, "eps", float(eps))
+        tables = []
+        try:
+            for array in (look_reals, look_ints):
+                tables.append(ctx.buffer(array.tobytes()))
+            tables[0].bind_to_storage_buffer(4)
+            tables[1].bind_to_storage_buffer(5)
+            for first in range(0, n, SLICE):
+                part = slice(first, min(n, first + SLICE))
+                count = part.stop - part.start
+                reals, ints = _shade_slice(ctx, shader, hit_reals[part], hit_ints[part], count)
+                colour[part], position[part], normal[part], radius[part] = (
+                    reals[:, 0:3],
+                    reals[:, 3:6],
+                    reals[:, 6:9],
+                    reals[:, 9:11],
+                )
+                shadow_rays[part], exhausted[part] = ints[:, 0], ints[:, 1]
+                interrupts.safe_point()
+        finally:
+            for buffer in tables:
+                buffer.release()
+
+
+def _shade_slice(ctx, shader, hit_reals, hit_ints, count):
+    """One dispatch of shade.glsl over count hits: (reals (count, 11), ints (count, 2))."""
+    buffers = []
+    try:
+        buffers.append(ctx.buffer(np.ascontiguousarray(hit_reals).tobytes()))
+        buffers.append(ctx.buffer(np.ascontiguousarray(hit_ints).tobytes()))
+        buffers.append(ctx.buffer(reserve=count * 11 * 8))
+        buffers.append(ctx.buffer(reserve=count * 2 * 4))
+        for buffer, binding in zip(buffers, (2, 3, 8, 9)):
+            buffer.bind_to_storage_buffer(binding)
+        set_uniform(shader, "hit_count", count)
+        shader.run(group_x=-(-count // GROUP))
+        ctx.memory_barrier()
+        reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(count, 11)
+        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 2)
+        return reals, ints
+    finally:
+        for buffer in buffers:
+            buffer.release()

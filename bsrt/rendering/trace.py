@@ -39,6 +39,7 @@ class HierarchyTracer:
         _count_repairs(stats)
         stats.fields["covered_by_map"] = None  # no map
         stats.fields["solve_device"] = "cpu"  # the hierarchy is traversed on the CPU only
+        stats.fields["devices"] = {"solve": "cpu"}  # and pipeline's shading
 
     def trace(self, width: int, height: int, rows: tuple[int, int], prelim=None, done: float = 0.0):
         """Nearest hits of the pixel-centre rays of film rows rows[0]..rows[1]-1:
@@ -62,7 +63,7 @@ class MapTracer:
         # the seeded solve's device (rendering/gpu.py); the repair of what it does not settle stays on the CPU
         device, compute_ctx = gpu.choose_device(options.device, ctx)
         stats.fields["solve_device"] = device
-        stats.fields["devices"] = {"map": "gl", "solve": device, "repair": "cpu", "shade": "cpu"}
+        stats.fields["devices"] = {"map": "gl", "solve": device, "repair": "cpu"}  # and pipeline's shading
         self.find_roots = find_roots if device == "cpu" else partial(gpu.find_roots_gpu, compute_ctx)
         # the GPU solve on the map's own context reads the map where it is drawn (gpu_map.py)
         self.in_place = compute_ctx if device == "gpu" and compute_ctx is (ctx or gl.headless_context()) else None
