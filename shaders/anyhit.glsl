@@ -7,7 +7,10 @@
 // leaf that blocked the previous ray of a CPU slice, tried first there: it
 // changes the order pieces are tried in, not whether a ray is blocked) and
 // without the final Newton step on a grazing root (it moves t, not the
-// answer). The CPU kernels are the reference the tests hold this to.
+// answer). The CPU kernels are the reference the tests hold this to. The
+// loops leave by their conditions, never by return, break or continue inside
+// (with those, Mesa 22's llvmpipe mixed up the lanes of a SIMD group whose
+// invocations left at different points: some then skipped their next light).
 //
 // The hierarchy (rendering/bvh.py's BVHArrays, packed by
 // rendering/gpu_shade.py) lies in storage buffers 2 (float64) and 3 (int32),
@@ -174,41 +177,48 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
     rects[0] = rect;
     depths[0] = 0;
     int top = state == 0 || hier_ints[off_leaf_planar + leaf] == 0 ? 1 : 0;
-    while (top > 0) {
-        top -= 1;
-        if (depths[top] >= RETRY_DEPTH || top + 6 > SCRATCH) continue;
-        int a = top + 4, b2 = top + 5;
-        split_half(top, a, b2, p, q, 0);
-        split_half(a, top, top + 1, p, q, 1);
-        split_half(b2, top + 2, top + 3, p, q, 1);
-        dvec4 r = rects[top];
-        double um = 0.5LF * (r.x + r.y), vm = 0.5LF * (r.z + r.w);
-        int dnext = depths[top] + 1;
-        rects[top] = dvec4(r.x, um, r.z, vm);
-        rects[top + 1] = dvec4(r.x, um, vm, r.w);
-        rects[top + 2] = dvec4(um, r.y, r.z, vm);
-        rects[top + 3] = dvec4(um, r.y, vm, r.w);
-        int first = top;
-        for (int s = first; s < first + 4; ++s) {
-            if (!straddles(s, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) continue;
-            dvec4 sr = rects[s];
-            solve_one(o, d, m, 0.5LF * (sr.x + sr.y), 0.5LF * (sr.z + sr.w), NEWTON, tol2, max_iter, true, root, k,
-                      ok, its, c);
-            iterations += its;
-            state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
-            if (state == 1) return true;
-            bool again = state == 0 || c < GRAZING_COSINE;
-            if (again && dnext < RETRY_DEPTH) {
-                if (s != top) {
-                    copy_net(s, top);
-                    rects[top] = rects[s];
+    bool found = false;
+    int s = 4, first = 0, dnext = 0;  // the quarter tried next (of first .. first + 3; none yet) and their depth
+    while (!found && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
+        if (s < first + 4) {
+            if (straddles(s, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) {
+                dvec4 sr = rects[s];
+                solve_one(o, d, m, 0.5LF * (sr.x + sr.y), 0.5LF * (sr.z + sr.w), NEWTON, tol2, max_iter, true, root,
+                          k, ok, its, c);
+                iterations += its;
+                state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
+                found = state == 1;
+                bool again = state == 0 || c < GRAZING_COSINE;
+                if (!found && again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
+                    if (s != top) {
+                        copy_net(s, top);
+                        rects[top] = rects[s];
+                    }
+                    depths[top] = dnext;
+                    top += 1;
                 }
-                depths[top] = dnext;
-                top += 1;
+            }
+            s += 1;
+        } else {
+            top -= 1;
+            if (depths[top] < RETRY_DEPTH && top + 6 <= SCRATCH) {  // cut it into quarters in slots top .. top + 3
+                int a = top + 4, b2 = top + 5;
+                split_half(top, a, b2, p, q, 0);
+                split_half(a, top, top + 1, p, q, 1);
+                split_half(b2, top + 2, top + 3, p, q, 1);
+                dvec4 r = rects[top];
+                double um = 0.5LF * (r.x + r.y), vm = 0.5LF * (r.z + r.w);
+                dnext = depths[top] + 1;
+                rects[top] = dvec4(r.x, um, r.z, vm);
+                rects[top + 1] = dvec4(r.x, um, vm, r.w);
+                rects[top + 2] = dvec4(um, r.y, r.z, vm);
+                rects[top + 3] = dvec4(um, r.y, vm, r.w);
+                first = top;
+                s = top;
             }
         }
     }
-    return false;
+    return found;
 }
 
 // Any-hit shadow ray from o along the unit d with 0 < t < t_max (lighting.occluded): 1 blocked,
@@ -230,36 +240,43 @@ int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cu
     if (!(nf.x <= nf.y && nf.y >= 0.0LF && nf.x <= t_max)) return 0;
     stack[0] = 0;
     int top = 1;
-    while (top > 0) {
-        top -= 1;
-        int node = stack[top];
-        int left = hier_ints[off_node_left + node];
-        if (left < 0) {
-            int first = hier_ints[off_node_first + node];
-            for (int leaf = first; leaf < first + hier_ints[off_node_count + node]; ++leaf) {
-                if (skip_start && hier_ints[off_leaf_surface + leaf] == ex_m) {
-                    int at = off_leaf_rect + 4 * leaf;
-                    if (hier_reals[at] <= ex.x && ex.x <= hier_reals[at + 1] && hier_reals[at + 2] <= ex.y && ex.y <= hier_reals[at + 3])
-                        continue;
-                }
-                if (leaf_blocks(leaf, o, d, e1, e2, t_max, tol, max_iter, cull_tol, ex_m, ex, iterations)) return 1;
-                if (iterations >= budget) return -2;
+    int result = 0;
+    int leaf = 0, leaf_stop = 0;  // the leaves of the tree leaf popped last, not yet tried
+    while (result == 0 && (leaf < leaf_stop || top > 0)) {  // one leaf or one node per turn
+        if (leaf < leaf_stop) {
+            bool start = false;  // the start's own leaf, skipped unless the ray leaves it grazing
+            if (skip_start && hier_ints[off_leaf_surface + leaf] == ex_m) {
+                int at = off_leaf_rect + 4 * leaf;
+                start = hier_reals[at] <= ex.x && ex.x <= hier_reals[at + 1] && hier_reals[at + 2] <= ex.y &&
+                        ex.y <= hier_reals[at + 3];
             }
-            continue;
-        }
-        int right = hier_ints[off_node_right + node];
-        dvec2 a = slab(left, o, inv), b = slab(right, o, inv);
-        bool hit1 = a.x <= a.y && a.y >= 0.0LF && a.x <= t_max;
-        bool hit2 = b.x <= b.y && b.y >= 0.0LF && b.x <= t_max;
-        if (hit1 && hit2 && top + 2 <= STACK) {  // a full stack drops what the CPU's drops
-            stack[top] = right;
-            stack[top + 1] = left;
-            top += 2;
-        } else if (hit1) {
-            stack[top++] = left;
-        } else if (hit2) {
-            stack[top++] = right;
+            if (!start) {
+                if (leaf_blocks(leaf, o, d, e1, e2, t_max, tol, max_iter, cull_tol, ex_m, ex, iterations)) {
+                    result = 1;
+                } else if (iterations >= budget) {
+                    result = -2;
+                }
+            }
+            leaf += 1;
+        } else {
+            top -= 1;
+            int node = stack[top];
+            int left = hier_ints[off_node_left + node];
+            if (left < 0) {
+                leaf = hier_ints[off_node_first + node];
+                leaf_stop = leaf + hier_ints[off_node_count + node];
+            } else {
+                int right = hier_ints[off_node_right + node];
+                dvec2 a = slab(left, o, inv), b = slab(right, o, inv);
+                bool hit1 = a.x <= a.y && a.y >= 0.0LF && a.x <= t_max;
+                bool hit2 = b.x <= b.y && b.y >= 0.0LF && b.x <= t_max;
+                // both children (the farther pushed first), one, or none; a full stack drops what the CPU's drops
+                int push = hit1 && hit2 && top + 2 <= STACK ? 2 : (hit1 || hit2 ? 1 : 0);
+                stack[min(top, STACK - 1)] = push == 2 || !hit1 ? right : left;
+                stack[min(top + 1, STACK - 1)] = left;
+                top += push;
+            }
         }
     }
-    return 0;
+    return result;
 }

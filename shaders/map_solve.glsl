@@ -12,7 +12,7 @@
 #include "trim64.glsl"
 #include "solve_core.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 // The tile: (w, h) texels, OpenGL's row 0 at the bottom; colour r = surface
 // index + 1 (0: empty), g, b = (u, v) normalised over the surface's domain.

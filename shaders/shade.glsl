@@ -1,14 +1,18 @@
 #version 450
-// Direct lighting of hits in float64, one invocation per hit: the port of
+// Direct lighting of hits in float64, one invocation per hit and light (a
+// dispatch per light, in order, each adding its term to the colour): the port of
 // bsrt/kernels/lighting.py's shade_hits (per hit: shading.surface_frame, the
 // exclusion box of its secondary rays, one any-hit shadow ray per light the
 // point faces through anyhit.glsl's occluded, shading.radiance). Mirror
 // bounces, ambient occlusion and the ground's contact shadow stay with the
 // caller (rendering/pipeline.py), which gets each hit's position, normal and
 // exclusion box from here. bsrt/rendering/gpu_shade.py's shade_hits_gpu
-// uploads the hits and dispatches it. The one difference from the kernel:
-// GLSL has no float64 pow, so the specular power is taken in float32 (a
-// relative error near 1e-7 of the highlight, far below the 8-bit image's step).
+// uploads the hits and dispatches it, once per light: with a loop over the
+// lights around the walk's loops, Mesa 22's llvmpipe mixed up the invocations
+// of a SIMD group (anyhit.glsl). The one difference from the kernel: GLSL has
+// no float64 pow, so the specular power is taken by squaring for a whole
+// exponent (a few ulps from pow), else in float32 (a relative error near
+// 1e-5 of the highlight, far below the 8-bit image's step).
 // LIGHT_AMBIENT, LIGHT_POINT and POLE_STEPS are #defined from kernels/shading.py.
 
 #include "patches.glsl"
@@ -16,7 +20,7 @@
 #include "solve_core.glsl"
 #include "anyhit.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer HitReals { double hit_reals[]; };  // 5 per hit: u, v, ray direction (unit)
 layout(std430, binding = 3) readonly buffer HitInts { int hit_ints[]; };       // 3 per hit: hit, patch, surface
@@ -25,13 +29,14 @@ layout(std430, binding = 3) readonly buffer HitInts { int hit_ints[]; };       /
 // kind (L,) ints (rendering/shade.py's light_arrays).
 layout(std430, binding = 4) readonly buffer LookReals { double look_reals[]; };
 layout(std430, binding = 5) readonly buffer LookInts { int look_ints[]; };
-// 11 per hit: colour (3, linear RGB), position (3), normal (3, facing the ray's origin), radius (2)
-layout(std430, binding = 8) writeonly buffer OutReals { double out_reals[]; };
-layout(std430, binding = 9) writeonly buffer OutInts { int out_ints[]; };  // 2 per hit: shadow rays, out of budget
+// 11 per hit: colour (3, linear RGB, the lights before this one's added up), position (3), normal (3,
+// facing the ray's origin), radius (2)
+layout(std430, binding = 8) buffer OutReals { double out_reals[]; };
+layout(std430, binding = 9) buffer OutInts { int out_ints[]; };  // 2 per hit: shadow rays, out of budget, so far
 
 uniform int off_material_of, off_albedo, off_specular, off_shininess, off_kind;
 uniform int off_light_position, off_light_direction, off_strength, off_background;
-uniform int light_count;
+uniform int light;  // the light of this dispatch (one per dispatch, in order, adding to the colour; -1: none)
 uniform int hit_count;  // in this dispatch
 uniform double eps;     // the exclusion box's half-width in scene units
 uniform double shadow_tol;
@@ -70,12 +75,25 @@ void surface_frame(int k, double u, double v, dvec3 t, out dvec3 S, out dvec3 n,
     n = dvec3(n.x / len, n.y / len, n.z / len);
 }
 
+// x^y for 0 <= x <= 1: by squaring for a whole y up to 4096 (float64, within a few ulps of the
+// kernel's pow), else in float32 (GLSL has no float64 pow).
+double power_of(double x, double y) {
+    if (y == floor(y) && y >= 0.0LF && y <= 4096.0LF) {
+        double r = 1.0LF, b = x;
+        for (int e = int(y); e > 0; e >>= 1) {
+            if ((e & 1) != 0) r *= b;
+            b *= b;
+        }
+        return r;
+    }
+    return x > 0.0LF ? double(pow(float(x), float(y))) : (y == 0.0LF ? 1.0LF : 0.0LF);
+}
+
 void main() {
     int i = int(gl_GlobalInvocationID.x);
     if (i >= hit_count) return;
     double NaN = packDouble2x32(uvec2(0u, 0x7ff80000u));
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
-    int rays = 0, exhausted = 0;
     if (hit_ints[3 * i] == 0) {
         dvec3 bg = look3(off_background, 0);
         out_reals[11 * i] = bg.x;
@@ -95,45 +113,45 @@ void main() {
     int b = off_bounds + 4 * k;
     double ru = min(speed.x > 0.0LF ? eps / speed.x : INF, 0.25LF * (reals[b + 1] - reals[b]));
     double rv = min(speed.y > 0.0LF ? eps / speed.y : INF, 0.25LF * (reals[b + 3] - reals[b + 2]));
-    dvec4 ex = dvec4(u, v, ru, rv);
     int m = look_ints[off_material_of + surface];
     dvec3 albedo = look3(off_albedo, m);
-    double specular = look_reals[off_specular + m], shininess = look_reals[off_shininess + m];
-    dvec3 colour = dvec3(0.0LF);
-    for (int j = 0; j < light_count; ++j) {  // the shadow ray and radiance's term of each light in one pass
-        int kind = look_ints[off_kind + j];
-        dvec3 strength = look3(off_strength, j);
-        if (kind == LIGHT_AMBIENT) {
-            colour += albedo * strength;
-            continue;
-        }
+    bool first = light <= 0;
+    dvec3 colour = first ? dvec3(0.0LF) : dvec3(out_reals[11 * i], out_reals[11 * i + 1], out_reals[11 * i + 2]);
+    int rays = first ? 0 : out_ints[2 * i], exhausted = first ? 0 : out_ints[2 * i + 1];
+    int kind = light < 0 ? -1 : look_ints[off_kind + light];  // light -1: a scene without lights
+    dvec3 strength = light < 0 ? dvec3(0.0LF) : look3(off_strength, light);
+    if (kind == LIGHT_AMBIENT) {
+        colour += albedo * strength;
+    } else if (kind >= 0) {
         dvec3 l;
         double dist, falloff;
         if (kind == LIGHT_POINT) {
-            l = look3(off_light_position, j) - p;
+            l = look3(off_light_position, light) - p;
             dist = sqrt(l.x * l.x + l.y * l.y + l.z * l.z);
             double d = max(dist, 1e-300LF);
             l = dvec3(l.x / d, l.y / d, l.z / d);
             falloff = 1.0LF / (dist * dist);
         } else {
-            l = look3(off_light_direction, j);
+            l = look3(off_light_direction, light);
             dist = INF;
             falloff = 1.0LF;
         }
         double cos_l = n.x * l.x + n.y * l.y + n.z * l.z;
-        if (!(cos_l > 0.0LF)) continue;  // facing away: no shadow ray, nothing added
-        rays += 1;
-        double length = sqrt(l.x * l.x + l.y * l.y + l.z * l.z);  // the tracer's own normalisation (Rays)
-        int blocked = occluded(p, dvec3(l.x / length, l.y / length, l.z / length), dist, shadow_tol,
-                               shadow_iterations, cull_tol, budget, surface, ex);
-        if (blocked == -2) exhausted += 1;
-        if (blocked == 1) continue;  // visibility 0
-        dvec3 hv = l - view;
-        double h = max(sqrt(hv.x * hv.x + hv.y * hv.y + hv.z * hv.z), 1e-300LF);
-        double cos_h = min(max((n.x * hv.x + n.y * hv.y + n.z * hv.z) / h, 0.0LF), 1.0LF);
-        double power = cos_h > 0.0LF ? double(pow(float(cos_h), float(shininess))) : (shininess == 0.0LF ? 1.0LF : 0.0LF);
-        double spec = specular * power;
-        colour += (albedo * cos_l + spec) * strength * falloff;
+        if (cos_l > 0.0LF) {  // else facing away: no shadow ray, nothing added
+            rays += 1;
+            double length = sqrt(l.x * l.x + l.y * l.y + l.z * l.z);  // the tracer's own normalisation (Rays)
+            int blocked = occluded(p, dvec3(l.x / length, l.y / length, l.z / length), dist, shadow_tol,
+                                   shadow_iterations, cull_tol, budget, surface, dvec4(u, v, ru, rv));
+            if (blocked == -2) exhausted += 1;
+            if (blocked != 1) {  // visible
+                double specular = look_reals[off_specular + m], shininess = look_reals[off_shininess + m];
+                dvec3 hv = l - view;
+                double h = max(sqrt(hv.x * hv.x + hv.y * hv.y + hv.z * hv.z), 1e-300LF);
+                double cos_h = min(max((n.x * hv.x + n.y * hv.y + n.z * hv.z) / h, 0.0LF), 1.0LF);
+                double power = power_of(cos_h, shininess);
+                colour += (albedo * cos_l + specular * power) * strength * falloff;
+            }
+        }
     }
     out_reals[11 * i] = colour.x;
     out_reals[11 * i + 1] = colour.y;

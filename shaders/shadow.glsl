@@ -9,7 +9,7 @@
 #include "solve_core.glsl"
 #include "anyhit.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 // 12 per ray: origin (3), unit direction (3), t_max, the start root's surface (-1: none), u, v,
 // radius u, radius v (the exclusion box of traverse.Exclusion)

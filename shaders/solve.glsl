@@ -9,7 +9,7 @@
 #include "trim64.glsl"
 #include "solve_core.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer Items { double items[]; };        // 8 per item: origin, direction (unit), u0, v0
 layout(std430, binding = 3) readonly buffer ItemSurface { int item_surface[]; }; // 1 per item: the start's surface

@@ -6,7 +6,7 @@
 #include "patches.glsl"
 #include "trim64.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer Points { double points[]; };  // 3 per point: surface, u, v
 layout(std430, binding = 3) writeonly buffer Kept { int kept[]; };        // 1 per point: 1 kept, 0 removed

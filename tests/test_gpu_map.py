@@ -91,7 +91,7 @@ def test_tiles_and_dispatch_slices_change_nothing(monkeypatch):
     the whole film's, on both paths alike)."""
     path = ROOT / "scenes" / "water-lily.toml"
     monkeypatch.setattr(prelim, "TILE", 32)
-    monkeypatch.setattr(gpu_map, "SLICE", 128)
+    monkeypatch.setattr(gpu, "SLICE", 128)
     drawn, covered, roots, in_place = _both_paths(path, 72, "float", (0, 72))
     _assert_same(drawn, covered, roots, in_place)
 

@@ -26,8 +26,8 @@ from bsrt.rendering import gl
 from bsrt.rendering.solve import Rays, RootResult, seeded_kernel_id
 from bsrt.settings import DEVICES
 
-GROUP = 64  # local_size_x of shaders/solve.glsl
-SLICE = GROUP * 4096  # items per dispatch (at most 65535 groups on every OpenGL 4.3+ context; 32 MiB of
+GROUP = 64  # invocations per workgroup (local_size_x, #defined GROUP) on a hardware context: group_size
+SLICE = 64 * 4096  # items per dispatch at most (at most 65535 groups on every OpenGL 4.3+ context; 32 MiB of
 # buffers): SIGINT and SIGTERM are acted on between dispatches (bsrt.interrupts), a fraction of a second
 DEFINES = (
     f"GRADIENT {GRADIENT}",
@@ -40,6 +40,39 @@ REAL_ARRAYS = ("coef", "bounds", "inv_size", "domain", "breaks_u", "breaks_v")
 INT_ARRAYS = ("coef_start", "degree", "dim", "break_start_u", "break_start_v", "grid_start", "patch_grid")
 TRIM_REAL_ARRAYS = ("band_v0", "band_scale", "coef", "ends", "entry_box")  # kernels/trim.py's TrimTable
 TRIM_INT_ARRAYS = ("trimmed", "band_first", "band_count", "degree", "band_start", "entry_piece")
+
+
+def group_size(ctx: moderngl.Context) -> int:
+    """Invocations per workgroup on ctx (current): GROUP, or 1 on a software renderer.
+
+    Mesa 22's llvmpipe runs a workgroup's invocations as the lanes of SIMD
+    vectors, and where they leave a loop at different turns it mixed them
+    up: measured, a shadow ray's walk skipped a node, a loop over the lights
+    skipped a light, a loop of squarings gave another lane's power, on a few
+    hits in ten thousand (the same hits alone, or in workgroups of one, gave
+    the kernels' answers). One invocation per workgroup costs llvmpipe its
+    SIMD width (about 3x slower there); a GPU runs workgroups of GROUP."""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    if "bsrt_group" not in ctx.extra:  # (ctx is current: entering it again here would leave none current)
+        ctx.extra["bsrt_group"] = GROUP if gl.capabilities(ctx).hardware else 1
+    return ctx.extra["bsrt_group"]
+
+
+def compute_defines(ctx: moderngl.Context, *extra: str) -> tuple[str, ...]:
+    """The #defines of a compute shader on ctx: the kernels' constants, the workgroup size GROUP, extra."""
+    return DEFINES + (f"GROUP {group_size(ctx)}",) + extra
+
+
+def dispatch_size(ctx: moderngl.Context) -> int:
+    """Items per dispatch on ctx: SLICE, or fewer where 65535 workgroups (every OpenGL 4.3+ context's
+    limit) hold fewer."""
+    return min(SLICE, 65535 * group_size(ctx))
+
+
+def run(ctx: moderngl.Context, shader, count: int) -> None:
+    """Dispatch shader over count items (at most dispatch_size(ctx)) in workgroups of group_size(ctx)."""
+    shader.run(group_x=-(-count // group_size(ctx)))
 
 
 def compute_context(ctx=None) -> moderngl.Context:
@@ -211,8 +244,9 @@ def find_roots_gpu(
     surface = np.asarray(surface)
     with ctx:  # current on this thread for the duration
         shader = solver(ctx, "solve", patches, kernel_id, tolerance, max_iterations, stop_on_growth)
-        for first in range(0, m, SLICE):  # buffers of one slice at a time: bounded, whatever m
-            _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + SLICE)), out)
+        step = dispatch_size(ctx)
+        for first in range(0, m, step):  # buffers of one slice at a time: bounded, whatever m
+            _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + step)), out)
             interrupts.safe_point()  # this slice done: a waiting signal is taken between slices
     return out
 
@@ -222,7 +256,7 @@ def solver(ctx, name: str, patches: PatchSet, kernel_id: int, tolerance, max_ite
     dispatch on ctx (current): compiled with the kernels' constants (and the
     trim test for a trimmed scene), the patch table uploaded (once per
     PatchSet) and bound to storage buffers 0 and 1, the solve's uniforms set."""
-    shader = gl.program(ctx, name, DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
+    shader = gl.program(ctx, name, compute_defines(ctx, *(("TRIM_TEST",) if patches.trimmed else ())), compute=True)
     bind_patch_table(ctx, shader, patches)
     set_uniform(shader, "method", kernel_id)
     set_uniform(shader, "max_iterations", int(max_iterations))
@@ -258,7 +292,7 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
         buffers.append(ctx.buffer(reserve=n * 4 * 4))
         for binding, buffer in enumerate(buffers, start=2):
             buffer.bind_to_storage_buffer(binding)
-        shader.run(group_x=-(-n // GROUP))
+        run(ctx, shader, n)
         reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(n, 4)
         ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(n, 4)
     finally:
@@ -290,7 +324,7 @@ def kept_gpu(ctx: moderngl.Context, patches: PatchSet, surface, u, v) -> np.ndar
         return np.ones(n, dtype=bool)
     points = np.stack([surface.astype(np.float64), u, v], axis=1)
     with ctx:
-        shader = gl.program(ctx, "trim_probe64", compute=True)
+        shader = gl.program(ctx, "trim_probe64", compute_defines(ctx), compute=True)
         bind_patch_table(ctx, shader, patches)
         set_uniform(shader, "point_count", n)
         buffers = [ctx.buffer(points.tobytes())]
@@ -298,7 +332,7 @@ def kept_gpu(ctx: moderngl.Context, patches: PatchSet, surface, u, v) -> np.ndar
             buffers.append(ctx.buffer(reserve=4 * n))
             buffers[0].bind_to_storage_buffer(2)
             buffers[1].bind_to_storage_buffer(3)
-            shader.run(group_x=-(-n // GROUP))  # tests' sizes: one dispatch
+            run(ctx, shader, n)  # tests' sizes: one dispatch
             return np.frombuffer(buffers[1].read(), dtype=np.int32) != 0
         finally:
             for buffer in buffers:

@@ -24,7 +24,8 @@ import numpy as np
 
 from bsrt import interrupts
 from bsrt.geometry.patches import PatchSet
-from bsrt.rendering.gpu import GROUP, SLICE, set_uniform, solver
+from bsrt.rendering import gpu
+from bsrt.rendering.gpu import set_uniform, solver
 from bsrt.rendering.prelim import PrelimMap, drawn_tiles
 from bsrt.rendering.solve import RootResult, seeded_kernel_id
 from bsrt.scene.camera import Camera
@@ -84,11 +85,12 @@ def map_roots_gpu(
                 set_uniform(shader, "row0", r0 - first)
                 set_uniform(shader, "col0", c0)
                 texels = passes.tri.size[0] * passes.tri.size[1]
-                for start in range(0, texels, SLICE):  # a signal is taken between dispatches
-                    count = min(SLICE, texels - start)
+                step = gpu.dispatch_size(ctx)
+                for start in range(0, texels, step):  # a signal is taken between dispatches
+                    count = min(step, texels - start)
                     set_uniform(shader, "first_texel", start)
                     set_uniform(shader, "texel_count", count)
-                    shader.run(group_x=-(-count // GROUP))
+                    gpu.run(ctx, shader, count)
                     interrupts.safe_point()
                 ctx.memory_barrier()  # the textures are drawn again for the next tile; the buffers are read
             record = np.frombuffer(buffers[1].read(size=n * 16), dtype=np.float32).reshape(n, 4)

@@ -19,9 +19,9 @@ from bsrt import interrupts
 from bsrt.kernels.hierarchy import BVHArrays
 from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
 from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
-from bsrt.rendering import gl
+from bsrt.rendering import gl, gpu
 from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, ray_budget
-from bsrt.rendering.gpu import DEFINES, GROUP, SLICE, Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
+from bsrt.rendering.gpu import Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
 
 
 def hierarchy_arrays(arrays: BVHArrays) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -50,7 +50,8 @@ def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = D
     compiled for bvh's nets and retry_depth, the patch table bound to storage
     buffers 0 and 1, the hierarchy to 6 and 7, their offsets set."""
     pm, qm = bvh.arrays.patch_net.shape[1:3]
-    defines = DEFINES + (
+    defines = gpu.compute_defines(
+        ctx,
         f"NET_PM {pm}",
         f"NET_QM {qm}",
         f"RETRY_DEPTH {int(retry_depth)}",
@@ -115,8 +116,9 @@ def occluded_gpu(
     with ctx:
         shader = hierarchy_shader(ctx, "shadow", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
-        for first in range(0, n, SLICE):
-            count = min(SLICE, n - first)
+        step = gpu.dispatch_size(ctx)
+        for first in range(0, n, step):
+            count = min(step, n - first)
             buffers = []
             try:
                 buffers.append(ctx.buffer(rays[first : first + count].tobytes()))
@@ -124,7 +126,7 @@ def occluded_gpu(
                 buffers[0].bind_to_storage_buffer(2)
                 buffers[1].bind_to_storage_buffer(3)
                 set_uniform(shader, "ray_count", count)
-                shader.run(group_x=-(-count // GROUP))
+                gpu.run(ctx, shader, count)
                 ctx.memory_barrier()
                 answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32)
             finally:
@@ -186,7 +188,6 @@ def shade_hits_gpu(
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
         for key, offset in look_offsets.items():
             set_uniform(shader, f"off_{key}", offset)
-        set_uniform(shader, "light_count", int(kind.shape[0]))
         set_uniform(shader, "eps", float(eps))
         tables = []
         try:
@@ -194,10 +195,11 @@ def shade_hits_gpu(
                 tables.append(ctx.buffer(array.tobytes()))
             tables[0].bind_to_storage_buffer(4)
             tables[1].bind_to_storage_buffer(5)
-            for first in range(0, n, SLICE):
-                part = slice(first, min(n, first + SLICE))
+            step = gpu.dispatch_size(ctx)
+            for first in range(0, n, step):
+                part = slice(first, min(n, first + step))
                 count = part.stop - part.start
-                reals, ints = _shade_slice(ctx, shader, hit_reals[part], hit_ints[part], count)
+                reals, ints = _shade_slice(ctx, shader, hit_reals[part], hit_ints[part], count, kind.shape[0])
                 colour[part], position[part], normal[part], radius[part] = (
                     reals[:, 0:3],
                     reals[:, 3:6],
@@ -211,8 +213,8 @@ def shade_hits_gpu(
                 buffer.release()
 
 
-def _shade_slice(ctx, shader, hit_reals, hit_ints, count):
-    """One dispatch of shade.glsl over count hits: (reals (count, 11), ints (count, 2))."""
+def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
+    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 2))."""
     buffers = []
     try:
         buffers.append(ctx.buffer(np.ascontiguousarray(hit_reals).tobytes()))
@@ -222,8 +224,10 @@ def _shade_slice(ctx, shader, hit_reals, hit_ints, count):
         for buffer, binding in zip(buffers, (2, 3, 8, 9)):
             buffer.bind_to_storage_buffer(binding)
         set_uniform(shader, "hit_count", count)
-        shader.run(group_x=-(-count // GROUP))
-        ctx.memory_barrier()
+        for light in range(lights) if lights else (-1,):  # no light: the colour is 0 (the kernel's sum over none)
+            set_uniform(shader, "light", light)
+            gpu.run(ctx, shader, count)
+            ctx.memory_barrier()
         reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(count, 11)
         ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 2)
         return reals, ints
