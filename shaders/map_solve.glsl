@@ -36,7 +36,7 @@ uniform int texel_count;  // texels in this dispatch
 
 void main() {
     int n = int(gl_GlobalInvocationID.x);
-    if (n >= texel_count) return;
+    if (n >= texel_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     ivec2 size = textureSize(tri_color, 0);
     int texel = first_texel + n;
     ivec2 at = ivec2(texel % size.x, texel / size.x);

@@ -75,15 +75,15 @@ void surface_frame(int k, double u, double v, dvec3 t, out dvec3 S, out dvec3 n,
     n = dvec3(n.x / len, n.y / len, n.z / len);
 }
 
-// x^y for 0 <= x <= 1: by squaring for a whole y up to 4096 (float64, within a few ulps of the
-// kernel's pow), else in float32 (GLSL has no float64 pow).
+// x^y for 0 <= x <= 1: by squaring for a whole y below 8192 (float64, within a few ulps of the
+// kernel's pow), else in float32 (GLSL has no float64 pow). Unrolled, no loop (anyhit.glsl says why).
+#define POWER_STEP r *= (e & 1) != 0 ? b : 1.0LF; b *= b; e >>= 1;
 double power_of(double x, double y) {
-    if (y == floor(y) && y >= 0.0LF && y <= 4096.0LF) {
+    if (y == floor(y) && y >= 0.0LF && y < 8192.0LF) {
         double r = 1.0LF, b = x;
-        for (int e = int(y); e > 0; e >>= 1) {
-            if ((e & 1) != 0) r *= b;
-            b *= b;
-        }
+        int e = int(y);
+        POWER_STEP POWER_STEP POWER_STEP POWER_STEP POWER_STEP POWER_STEP POWER_STEP
+        POWER_STEP POWER_STEP POWER_STEP POWER_STEP POWER_STEP POWER_STEP
         return r;
     }
     return x > 0.0LF ? double(pow(float(x), float(y))) : (y == 0.0LF ? 1.0LF : 0.0LF);
@@ -91,7 +91,7 @@ double power_of(double x, double y) {
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    if (i >= hit_count) return;
+    if (i >= hit_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     double NaN = packDouble2x32(uvec2(0u, 0x7ff80000u));
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
     if (hit_ints[3 * i] == 0) {

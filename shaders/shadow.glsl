@@ -24,7 +24,7 @@ uniform int budget;
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    if (i >= ray_count) return;
+    if (i >= ray_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     int at = 12 * i;
     dvec3 o = dvec3(shadow_rays[at], shadow_rays[at + 1], shadow_rays[at + 2]);
     dvec3 d = dvec3(shadow_rays[at + 3], shadow_rays[at + 4], shadow_rays[at + 5]);

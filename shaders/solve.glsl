@@ -20,7 +20,7 @@ uniform int item_count;  // in this dispatch (gpu.py dispatches the items in sli
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    if (i >= item_count) return;
+    if (i >= item_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     dvec3 o = dvec3(items[8 * i], items[8 * i + 1], items[8 * i + 2]);
     dvec3 d = dvec3(items[8 * i + 3], items[8 * i + 4], items[8 * i + 5]);
     dvec4 root;

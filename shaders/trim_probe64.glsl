@@ -15,6 +15,6 @@ uniform int point_count;
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    if (i >= point_count) return;
+    if (i >= point_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     kept[i] = trim_kept(int(points[3 * i]), points[3 * i + 1], points[3 * i + 2]) ? 1 : 0;
 }
