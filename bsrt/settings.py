@@ -31,7 +31,7 @@ from bsrt.errors import InputError
 from bsrt.methods import DEFAULT_METHOD, METHODS
 
 MAP_MODES = ("float", "rgba8")
-DEVICES = ("auto", "cpu", "gpu")  # where the seeded solve runs: bsrt/rendering/gpu.py
+DEVICES = ("auto", "cpu", "gpu")  # where the seeded solve and the direct lighting run: bsrt/rendering/gpu.py
 
 #: name -> (direction from the model to the eye, the camera's up), in the frame (X, Y, Z = up) of
 #: :func:`bsrt.scene.auto.view_frame`; "default" is bsrt's three-quarter view from above
@@ -252,7 +252,7 @@ SETTINGS: tuple[Setting, ...] = (
         "render",
         "choice",
         "auto",
-        "where the seeded root finder runs: gpu (an OpenGL 4.5 compute shader in float64), cpu, or auto "
+        "where the seeded root finder and the direct lighting run: gpu (OpenGL 4.5 compute shaders in float64), cpu, or auto "
         "(gpu on a hardware OpenGL context with compute shaders and float64, else cpu)",
         choices=DEVICES,
     ),

@@ -6,8 +6,11 @@ scene, with the time of each and how far apart their answers are.
     python scripts/gpu_solve.py [scenes/column.toml model.igs ...] [--size 512] [--method newton] [--repeat 3]
 
 Prints one row per scene and method: items (covered pixels), the median
-seconds of each device (the solve alone: find_roots vs find_roots_gpu,
-trims included, the map drawn once before), rays per second, how many
+seconds of the map drawn and read back (map_s, render_map), of each device's
+solve alone from the read-back seeds (cpu_s, gpu_s: find_roots vs
+find_roots_gpu, trims included) and of the map drawn and solved on the GPU
+without the read-back in between (in_place_s, gpu_map.map_roots_gpu: compare
+it with map_s + gpu_s), how many
 items converge on each, items whose converged flag differs, and the
 largest |dt| over items both converged, in units of the scene's diagonal.
 The first lines say the GL renderer and the load average. On llvmpipe the
@@ -32,6 +35,7 @@ sys.path.insert(0, str(ROOT))
 from bsrt.methods import METHODS  # noqa: E402
 from bsrt.rendering import gl  # noqa: E402
 from bsrt.rendering.gpu import find_roots_gpu  # noqa: E402
+from bsrt.rendering.gpu_map import map_roots_gpu  # noqa: E402
 from bsrt.rendering.options import RenderOptions  # noqa: E402
 from bsrt.rendering.pipeline import Geometry  # noqa: E402
 from bsrt.rendering.prelim import render_map  # noqa: E402
@@ -59,18 +63,26 @@ def compare(path, size, method, repeat):
         stop_on_growth=METHODS[method].stops_on_growth,
     )
     ctx = gl.headless_context()
-    times = {"cpu": [], "gpu": []}
+    times = {"cpu": [], "gpu": [], "map": [], "in_place": []}
     results = {}
+    solve = (options.map, method, kw["tolerance"], kw["max_iterations"], kw["stop_on_growth"])
     for _ in range(repeat + 1):  # the first of each: compiling and uploading, not counted
-        for device in ("cpu", "gpu"):
+        for device in ("cpu", "gpu", "map", "in_place"):
             clock = time.perf_counter()
-            res = find_roots(*args, **kw) if device == "cpu" else find_roots_gpu(ctx, *args, **kw)
+            if device == "map":  # drawn, read back and decoded (what the solves above start from)
+                render_map(patches, camera, size, size, options.map, ctx=ctx)
+            elif device == "in_place":  # drawn and solved on the GPU, read back once (gpu_map.py)
+                map_roots_gpu(ctx, patches, camera, size, size, (0, size), rays.direction, *solve)
+            else:
+                res = find_roots(*args, **kw) if device == "cpu" else find_roots_gpu(ctx, *args, **kw)
+                results[device] = res
             times[device].append(time.perf_counter() - clock)
-            results[device] = res
     cpu, gpu = results["cpu"], results["gpu"]
     both = cpu.converged & gpu.converged
     dt = np.abs(cpu.t[both] - gpu.t[both]) / geometry.diagonal
     row = {"scene": Path(path).stem, "method": method, "items": int(covered.size)}
+    for device in ("map", "in_place"):
+        row[f"{device}_s"] = statistics.median(times[device][1:])
     for device in ("cpu", "gpu"):
         seconds = statistics.median(times[device][1:])
         row[f"{device}_s"] = seconds
@@ -95,13 +107,15 @@ def main(argv=None) -> int:
         f"GL: {caps.renderer}, {caps.version_string}, compute {caps.compute}, fp64 {caps.fp64}, hardware {caps.hardware}"
     )
     print(f"load average: {os.getloadavg()[0]:.2f}, cores: {len(os.sched_getaffinity(0))}")
-    header = ("scene", "method", "items", "cpu_s", "gpu_s", "cpu_conv", "gpu_conv", "differ", "max|dt|/diag")
+    header = ("scene", "method", "items", "map_s", "cpu_s", "gpu_s", "in_place_s", "cpu_conv", "gpu_conv", "differ",
+              "max|dt|/diag")  # fmt: skip
     print("  ".join(f"{h:>12}" for h in header))
     for path in args.scenes:
         for method in args.method or ["newton"]:
             r = compare(path, args.size, method, args.repeat)
             print(
-                f"{r['scene']:>12}  {r['method']:>12}  {r['items']:>12}  {r['cpu_s']:>12.4f}  {r['gpu_s']:>12.4f}  "
+                f"{r['scene']:>12}  {r['method']:>12}  {r['items']:>12}  {r['map_s']:>12.4f}  {r['cpu_s']:>12.4f}  "
+                f"{r['gpu_s']:>12.4f}  {r['in_place_s']:>12.4f}  "
                 f"{r['cpu_converged']:>12}  {r['gpu_converged']:>12}  {r['converged_differ']:>12}  {r['max_dt']:>12.2e}"
             )
     return 0

@@ -1,18 +1,15 @@
 #version 450
-// The seeded root finder in float64 as a compute shader: one invocation per
-// (ray, start) item, the same loop as bsrt/kernels/roots.py's solve_one
-// (newton, gradient, fast; its docstring describes the methods), on the
-// patch table of patches.glsl. bsrt/rendering/gpu.py uploads the items and
-// dispatches it; GRADIENT, FAST, NEWTON, MAX_HALVINGS and STALL_STEPS are
-// #defined there from the kernels' constants; the variant with TRIM_TEST
-// #defined applies the trims to converged roots (trim64.glsl), as
-// rendering/solve.py's find_roots does on the CPU. Kept in step with roots.py:
-// the CPU kernel is the reference the tests hold this shader to.
+// The seeded root finder in float64 as a compute shader, one invocation per
+// (ray, start) item given in buffers: solve_core.glsl's solve_item (the
+// loop of bsrt/kernels/roots.py's solve_one). bsrt/rendering/gpu.py's
+// find_roots_gpu uploads the items and dispatches it; map_solve.glsl takes
+// the starts from the preliminary map's textures instead.
 
 #include "patches.glsl"
 #include "trim64.glsl"
+#include "solve_core.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer Items { double items[]; };        // 8 per item: origin, direction (unit), u0, v0
 layout(std430, binding = 3) readonly buffer ItemSurface { int item_surface[]; }; // 1 per item: the start's surface
@@ -20,156 +17,22 @@ layout(std430, binding = 4) writeonly buffer OutReals { double out_reals[]; };  
 layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };       // 4 per item: converged, patch, iterations, trimmed
 
 uniform int item_count;  // in this dispatch (gpu.py dispatches the items in slices, each with its buffers)
-uniform int method;
-uniform int max_iterations;
-uniform int stop_on_growth;
-uniform double tol2;  // the tolerance squared
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    if (i >= item_count) return;
-    double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
+    if (i >= item_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     dvec3 o = dvec3(items[8 * i], items[8 * i + 1], items[8 * i + 2]);
     dvec3 d = dvec3(items[8 * i + 3], items[8 * i + 4], items[8 * i + 5]);
-    int m = item_surface[i];
-    // e1, e2 perpendicular to d and each other (Duff et al. 2017), as roots.ray_frame
-    double sgn = d.z >= 0.0LF ? 1.0LF : -1.0LF;
-    double fa = -1.0LF / (sgn + d.z);
-    double fb = d.x * d.y * fa;
-    dvec3 e1 = dvec3(1.0LF + sgn * d.x * d.x * fa, sgn * fb, -sgn * d.x);
-    dvec3 e2 = dvec3(fb, sgn + d.y * d.y * fa, -d.y);
-    double c1 = e1.x * o.x + e1.y * o.y + e1.z * o.z;
-    double c2 = e2.x * o.x + e2.y * o.y + e2.z * o.z;
-    dvec2 uv = clamp_domain(m, items[8 * i + 6], items[8 * i + 7]);
-    double u = uv.x, v = uv.y;
-    int k = locate_patch(m, u, v);
-    double ua = u, va = v, wa = INF;
-    int ka = k;
-    double a = 0.0LF, b = 0.0LF, c = 0.0LF, dd = 0.0LF;
-    double gu = 0.0LF, gv = 0.0LF, h = 0.0LF, rz_prev = 0.0LF;
-    bool need_derivatives = true, jacobian_here = false, refresh = false, converged = false;
-    int halvings = 0, stall = 0, iterations = 0;
-    double w_prev = INF, w_mark = INF, w = INF;
-    dvec3 S = dvec3(0.0LF), Su = dvec3(0.0LF), Sv = dvec3(0.0LF);
-    for (int it = 1; it <= max_iterations; ++it) {
-        iterations = it;
-        if (need_derivatives) patch_frame(k, u, v, S, Su, Sv);
-        else S = patch_point(k, u, v);
-        double qx = e1.x * S.x + e1.y * S.y + e1.z * S.z - c1;
-        double qy = e2.x * S.x + e2.y * S.y + e2.z * S.z - c2;
-        w = qx * qx + qy * qy;
-        if (w <= tol2) {
-            converged = true;
-            break;
-        }
-        if (!(w < INF) || it == max_iterations) break;
-        if (w < 0.5LF * w_mark) {
-            w_mark = w;
-            stall = 0;
-        } else {
-            stall += 1;
-            if (stall >= STALL_STEPS) break;
-        }
-        double nu, nv;
-        if (method == NEWTON) {
-            if (stop_on_growth != 0 && w > w_prev) break;
-            w_prev = w;
-            a = e1.x * Su.x + e1.y * Su.y + e1.z * Su.z;
-            b = e1.x * Sv.x + e1.y * Sv.y + e1.z * Sv.z;
-            c = e2.x * Su.x + e2.y * Su.y + e2.z * Su.z;
-            dd = e2.x * Sv.x + e2.y * Sv.y + e2.z * Sv.z;
-            double j00 = a * a + c * c, j01 = a * b + c * dd, j11 = b * b + dd * dd;
-            double mu = 1e-12LF * (j00 + j11) + 1e-300LF;
-            double g0 = a * qx + c * qy, g1 = b * qx + dd * qy;
-            double det = (j00 + mu) * (j11 + mu) - j01 * j01;
-            nu = u - ((j11 + mu) * g0 - j01 * g1) / det;
-            nv = v - ((j00 + mu) * g1 - j01 * g0) / det;
-        } else if (w < wa || refresh) {  // accept this point, take a new step
-            refresh = false;
-            halvings = 0;
-            ua = u;
-            va = v;
-            ka = k;
-            wa = w;
-            jacobian_here = need_derivatives;
-            if (need_derivatives) {
-                a = e1.x * Su.x + e1.y * Su.y + e1.z * Su.z;
-                b = e1.x * Sv.x + e1.y * Sv.y + e1.z * Sv.z;
-                c = e2.x * Su.x + e2.y * Su.y + e2.z * Su.z;
-                dd = e2.x * Sv.x + e2.y * Sv.y + e2.z * Sv.z;
-            }
-            double ru = a * qx + c * qy, rv = b * qx + dd * qy;
-            double zu = 2.0LF * ru / (a * a + c * c + 1e-300LF);
-            double zv = 2.0LF * rv / (b * b + dd * dd + 1e-300LF);
-            double rz = ru * zu + rv * zv;
-            if (jacobian_here) {
-                gu = zu;
-                gv = zv;
-            } else {  // fast, second step on the kept J: conjugate to the first
-                double beta = rz / (rz_prev + 1e-300LF);
-                gu = zu + beta * gu;
-                gv = zv + beta * gv;
-            }
-            rz_prev = rz;
-            double jg0 = a * gu + b * gv, jg1 = c * gu + dd * gv;
-            h = (ru * gu + rv * gv) / (jg0 * jg0 + jg1 * jg1 + 1e-300LF);
-            nu = ua - h * gu;
-            nv = va - h * gv;
-            need_derivatives = method == GRADIENT || !jacobian_here;
-        } else if (method == FAST && !jacobian_here) {  // the kept J no longer helps: recompute it
-            u = ua;
-            v = va;
-            k = ka;
-            need_derivatives = true;
-            refresh = true;
-            continue;
-        } else {  // rejected: halve the step from the accepted point
-            halvings += 1;
-            if (halvings > MAX_HALVINGS) break;
-            h *= 0.5LF;
-            nu = ua - h * gu;
-            nv = va - h * gv;
-            need_derivatives = method == GRADIENT;
-        }
-        dvec2 n = clamp_domain(m, nu, nv);
-        double base_u = method == NEWTON ? u : ua, base_v = method == NEWTON ? v : va;
-        if (n.x == base_u && n.y == base_v) {  // clipped at the border with nowhere to go
-            if (method == FAST && !jacobian_here) {
-                u = ua;
-                v = va;
-                k = ka;
-                need_derivatives = true;
-                refresh = true;
-                continue;
-            }
-            break;
-        }
-        u = n.x;
-        v = n.y;
-        if (!inside_patch(k, u, v)) k = locate_patch(m, u, v);
-    }
-    double t = d.x * (S.x - o.x) + d.y * (S.y - o.y) + d.z * (S.z - o.z);
-    if (!converged && method != NEWTON && wa < INF && !(w <= wa)) {  // report the best point seen
-        u = ua;
-        v = va;
-        k = ka;
-        S = patch_point(k, u, v);
-        t = d.x * (S.x - o.x) + d.y * (S.y - o.y) + d.z * (S.z - o.z);
-        w = wa;
-    }
-    bool trimmed = false;
-#ifdef TRIM_TEST
-    if (converged && !trim_kept(m, u, v)) {  // as find_roots: a root the trims remove
-        converged = false;
-        trimmed = true;
-    }
-#endif
-    out_reals[4 * i] = u;
-    out_reals[4 * i + 1] = v;
-    out_reals[4 * i + 2] = t;
-    out_reals[4 * i + 3] = sqrt(w);
+    dvec4 root;
+    int patch_index, iterations;
+    bool converged, trimmed;
+    solve_item(o, d, item_surface[i], items[8 * i + 6], items[8 * i + 7], root, patch_index, converged, iterations, trimmed);
+    out_reals[4 * i] = root.x;
+    out_reals[4 * i + 1] = root.y;
+    out_reals[4 * i + 2] = root.z;
+    out_reals[4 * i + 3] = root.w;
     out_ints[4 * i] = converged ? 1 : 0;
-    out_ints[4 * i + 1] = k;
+    out_ints[4 * i + 1] = patch_index;
     out_ints[4 * i + 2] = iterations;
     out_ints[4 * i + 3] = trimmed ? 1 : 0;
 }

@@ -6,7 +6,7 @@
 #include "patches.glsl"
 #include "trim64.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer Points { double points[]; };  // 3 per point: surface, u, v
 layout(std430, binding = 3) writeonly buffer Kept { int kept[]; };        // 1 per point: 1 kept, 0 removed
@@ -15,6 +15,6 @@ uniform int point_count;
 
 void main() {
     int i = int(gl_GlobalInvocationID.x);
-    if (i >= point_count) return;
+    if (i >= point_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     kept[i] = trim_kept(int(points[3 * i]), points[3 * i + 1], points[3 * i + 2]) ? 1 : 0;
 }

@@ -26,8 +26,8 @@ from bsrt.rendering import gl
 from bsrt.rendering.solve import Rays, RootResult, seeded_kernel_id
 from bsrt.settings import DEVICES
 
-GROUP = 64  # local_size_x of shaders/solve.glsl
-SLICE = GROUP * 4096  # items per dispatch (at most 65535 groups on every OpenGL 4.3+ context; 32 MiB of
+GROUP = 64  # invocations per workgroup (local_size_x, #defined GROUP) on a hardware context: group_size
+SLICE = 64 * 4096  # items per dispatch at most (at most 65535 groups on every OpenGL 4.3+ context; 32 MiB of
 # buffers): SIGINT and SIGTERM are acted on between dispatches (bsrt.interrupts), a fraction of a second
 DEFINES = (
     f"GRADIENT {GRADIENT}",
@@ -40,6 +40,42 @@ REAL_ARRAYS = ("coef", "bounds", "inv_size", "domain", "breaks_u", "breaks_v")
 INT_ARRAYS = ("coef_start", "degree", "dim", "break_start_u", "break_start_v", "grid_start", "patch_grid")
 TRIM_REAL_ARRAYS = ("band_v0", "band_scale", "coef", "ends", "entry_box")  # kernels/trim.py's TrimTable
 TRIM_INT_ARRAYS = ("trimmed", "band_first", "band_count", "degree", "band_start", "entry_piece")
+
+
+def group_size(ctx: moderngl.Context) -> int:
+    """Invocations per workgroup on ctx (current): GROUP, or 1 on a software renderer.
+
+    Mesa 22's llvmpipe runs a workgroup's invocations as the lanes of SIMD
+    vectors, and where they leave a loop at different turns it mixed them
+    up: measured, a shadow ray's walk skipped a node, a loop over the lights
+    skipped a light, a loop of squarings gave another lane's power, on a few
+    hits in ten thousand (the same hits alone, or in workgroups of one, gave
+    the kernels' answers). One invocation per workgroup costs llvmpipe its
+    SIMD width (about 3x slower there); a GPU runs workgroups of GROUP. (llvmpipe
+    pads a workgroup to its SIMD width with invocations whose local index is
+    past local_size_x; each shader returns at once in those, else they ran
+    the walks on stray data, 20 ms an invocation.)"""
+    if not isinstance(ctx.extra, dict):
+        ctx.extra = {}
+    if "bsrt_group" not in ctx.extra:  # (ctx is current: entering it again here would leave none current)
+        ctx.extra["bsrt_group"] = GROUP if gl.capabilities(ctx).hardware else 1
+    return ctx.extra["bsrt_group"]
+
+
+def compute_defines(ctx: moderngl.Context, *extra: str) -> tuple[str, ...]:
+    """The #defines of a compute shader on ctx: the kernels' constants, the workgroup size GROUP, extra."""
+    return DEFINES + (f"GROUP {group_size(ctx)}",) + extra
+
+
+def dispatch_size(ctx: moderngl.Context) -> int:
+    """Items per dispatch on ctx: SLICE, or fewer where 65535 workgroups (every OpenGL 4.3+ context's
+    limit) hold fewer."""
+    return min(SLICE, 65535 * group_size(ctx))
+
+
+def run(ctx: moderngl.Context, shader, count: int) -> None:
+    """Dispatch shader over count items (at most dispatch_size(ctx)) in workgroups of group_size(ctx)."""
+    shader.run(group_x=-(-count // group_size(ctx)))
 
 
 def compute_context(ctx=None) -> moderngl.Context:
@@ -112,6 +148,14 @@ def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, i
     if patches.trimmed:
         tables.append((patches.trims, "trim_", TRIM_REAL_ARRAYS, TRIM_INT_ARRAYS))
         offsets["trim_coef_rows"] = int(patches.trims.coef.shape[1])
+    return pack_tables(tables, offsets)
+
+
+def pack_tables(tables, offsets: dict[str, int]) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """(reals (R,) float64, ints (I,) int32, offsets) of tables: (table, prefix,
+    real names, int names) each, every named array of the table flattened in
+    order into reals or ints, offsets[prefix + name] its first element (added
+    to the offsets given)."""
     reals, ints = [], []
     real_at = int_at = 0
     for table, prefix, real_names, int_names in tables:
@@ -125,23 +169,28 @@ def pack_patches(patches: PatchSet) -> tuple[np.ndarray, np.ndarray, dict[str, i
                 raise InputError(f'the scene is too large for the GPU path ({prefix}{name}); use device = "cpu"')
             offsets[prefix + name], int_at = int_at, int_at + a.size
             ints.append(a.astype(np.int32))
+    if max(real_at, int_at) > np.iinfo(np.int32).max:
+        raise InputError('the scene is too large for the GPU path (offsets beyond int32); use device = "cpu"')
     reals.append(np.zeros(1))  # never an empty buffer
     ints.append(np.zeros(1, dtype=np.int32))
     return np.concatenate(reals), np.concatenate(ints), offsets
 
 
-class _UploadedPatches:
-    """The packed patch table of one PatchSet in two storage buffers on ctx."""
+class Uploaded:
+    """A packed table (pack_tables' reals, ints, offsets) of source in two
+    storage buffers on ctx; what: its name in the error when too large.
+    dependents: tables of the same source's other parts (the hierarchy of
+    these patches: gpu_shade.py), released with it."""
 
-    def __init__(self, ctx: moderngl.Context, patches: PatchSet):
-        reals, ints, self.offsets = pack_patches(patches)
+    def __init__(self, ctx: moderngl.Context, source, packed, what: str):
+        reals, ints, self.offsets = packed
         limit = int(ctx.info.get("GL_MAX_SHADER_STORAGE_BLOCK_SIZE") or 0)
         if limit and max(reals.nbytes, ints.nbytes) > limit:
             raise InputError(
-                f"render.device: the scene's patch table ({reals.nbytes / 2**20:.0f} MiB) is larger than the "
+                f"render.device: the scene's {what} ({reals.nbytes / 2**20:.0f} MiB) is larger than the "
                 f'OpenGL context\'s storage buffers hold ({limit / 2**20:.0f} MiB); use device = "cpu"'
             )
-        self.patches = patches
+        self.source, self.dependents = source, {}
         self.reals = ctx.buffer(reals.tobytes())
         try:
             self.ints = ctx.buffer(ints.tobytes())
@@ -152,20 +201,23 @@ class _UploadedPatches:
     def release(self) -> None:
         self.reals.release()
         self.ints.release()
+        for table in self.dependents.values():
+            table.release()
+        self.dependents = {}
 
 
-def _uploaded(ctx: moderngl.Context, patches: PatchSet) -> _UploadedPatches:
+def uploaded(ctx: moderngl.Context, patches: PatchSet) -> Uploaded:
     """The patch table of patches on ctx, uploaded once per PatchSet (the last
     one is kept on the context; gl.release_cached releases it)."""
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     kept = ctx.extra.get("bsrt_gpu_patches")
-    if kept is not None and kept.patches is patches:
+    if kept is not None and kept.source is patches:
         return kept
     if kept is not None:
         kept.release()
         ctx.extra.pop("bsrt_gpu_patches")
-    ctx.extra["bsrt_gpu_patches"] = made = _UploadedPatches(ctx, patches)
+    ctx.extra["bsrt_gpu_patches"] = made = Uploaded(ctx, patches, pack_patches(patches), "patch table")
     return made
 
 
@@ -194,20 +246,36 @@ def find_roots_gpu(
     ray = np.asarray(ray, dtype=np.int64)
     surface = np.asarray(surface)
     with ctx:  # current on this thread for the duration
-        shader = gl.program(ctx, "solve", DEFINES + (("TRIM_TEST",) if patches.trimmed else ()), compute=True)
-        table = _uploaded(ctx, patches)
-        for name, offset in table.offsets.items():
-            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
-        _set(shader, "method", kernel_id)
-        _set(shader, "max_iterations", int(max_iterations))
-        _set(shader, "stop_on_growth", int(bool(stop_on_growth)))
-        _set(shader, "tol2", float(tolerance) * float(tolerance))
-        table.reals.bind_to_storage_buffer(0)
-        table.ints.bind_to_storage_buffer(1)
-        for first in range(0, m, SLICE):  # buffers of one slice at a time: bounded, whatever m
-            _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + SLICE)), out)
+        shader = solver(ctx, "solve", patches, kernel_id, tolerance, max_iterations, stop_on_growth)
+        step = dispatch_size(ctx)
+        for first in range(0, m, step):  # buffers of one slice at a time: bounded, whatever m
+            _solve_slice(ctx, shader, rays, ray, surface, u, v, slice(first, min(m, first + step)), out)
             interrupts.safe_point()  # this slice done: a waiting signal is taken between slices
     return out
+
+
+def solver(ctx, name: str, patches: PatchSet, kernel_id: int, tolerance, max_iterations, stop_on_growth):
+    """The compute shader NAME (one that includes solve_core.glsl) ready to
+    dispatch on ctx (current): compiled with the kernels' constants (and the
+    trim test for a trimmed scene), the patch table uploaded (once per
+    PatchSet) and bound to storage buffers 0 and 1, the solve's uniforms set."""
+    shader = gl.program(ctx, name, compute_defines(ctx, *(("TRIM_TEST",) if patches.trimmed else ())), compute=True)
+    bind_patch_table(ctx, shader, patches)
+    set_uniform(shader, "method", kernel_id)
+    set_uniform(shader, "max_iterations", int(max_iterations))
+    set_uniform(shader, "stop_on_growth", int(bool(stop_on_growth)))
+    set_uniform(shader, "tol2", float(tolerance) * float(tolerance))
+    return shader
+
+
+def bind_patch_table(ctx, shader, patches: PatchSet) -> None:
+    """patches' table (patches.glsl, trim64.glsl) on ctx (current), uploaded
+    once per PatchSet, bound to storage buffers 0 and 1, its offsets set on shader."""
+    table = uploaded(ctx, patches)
+    for key, offset in table.offsets.items():
+        set_uniform(shader, key if key == "trim_coef_rows" else f"off_{key}", offset)
+    table.reals.bind_to_storage_buffer(0)
+    table.ints.bind_to_storage_buffer(1)
 
 
 def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: RootResult) -> None:
@@ -218,7 +286,7 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
     items[:, 3:6] = rays.direction[ray[part]]
     items[:, 6] = u[part]
     items[:, 7] = v[part]
-    _set(shader, "item_count", n)
+    set_uniform(shader, "item_count", n)
     buffers = []
     try:
         buffers.append(ctx.buffer(items.tobytes()))
@@ -227,7 +295,7 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
         buffers.append(ctx.buffer(reserve=n * 4 * 4))
         for binding, buffer in enumerate(buffers, start=2):
             buffer.bind_to_storage_buffer(binding)
-        shader.run(group_x=-(-n // GROUP))
+        run(ctx, shader, n)
         reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(n, 4)
         ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(n, 4)
     finally:
@@ -240,7 +308,7 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
     out.trimmed[part] = ints[:, 3] != 0
 
 
-def _set(shader, name: str, value) -> None:
+def set_uniform(shader, name: str, value) -> None:
     """Set a uniform the compiler kept (an unused one is optimised away)."""
     try:
         shader[name].value = value
@@ -259,19 +327,15 @@ def kept_gpu(ctx: moderngl.Context, patches: PatchSet, surface, u, v) -> np.ndar
         return np.ones(n, dtype=bool)
     points = np.stack([surface.astype(np.float64), u, v], axis=1)
     with ctx:
-        shader = gl.program(ctx, "trim_probe64", compute=True)
-        table = _uploaded(ctx, patches)
-        for name, offset in table.offsets.items():
-            _set(shader, name if name == "trim_coef_rows" else f"off_{name}", offset)
-        _set(shader, "point_count", n)
+        shader = gl.program(ctx, "trim_probe64", compute_defines(ctx), compute=True)
+        bind_patch_table(ctx, shader, patches)
+        set_uniform(shader, "point_count", n)
         buffers = [ctx.buffer(points.tobytes())]
         try:
             buffers.append(ctx.buffer(reserve=4 * n))
-            table.reals.bind_to_storage_buffer(0)
-            table.ints.bind_to_storage_buffer(1)
             buffers[0].bind_to_storage_buffer(2)
             buffers[1].bind_to_storage_buffer(3)
-            shader.run(group_x=-(-n // GROUP))  # tests' sizes: one dispatch
+            run(ctx, shader, n)  # tests' sizes: one dispatch
             return np.frombuffer(buffers[1].read(), dtype=np.int32) != 0
         finally:
             for buffer in buffers:

@@ -19,6 +19,7 @@ import numpy as np
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.lighting import shade_hits
 from bsrt.kernels.threads import run_chunks
+from bsrt.rendering import gpu
 from bsrt.rendering.bvh import (
     DEFAULT_MAX_ITERATIONS,
     DEFAULT_RETRY_DEPTH,
@@ -28,6 +29,7 @@ from bsrt.rendering.bvh import (
     ray_budget,
 )
 from bsrt.rendering.film import Film
+from bsrt.rendering.gpu_shade import shade_hits_gpu
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap
@@ -255,7 +257,7 @@ def render(
         _ = geometry.bvh  # built here, not inside the first stage that needs it
     spent_before = geometry.out_of_budget
     tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
-    shader = _Shader(scene, opts, geometry, stats, report, radius)
+    shader = _Shader(scene, opts, geometry, stats, report, radius, gpu.choose_device(opts.device, ctx)[1])
     cols, rows = sample_grid(spp)
     sample_w, sample_h = width * cols, height * rows
     band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
@@ -339,8 +341,10 @@ class _Shader:
     directional light (one compiled pass per slice of hits: kernels/lighting.py),
     and mirror reflection up to options.max_depth bounces."""
 
-    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius=None):
+    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius, gpu_ctx):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
+        self.gpu = gpu_ctx  # a context: the direct lighting runs there (gpu_shade.py); mirrors and AO on the CPU
+        stats.fields.setdefault("devices", {}).update(shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu")
         grounded = options.ground and scene.surfaces and scene.surfaces[-1].name == "ground" and radius is not None
         self.ground = len(scene.surfaces) - 1 if grounded else -1  # the ground plane's surface index
         self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
@@ -382,36 +386,37 @@ class _Shader:
         bvh = geometry.bvh
         for a in range(0, n, SECONDARY_CHUNK):  # progress and cancellation points
             part = slice(a, min(n, a + SECONDARY_CHUNK))
-            run_chunks(
-                shade_hits,
-                part.stop - part.start,
-                geometry.patches.arrays,
-                geometry.patches.trims,
-                bvh.arrays,
-                hits.hit[part],
-                hits.patch[part],
-                hits.surface[part],
-                hits.u[part],
-                hits.v[part],
-                directions[part],
-                geometry.material,
-                *self.materials,
-                *self.lights,
-                self.background,
-                1e-6 * geometry.diagonal,
-                float(self.tolerance),
-                SHADOW_ITERATIONS,
-                DEFAULT_RETRY_DEPTH,
-                bvh.padding + float(self.tolerance),
-                ray_budget(SHADOW_ITERATIONS),
-                colour[part],
-                position[part],
-                normal[part],
-                radius[part],
-                shadow_rays[part],
-                exhausted[part],
-                min_chunk=256,
-            )
+            outputs = (colour[part], position[part], normal[part], radius[part], shadow_rays[part], exhausted[part])
+            if self.gpu is not None:
+                shade_hits_gpu(self.gpu, bvh, hits.take(part), directions[part], geometry.material, self.materials,
+                               self.lights, self.background, 1e-6 * geometry.diagonal, float(self.tolerance),
+                               SHADOW_ITERATIONS, outputs)  # fmt: skip
+            else:
+                run_chunks(
+                    shade_hits,
+                    part.stop - part.start,
+                    geometry.patches.arrays,
+                    geometry.patches.trims,
+                    bvh.arrays,
+                    hits.hit[part],
+                    hits.patch[part],
+                    hits.surface[part],
+                    hits.u[part],
+                    hits.v[part],
+                    directions[part],
+                    geometry.material,
+                    *self.materials,
+                    *self.lights,
+                    self.background,
+                    1e-6 * geometry.diagonal,
+                    float(self.tolerance),
+                    SHADOW_ITERATIONS,
+                    DEFAULT_RETRY_DEPTH,
+                    bvh.padding + float(self.tolerance),
+                    ray_budget(SHADOW_ITERATIONS),
+                    *outputs,
+                    min_chunk=256,
+                )
             geometry.out_of_budget += int(exhausted[part].sum())  # lit, as bvh.py's "Budget" says
             rays = int(shadow_rays[part].sum())
             self.stats.add("shadow_rays", rays)

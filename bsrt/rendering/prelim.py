@@ -17,6 +17,7 @@ surface.
 
 from __future__ import annotations
 
+from contextlib import closing, contextmanager
 from dataclasses import dataclass
 
 import moderngl
@@ -77,6 +78,56 @@ def render_map(
     gl.max_framebuffer_side, or TILE when set); a larger film is drawn tile by tile, each tile
     with the off-centre projection of its own pixels.
     """
+    first, stop = rows if rows is not None else (0, height)
+    shape = (stop - first, width)
+    out = PrelimMap(
+        np.empty(shape, dtype=np.int64),
+        np.empty(shape),
+        np.empty(shape),
+        np.empty(shape),
+        np.empty(shape + (3,), dtype=np.uint8),
+    )
+    domain = np.ascontiguousarray(patches.domain, dtype=np.float64)
+    with drawn_tiles(patches, camera, width, height, mode, ctx, rows, tile) as drawn:
+        for passes, (r0, _), (c0, _) in drawn:
+            passes.tri.read()
+            passes.line.read()
+            tri, line = passes.tri, passes.line
+            run_chunks(
+                decode_tile,
+                tri.size[0] * tri.size[1],
+                tri.raw,
+                tri.distance,
+                line.raw,
+                line.distance,
+                mode == "float",
+                domain,
+                r0 - first,
+                c0,
+                out.surface,
+                out.u,
+                out.v,
+                out.distance,
+                out.picture,
+            )
+    return out
+
+
+@contextmanager
+def drawn_tiles(
+    patches: PatchSet, camera: Camera, width: int, height: int, mode="float", ctx=None, rows=None, tile=None
+):
+    """The map of render_map's arguments drawn tile by tile on the GPU, left there.
+
+    Yields an iterator of (passes, (r0, r1), (c0, c1)): film rows r0..r1-1
+    and columns c0..c1-1 drawn into passes (_Passes: the triangle and the
+    line pass, each a _Target whose color and eye_distance textures hold
+    the tile, OpenGL's row 0 at the bottom, until the next tile is drawn).
+    ctx (default: the headless context) is current throughout; what was
+    made is released on leaving, and an OpenGL error raises RenderError.
+    render_map reads the passes back and decodes them; the GPU path
+    (rendering/gpu_map.py) solves from the textures where they are.
+    """
     if mode not in MAP_MODES:
         raise InputError(f"map: expected one of {', '.join(MAP_MODES)}, got {mode!r}")
     if mode == "rgba8" and len(patches.surfaces) > 255:
@@ -85,8 +136,11 @@ def render_map(
             f'the scene has {len(patches.surfaces)}; use map = "float"'
         )
     ctx = ctx or gl.headless_context()
+    first, stop = rows if rows is not None else (0, height)
     with ctx:  # current on this thread for the duration (another context may be current)
-        return _rasterise(patches, camera, width, height, mode, ctx, rows, tile or TILE or gl.max_framebuffer_side(ctx))
+        side = tile or TILE or gl.max_framebuffer_side(ctx)
+        with closing(_draw_tiles(patches, camera, width, mode, ctx, (first, stop), height, side)) as drawn:
+            yield drawn
 
 
 def tiles(first: int, stop: int, width: int, side: int):
@@ -109,7 +163,8 @@ def window(matrix: np.ndarray, columns: tuple[int, int], width: int) -> np.ndarr
     return out
 
 
-def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimMap:
+def _draw_tiles(patches, camera, width, mode, ctx, rows, height, side):
+    """drawn_tiles' iterator (a generator: closing it releases what it made)."""
     near, far = depth_range(patches, camera)
     mesh = _tessellation(patches, camera, width, height)
     program = gl.program(ctx, "prelim")
@@ -121,16 +176,7 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
     for prog in programs:
         prog["id_scale"].value = 1.0 if mode == "float" else 1.0 / 255.0
         prog["inv_far"].value = 1.0 / far_distance(patches, camera)
-    first, stop = rows if rows is not None else (0, height)
-    shape = (stop - first, width)
-    out = PrelimMap(
-        np.empty(shape, dtype=np.int64),
-        np.empty(shape),
-        np.empty(shape),
-        np.empty(shape),
-        np.empty(shape + (3,), dtype=np.uint8),
-    )
-    domain = np.ascontiguousarray(patches.domain, dtype=np.float64)
+    first, stop = rows
     dtype = "f4" if mode == "float" else "f1"
     resources = []
     draws = []  # (vertex array, primitive, pass): triangles into the triangle pass, lines into the line pass
@@ -179,26 +225,7 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
                 for vao, primitive, into in draws:
                     if into == name:
                         vao.render(primitive)
-            passes.tri.read()
-            passes.line.read()
-            tri, line = passes.tri, passes.line
-            run_chunks(
-                decode_tile,
-                size[0] * size[1],
-                tri.raw,
-                tri.distance,
-                line.raw,
-                line.distance,
-                mode == "float",
-                domain,
-                r0 - first,
-                c0,
-                out.surface,
-                out.u,
-                out.v,
-                out.distance,
-                out.picture,
-            )
+            yield passes, (r0, r1), (c0, c1)
         error = ctx.error
         if error != "GL_NO_ERROR":
             raise RenderError(f"OpenGL reported {error} while rendering the preliminary map")
@@ -206,7 +233,6 @@ def _rasterise(patches, camera, width, height, mode, ctx, rows, side) -> PrelimM
         gl.bind_default_framebuffer(ctx)
         for res in resources:
             res.release()
-    return out
 
 
 # Framebuffers of tiles up to this many pixels (88 bytes each: two passes' GL
@@ -246,7 +272,8 @@ class _Passes:
 class _Target:
     """A framebuffer (map colour, eye distance, depth) of size (w, h) and the
     arrays its pixels are read into: raw (h, w, 4) float32 or uint8 and
-    distance (h, w) float32, row 0 at the bottom (OpenGL's order)."""
+    distance (h, w) float32, row 0 at the bottom (OpenGL's order). color,
+    eye_distance: its two colour attachments (textures)."""
 
     def __init__(self, ctx, size, dtype):
         self.size, self.dtype, self.parts = size, dtype, []
@@ -257,8 +284,8 @@ class _Target:
                 lambda: ctx.depth_renderbuffer(size),
             ):
                 self.parts.append(make())
-            color, dist, depth = self.parts
-            self.fbo = ctx.framebuffer(color_attachments=[color, dist], depth_attachment=depth)
+            self.color, self.eye_distance, depth = self.parts
+            self.fbo = ctx.framebuffer(color_attachments=[self.color, self.eye_distance], depth_attachment=depth)
         except BaseException:
             self.release()
             raise

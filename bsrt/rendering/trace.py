@@ -20,7 +20,7 @@ import numpy as np
 from bsrt.kernels.prelim import seeded_hits
 from bsrt.kernels.threads import run_chunks
 from bsrt.methods import METHODS
-from bsrt.rendering import gpu, hard_pixels
+from bsrt.rendering import gl, gpu, gpu_map, hard_pixels
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap, render_map
@@ -39,6 +39,7 @@ class HierarchyTracer:
         _count_repairs(stats)
         stats.fields["covered_by_map"] = None  # no map
         stats.fields["solve_device"] = "cpu"  # the hierarchy is traversed on the CPU only
+        stats.fields["devices"] = {"solve": "cpu"}  # and pipeline's shading
 
     def trace(self, width: int, height: int, rows: tuple[int, int], prelim=None, done: float = 0.0):
         """Nearest hits of the pixel-centre rays of film rows rows[0]..rows[1]-1:
@@ -62,7 +63,10 @@ class MapTracer:
         # the seeded solve's device (rendering/gpu.py); the repair of what it does not settle stays on the CPU
         device, compute_ctx = gpu.choose_device(options.device, ctx)
         stats.fields["solve_device"] = device
+        stats.fields["devices"] = {"map": "gl", "solve": device, "repair": "cpu"}  # and pipeline's shading
         self.find_roots = find_roots if device == "cpu" else partial(gpu.find_roots_gpu, compute_ctx)
+        # the GPU solve on the map's own context reads the map where it is drawn (gpu_map.py)
+        self.in_place = compute_ctx if device == "gpu" and compute_ctx is (ctx or gl.headless_context()) else None
 
     def trace(self, width: int, height: int, rows: tuple[int, int], prelim: PrelimMap | None = None, done: float = 0.0):
         """As HierarchyTracer.trace. The map is rasterised (and solved) with one
@@ -72,39 +76,56 @@ class MapTracer:
         lo, hi = max(0, first - 1), min(height, stop + 1)
         camera = self.options.camera
         directions = pixel_rays(camera, width, height, (lo, hi))
+        rays = Rays.from_arrays(camera.eye[None, :], directions)
+        roots = None
         self.report("map", done)
-        with self.stats.timer("map"):
-            if prelim is None:
+        if prelim is not None:
+            prelim = prelim.rows(lo, hi)
+        elif self.in_place is not None:  # the map and its seeds' roots together ("map" stays 0)
+            with self.stats.timer("solve"):
+                prelim, *roots = gpu_map.map_roots_gpu(
+                    self.in_place, self.geometry.patches, camera, width, height, (lo, hi), rays.direction,
+                    *self._solve_arguments(),
+                )  # fmt: skip
+        else:
+            with self.stats.timer("map"):
                 prelim = render_map(
                     self.geometry.patches, camera, width, height, self.options.map, ctx=self.ctx, rows=(lo, hi)
                 )
-            else:
-                prelim = prelim.rows(lo, hi)
         self.last_map = prelim
         self.report("solve", done)
         with self.stats.timer("solve"):
-            hits = self._solve(
-                Rays.from_arrays(camera.eye[None, :], directions), prelim, pixel_footprint(camera, width, height)
-            )
+            hits = self._solve(rays, prelim, pixel_footprint(camera, width, height), roots)
         keep = slice((first - lo) * width, (stop - lo) * width)
         return hits.take(keep), directions[keep]
 
-    def _solve(self, rays: Rays, prelim: PrelimMap, footprint: float) -> Hits:
+    def _solve_arguments(self):
+        """(map mode, method, tolerance, max_iterations, stop_on_growth) of the seeded solve."""
+        method = self.options.method
+        return self.options.map, method, self.tolerance, self.options.max_iterations, METHODS[method].stops_on_growth
+
+    def _solve(self, rays: Rays, prelim: PrelimMap, footprint: float, roots=None) -> Hits:
+        """Hits of the map's pixels: roots (covered (M,), RootResult (M,)) of its seeds when given
+        (solved with the map: gpu_map.py), else solved here, then the suspects repaired."""
         patches, options, stats = self.geometry.patches, self.options, self.stats
-        seed = prelim.surface.ravel()
-        covered = np.flatnonzero(seed >= 0)
-        res = self.find_roots(
-            patches,
-            rays,
-            covered,
-            seed[covered],
-            prelim.u.ravel()[covered],
-            prelim.v.ravel()[covered],
-            method=options.method,
-            tolerance=self.tolerance,
-            max_iterations=options.max_iterations,
-            stop_on_growth=METHODS[options.method].stops_on_growth,
-        )  # a failure is re-solved as a suspect
+        if roots is None:
+            seed = prelim.surface.ravel()
+            covered = np.flatnonzero(seed >= 0)
+            _, method, tolerance, max_iterations, stop_on_growth = self._solve_arguments()
+            res = self.find_roots(
+                patches,
+                rays,
+                covered,
+                seed[covered],
+                prelim.u.ravel()[covered],
+                prelim.v.ravel()[covered],
+                method=method,
+                tolerance=tolerance,
+                max_iterations=max_iterations,
+                stop_on_growth=stop_on_growth,
+            )  # a failure is re-solved as a suspect
+        else:
+            covered, res = roots
         hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
         suspect, layer, seam = hard_pixels.suspect_pixels(
             prelim, hits, failed, footprint, self.tolerance, patches.domain, hard_pixels.MAP_QUANTUM[options.map]

@@ -1,0 +1,236 @@
+"""Shadow rays on the GPU: the hierarchy in storage buffers and the any-hit walk as a compute shader.
+
+``occluded_gpu`` answers, for shadow rays given as arrays, what the CPU's
+any-hit walk (kernels/lighting.py's occluded; bvh.intersect with any_hit)
+answers: blocked or not, and which rays spent their budget (taken as lit).
+``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
+in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
+per hierarchy beside the patch table (gpu.uploaded).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import moderngl
+import numpy as np
+
+from bsrt import interrupts
+from bsrt.kernels.hierarchy import BVHArrays
+from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
+from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
+from bsrt.rendering import gl, gpu
+from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, ray_budget
+from bsrt.rendering.gpu import Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
+
+
+def hierarchy_arrays(arrays: BVHArrays) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """(float64 names, integer names) of BVHArrays' fields, as anyhit.glsl reads them (offsets off_NAME)."""
+    real = tuple(f for f in BVHArrays._fields if getattr(arrays, f).dtype.kind == "f")
+    return real, tuple(f for f in BVHArrays._fields if f not in real)
+
+
+def uploaded_hierarchy(ctx: moderngl.Context, bvh) -> Uploaded:
+    """bvh's table (BVHArrays) on ctx in two storage buffers, uploaded once per
+    hierarchy, kept with its patches' table (gpu.uploaded: released with it)."""
+    table = uploaded(ctx, bvh.patches)
+    kept = table.dependents.get("hierarchy")
+    if kept is not None and kept.source is bvh:
+        return kept
+    if kept is not None:
+        table.dependents.pop("hierarchy").release()
+    real, integer = hierarchy_arrays(bvh.arrays)
+    packed = pack_tables([(bvh.arrays, "", real, integer)], {})
+    table.dependents["hierarchy"] = made = Uploaded(ctx, bvh, packed, "hierarchy")
+    return made
+
+
+def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = DEFAULT_RETRY_DEPTH):
+    """The compute shader NAME (one that includes anyhit.glsl) on ctx (current),
+    compiled for bvh's nets and retry_depth, the patch table bound to storage
+    buffers 0 and 1, the hierarchy to 6 and 7, their offsets set."""
+    pm, qm = bvh.arrays.patch_net.shape[1:3]
+    defines = gpu.compute_defines(
+        ctx,
+        f"NET_PM {pm}",
+        f"NET_QM {qm}",
+        f"RETRY_DEPTH {int(retry_depth)}",
+        f"STACK {STACK}",
+        f"GRAZING_COSINE {GRAZING_COSINE!r}LF",
+        f"RECT_SLACK {RECT_SLACK!r}LF",
+        f"LIGHT_AMBIENT {LIGHT_KINDS['ambient']}",
+        f"LIGHT_POINT {LIGHT_KINDS['point']}",
+        "POLE_STEPS double[](" + ", ".join(f"{s!r}LF" for s in POLE_STEPS) + ")",
+    )
+    shader = gl.program(ctx, name, defines + (("TRIM_TEST",) if bvh.patches.trimmed else ()), compute=True)
+    bind_patch_table(ctx, shader, bvh.patches)
+    table = uploaded_hierarchy(ctx, bvh)
+    for key, offset in table.offsets.items():
+        set_uniform(shader, f"off_{key}", offset)
+    table.reals.bind_to_storage_buffer(6)
+    table.ints.bind_to_storage_buffer(7)
+    return shader
+
+
+def set_shadow_uniforms(shader, bvh, tolerance: float, max_iterations: int) -> None:
+    """The shadow rays' solve as bvh.intersect sets it: tolerance (scene units),
+    max_iterations of Newton per piece, the hull test's slack, the ray's budget."""
+    set_uniform(shader, "shadow_tol", float(tolerance))
+    set_uniform(shader, "shadow_iterations", int(max_iterations))
+    set_uniform(shader, "cull_tol", float(bvh.padding + tolerance))
+    set_uniform(shader, "budget", ray_budget(max_iterations))
+
+
+def occluded_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    origins,
+    directions,
+    t_max,
+    tolerance: float,
+    exclude=None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Any-hit shadow rays on ctx (OpenGL 4.5 with float64: gpu.choose_device).
+
+    origins, directions: (N, 3) float64 (directions of unit length); t_max:
+    (N,) or a scalar, a blocker needs 0 < t < t_max; tolerance: scene units;
+    exclude: (surface, u, v, radius_u, radius_v), each (N,), the root each ray
+    starts from (bvh.intersect's). Returns (blocked (N,) bool, exhausted (N,)
+    bool: not blocked within the budget, taken as lit), what bvh.intersect
+    with any_hit and max_iterations (Newton's per piece) answers on the CPU."""
+    d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    n = d.shape[0]
+    rays = np.zeros((n, 12))
+    rays[:, 0:3] = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), (n, 3))
+    rays[:, 3:6] = d
+    rays[:, 6] = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
+    rays[:, 7] = -1.0
+    if exclude is not None:
+        for c, a in enumerate(exclude, start=7):
+            rays[:, c] = a
+    answer = np.empty(n, dtype=np.int32)
+    if n == 0 or bvh.leaf_total == 0:
+        answer[:] = 0
+        return answer == 1, answer == -2
+    with ctx:
+        shader = hierarchy_shader(ctx, "shadow", bvh)
+        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
+        step = gpu.dispatch_size(ctx)
+        for first in range(0, n, step):
+            count = min(step, n - first)
+            buffers = []
+            try:
+                buffers.append(ctx.buffer(rays[first : first + count].tobytes()))
+                buffers.append(ctx.buffer(reserve=4 * count))
+                buffers[0].bind_to_storage_buffer(2)
+                buffers[1].bind_to_storage_buffer(3)
+                set_uniform(shader, "ray_count", count)
+                gpu.run(ctx, shader, count)
+                ctx.memory_barrier()
+                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32)
+            finally:
+                for buffer in buffers:
+                    buffer.release()
+            interrupts.safe_point()
+    return answer == 1, answer == -2
+
+
+LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
+LOOK_INT = ("material_of", "kind")
+
+
+def shade_hits_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    hits,
+    directions,
+    material_of,
+    materials,
+    lights,
+    background,
+    eps: float,
+    tolerance: float,
+    max_iterations: int,
+    out,
+) -> None:
+    """kernels/lighting.py's shade_hits for K hits on ctx (OpenGL 4.5 with
+    float64), by shaders/shade.glsl: the same arguments and outputs.
+
+    hits: Hits (K,) (hit, patch, surface, u, v used); directions: (K, 3)
+    unit ray directions; material_of: (S,) int64; materials: (albedo (M, 3),
+    specular (M,), shininess (M,)); lights: rendering/shade.py's
+    light_arrays; background: (3,); eps: the exclusion half-width (scene
+    units); tolerance, max_iterations: the shadow rays' solve (bvh.intersect's).
+    out: (colour (K, 3), position (K, 3), normal (K, 3), radius (K, 2),
+    shadow_rays (K,) int64, exhausted (K,) int64), written here."""
+    colour, position, normal, radius, shadow_rays, exhausted = out
+    n = len(hits)
+    if n == 0:
+        return
+    kind = lights[0]
+    look = SimpleNamespace(
+        material_of=material_of,
+        albedo=materials[0],
+        specular=materials[1],
+        shininess=materials[2],
+        kind=kind,
+        light_position=lights[1],
+        light_direction=lights[2],
+        strength=lights[3],
+        background=background,
+    )
+    look_reals, look_ints, look_offsets = pack_tables([(look, "", LOOK_REAL, LOOK_INT)], {})
+    hit_reals = np.column_stack([hits.u, hits.v, np.asarray(directions, dtype=np.float64).reshape(-1, 3)])
+    hit_ints = np.column_stack([hits.hit, hits.patch, hits.surface]).astype(np.int32)
+    with ctx:
+        shader = hierarchy_shader(ctx, "shade", bvh)
+        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
+        for key, offset in look_offsets.items():
+            set_uniform(shader, f"off_{key}", offset)
+        set_uniform(shader, "eps", float(eps))
+        tables = []
+        try:
+            for array in (look_reals, look_ints):
+                tables.append(ctx.buffer(array.tobytes()))
+            tables[0].bind_to_storage_buffer(4)
+            tables[1].bind_to_storage_buffer(5)
+            step = gpu.dispatch_size(ctx)
+            for first in range(0, n, step):
+                part = slice(first, min(n, first + step))
+                count = part.stop - part.start
+                reals, ints = _shade_slice(ctx, shader, hit_reals[part], hit_ints[part], count, kind.shape[0])
+                colour[part], position[part], normal[part], radius[part] = (
+                    reals[:, 0:3],
+                    reals[:, 3:6],
+                    reals[:, 6:9],
+                    reals[:, 9:11],
+                )
+                shadow_rays[part], exhausted[part] = ints[:, 0], ints[:, 1]
+                interrupts.safe_point()
+        finally:
+            for buffer in tables:
+                buffer.release()
+
+
+def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
+    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 2))."""
+    buffers = []
+    try:
+        buffers.append(ctx.buffer(np.ascontiguousarray(hit_reals).tobytes()))
+        buffers.append(ctx.buffer(np.ascontiguousarray(hit_ints).tobytes()))
+        buffers.append(ctx.buffer(reserve=count * 11 * 8))
+        buffers.append(ctx.buffer(reserve=count * 2 * 4))
+        for buffer, binding in zip(buffers, (2, 3, 8, 9)):
+            buffer.bind_to_storage_buffer(binding)
+        set_uniform(shader, "hit_count", count)
+        for light in range(lights) if lights else (-1,):  # no light: the colour is 0 (the kernel's sum over none)
+            set_uniform(shader, "light", light)
+            gpu.run(ctx, shader, count)
+            ctx.memory_barrier()
+        reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(count, 11)
+        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 2)
+        return reals, ints
+    finally:
+        for buffer in buffers:
+            buffer.release()

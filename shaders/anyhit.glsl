@@ -1,0 +1,282 @@
+// Any-hit (shadow) rays through Martin et al.'s hierarchy of flat pieces in
+// float64 for compute shaders: a file that other shaders include (no
+// #version here), after patches.glsl, trim64.glsl and solve_core.glsl. A
+// line-by-line port of bsrt/kernels/lighting.py's occluded (the walk) and
+// kernels/traverse.py's _solve_piece, _root_in, _straddles, _slab and
+// _obb_slab (their docstrings explain each step), without the hint (the
+// leaf that blocked the previous ray of a CPU slice, tried first there: it
+// changes the order pieces are tried in, not whether a ray is blocked) and
+// without the final Newton step on a grazing root (it moves t, not the
+// answer). The CPU kernels are the reference the tests hold this to. The
+// loops leave by their conditions, never by return, break or continue inside
+// (with those, Mesa 22's llvmpipe mixed up the lanes of a SIMD group whose
+// invocations left at different points: some then skipped their next light).
+//
+// The hierarchy (rendering/bvh.py's BVHArrays, packed by
+// rendering/gpu_shade.py) lies in storage buffers 2 (float64) and 3 (int32),
+// each array at the offset its uniform names. NET_PM, NET_QM (the nets'
+// largest p + 1, q + 1), RETRY_DEPTH, STACK, GRAZING_COSINE and RECT_SLACK
+// are #defined by gpu_shade.py from the kernels' values.
+
+layout(std430, binding = 6) readonly buffer HierarchyReals { double hier_reals[]; };
+layout(std430, binding = 7) readonly buffer HierarchyInts { int hier_ints[]; };
+
+uniform int off_node_bounds, off_leaf_rect, off_leaf_obb, off_patch_net, off_leaf_net;
+uniform int off_node_left, off_node_right, off_node_first, off_node_count, off_leaf_surface, off_leaf_net_row;
+uniform int off_leaf_degree, off_leaf_planar, off_leaf_kept;
+
+#define SCRATCH (4 * RETRY_DEPTH + 8)
+#define NET_SIZE (NET_PM * NET_QM * 4)
+#define NET(s, i, j, c) nets[(s) * NET_SIZE + ((i) * NET_QM + (j)) * 4 + (c)]
+
+// Per invocation: the retries' nets, rectangles and depths (traverse.py's scratch) and the walk's stack.
+double nets[SCRATCH * NET_SIZE];
+dvec4 rects[SCRATCH];
+int depths[SCRATCH];
+double tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
+int stack[STACK];
+
+// Entry and exit distances of a ray (origin, inverse direction) into node's box.
+dvec2 slab(int node, dvec3 o, dvec3 inv) {
+    int b = off_node_bounds + 6 * node;
+    double t1 = (hier_reals[b] - o.x) * inv.x, t2 = (hier_reals[b + 3] - o.x) * inv.x;
+    double near = min(t1, t2), far = max(t1, t2);
+    t1 = (hier_reals[b + 1] - o.y) * inv.y;
+    t2 = (hier_reals[b + 4] - o.y) * inv.y;
+    near = max(near, min(t1, t2));
+    far = min(far, max(t1, t2));
+    t1 = (hier_reals[b + 2] - o.z) * inv.z;
+    t2 = (hier_reals[b + 5] - o.z) * inv.z;
+    return dvec2(max(near, min(t1, t2)), min(far, max(t1, t2)));
+}
+
+// Entry and exit distances of a ray into leaf's oriented box.
+dvec2 obb_slab(int leaf, dvec3 o, dvec3 d) {
+    int b = off_leaf_obb + 15 * leaf;
+    dvec3 r = o - dvec3(hier_reals[b], hier_reals[b + 1], hier_reals[b + 2]);
+    double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
+    double near = -INF, far = INF;
+    for (int k = 0; k < 3; ++k) {
+        double ax = hier_reals[b + 3 + 3 * k], ay = hier_reals[b + 4 + 3 * k], az = hier_reals[b + 5 + 3 * k];
+        double oo = ax * r.x + ay * r.y + az * r.z;
+        double dd = ax * d.x + ay * d.y + az * d.z;
+        if (abs(dd) < 1e-300LF) dd = 1e-300LF;
+        double half_ = hier_reals[b + 12 + k];
+        double t1 = (-half_ - oo) / dd, t2 = (half_ - oo) / dd;
+        near = max(near, min(t1, t2));
+        far = min(far, max(t1, t2));
+    }
+    return dvec2(near, far);
+}
+
+// |cos| between the unit d and the normal of patch k at (u, v) below GRAZING_COSINE? (traverse._grazing)
+bool grazing(int k, double u, double v, dvec3 d) {
+    dvec3 S, Su, Sv;
+    patch_frame(k, u, v, S, Su, Sv);
+    dvec3 n = dvec3(Su.y * Sv.z - Su.z * Sv.y, Su.z * Sv.x - Su.x * Sv.z, Su.x * Sv.y - Su.y * Sv.x);
+    double c = abs(n.x * d.x + n.y * d.y + n.z * d.z) / max(sqrt(n.x * n.x + n.y * n.y + n.z * n.z), 1e-300LF);
+    return c < GRAZING_COSINE;
+}
+
+// Can the ray meet the piece with scratch net s before t_far? (its hull in the ray's frame e1, e2, d)
+bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double t_min, double t_far, double tol) {
+    double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
+    double xlo = INF, ylo = INF, zlo = INF, xhi = -INF, yhi = -INF, zhi = -INF;
+    for (int i = 0; i <= p; ++i) {
+        for (int j = 0; j <= q; ++j) {
+            double w = NET(s, i, j, 3);
+            double px = NET(s, i, j, 0) / w - o.x, py = NET(s, i, j, 1) / w - o.y, pz = NET(s, i, j, 2) / w - o.z;
+            double x = e1.x * px + e1.y * py + e1.z * pz;
+            double y = e2.x * px + e2.y * py + e2.z * pz;
+            double z = d.x * px + d.y * py + d.z * pz;
+            xlo = min(xlo, x);
+            xhi = max(xhi, x);
+            ylo = min(ylo, y);
+            yhi = max(yhi, y);
+            zlo = min(zlo, z);
+            zhi = max(zhi, z);
+        }
+    }
+    return xlo <= tol && xhi >= -tol && ylo <= tol && yhi >= -tol && zhi + tol >= t_min && zlo - tol < t_far;
+}
+
+// leaf's net (flatten.leaf_net) into scratch slot s.
+void load_net(int leaf, int s) {
+    int row = hier_ints[off_leaf_net_row + leaf];
+    int base = row >= 0 ? off_leaf_net + row * NET_SIZE : off_patch_net + (-1 - row) * NET_SIZE;
+    for (int i = 0; i < NET_SIZE; ++i) nets[s * NET_SIZE + i] = hier_reals[base + i];
+}
+
+void copy_net(int src, int dst) {
+    for (int i = 0; i < NET_SIZE; ++i) nets[dst * NET_SIZE + i] = nets[src * NET_SIZE + i];
+}
+
+// de Casteljau at the midpoint of scratch net src along axis 0 (u) or 1 (v) into lo, hi (flatten.split_half).
+void split_half(int src, int lo, int hi, int p, int q, int axis) {
+    int n = axis == 0 ? p : q, other = axis == 0 ? q : p;
+    for (int j = 0; j <= other; ++j) {
+        for (int c = 0; c < 4; ++c) {
+            for (int i = 0; i <= n; ++i) tmp[i] = axis == 0 ? NET(src, i, j, c) : NET(src, j, i, c);
+            for (int r = 0; r <= n; ++r) {
+                if (r > 0) {
+                    for (int i = 0; i <= n - r; ++i) tmp[i] = 0.5LF * (tmp[i] + tmp[i + 1]);
+                }
+                if (axis == 0) {
+                    NET(lo, r, j, c) = tmp[0];
+                    NET(hi, n - r, j, c) = tmp[n - r];
+                } else {
+                    NET(lo, j, r, c) = tmp[0];
+                    NET(hi, j, n - r, c) = tmp[n - r];
+                }
+            }
+        }
+    }
+}
+
+// 0: not a hit; 1: a hit; 2: the excluded start root; 3: a root of the piece that is not a hit (_root_in).
+// ex: the start root's (u, v, radius u, radius v) on surface ex_m.
+int root_in(int m, dvec4 rect, bool kept, double u, double v, double t, double t_min, double t_max, int ex_m,
+            dvec4 ex) {
+    if (m == ex_m && abs(u - ex.x) <= ex.z && abs(v - ex.y) <= ex.w) return 2;
+    double su = RECT_SLACK * (rect.y - rect.x);
+    double sv = RECT_SLACK * (rect.w - rect.z);
+    if (!(rect.x - su <= u && u <= rect.y + su && rect.z - sv <= v && v <= rect.w + sv)) return 0;
+    if (!(t_min < t && t < t_max)) return 3;
+#ifdef TRIM_TEST
+    if (!(kept && rect.x <= u && u <= rect.y && rect.z <= v && v <= rect.w) && !trim_kept(m, u, v)) return 3;
+#endif
+    return 1;
+}
+
+// Does piece leaf hold a valid root with 0 < t < t_max? (lighting._leaf_blocks: the oriented box,
+// the hull, then _solve_piece: Newton from the centre, quarters where it found nothing or a grazing
+// root; true at the first valid root). iterations: Newton's, added to.
+bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, double tol, int max_iter,
+                 double cull_tol, int ex_m, dvec4 ex, inout int iterations) {
+    dvec2 span = obb_slab(leaf, o, d);
+    if (!(span.x <= span.y && span.y >= 0.0LF && span.x <= t_max)) return false;
+    int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
+    load_net(leaf, 0);
+    if (!straddles(0, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
+    int m = hier_ints[off_leaf_surface + leaf];
+    int at = off_leaf_rect + 4 * leaf;
+    dvec4 rect = dvec4(hier_reals[at], hier_reals[at + 1], hier_reals[at + 2], hier_reals[at + 3]);
+    bool kept = hier_ints[off_leaf_kept + leaf] != 0;
+    double tol2 = tol * tol;
+    dvec4 root;
+    int k, its;
+    bool ok;
+    double c;
+    solve_one(o, d, m, 0.5LF * (rect.x + rect.y), 0.5LF * (rect.z + rect.w), NEWTON, tol2, max_iter, true, root, k,
+              ok, its, c);
+    iterations += its;
+    int state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
+    if (state == 1) return true;
+    if (RETRY_DEPTH == 0 || (state != 0 && !(c < GRAZING_COSINE))) return false;
+    // the retries on quarters, depth-first, in the scratch (slot 0 holds the leaf's net)
+    rects[0] = rect;
+    depths[0] = 0;
+    int top = state == 0 || hier_ints[off_leaf_planar + leaf] == 0 ? 1 : 0;
+    bool found = false;
+    int s = 4, first = 0, dnext = 0;  // the quarter tried next (of first .. first + 3; none yet) and their depth
+    while (!found && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
+        if (s < first + 4) {
+            if (straddles(s, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) {
+                dvec4 sr = rects[s];
+                solve_one(o, d, m, 0.5LF * (sr.x + sr.y), 0.5LF * (sr.z + sr.w), NEWTON, tol2, max_iter, true, root,
+                          k, ok, its, c);
+                iterations += its;
+                state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
+                found = state == 1;
+                bool again = state == 0 || c < GRAZING_COSINE;
+                if (!found && again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
+                    if (s != top) {
+                        copy_net(s, top);
+                        rects[top] = rects[s];
+                    }
+                    depths[top] = dnext;
+                    top += 1;
+                }
+            }
+            s += 1;
+        } else {
+            top -= 1;
+            if (depths[top] < RETRY_DEPTH && top + 6 <= SCRATCH) {  // cut it into quarters in slots top .. top + 3
+                int a = top + 4, b2 = top + 5;
+                split_half(top, a, b2, p, q, 0);
+                split_half(a, top, top + 1, p, q, 1);
+                split_half(b2, top + 2, top + 3, p, q, 1);
+                dvec4 r = rects[top];
+                double um = 0.5LF * (r.x + r.y), vm = 0.5LF * (r.z + r.w);
+                dnext = depths[top] + 1;
+                rects[top] = dvec4(r.x, um, r.z, vm);
+                rects[top + 1] = dvec4(r.x, um, vm, r.w);
+                rects[top + 2] = dvec4(um, r.y, r.z, vm);
+                rects[top + 3] = dvec4(um, r.y, vm, r.w);
+                first = top;
+                s = top;
+            }
+        }
+    }
+    return found;
+}
+
+// Any-hit shadow ray from o along the unit d with 0 < t < t_max (lighting.occluded): 1 blocked,
+// 0 not, -2 not blocked within budget Newton iterations (taken as lit, counted as out of budget).
+// ex_m, ex: the start root's surface and (u, v, radius u, radius v) (ex_m -1: none).
+int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cull_tol, int budget, int ex_m,
+             dvec4 ex) {
+    double sgn = d.z >= 0.0LF ? 1.0LF : -1.0LF;  // roots.ray_frame
+    double fa = -1.0LF / (sgn + d.z);
+    double fb = d.x * d.y * fa;
+    dvec3 e1 = dvec3(1.0LF + sgn * d.x * d.x * fa, sgn * fb, -sgn * d.x);
+    dvec3 e2 = dvec3(fb, sgn + d.y * d.y * fa, -d.y);
+    bool skip_start = ex_m >= 0 && !grazing(locate_patch(ex_m, ex.x, ex.y), ex.x, ex.y, d);
+    int iterations = 0;
+    dvec3 inv = dvec3(abs(d.x) > 1e-300LF ? 1.0LF / d.x : (d.x < 0.0LF ? -1e300LF : 1e300LF),
+                      abs(d.y) > 1e-300LF ? 1.0LF / d.y : (d.y < 0.0LF ? -1e300LF : 1e300LF),
+                      abs(d.z) > 1e-300LF ? 1.0LF / d.z : (d.z < 0.0LF ? -1e300LF : 1e300LF));
+    dvec2 nf = slab(0, o, inv);
+    if (!(nf.x <= nf.y && nf.y >= 0.0LF && nf.x <= t_max)) return 0;
+    stack[0] = 0;
+    int top = 1;
+    int result = 0;
+    int leaf = 0, leaf_stop = 0;  // the leaves of the tree leaf popped last, not yet tried
+    while (result == 0 && (leaf < leaf_stop || top > 0)) {  // one leaf or one node per turn
+        if (leaf < leaf_stop) {
+            bool start = false;  // the start's own leaf, skipped unless the ray leaves it grazing
+            if (skip_start && hier_ints[off_leaf_surface + leaf] == ex_m) {
+                int at = off_leaf_rect + 4 * leaf;
+                start = hier_reals[at] <= ex.x && ex.x <= hier_reals[at + 1] && hier_reals[at + 2] <= ex.y &&
+                        ex.y <= hier_reals[at + 3];
+            }
+            if (!start) {
+                if (leaf_blocks(leaf, o, d, e1, e2, t_max, tol, max_iter, cull_tol, ex_m, ex, iterations)) {
+                    result = 1;
+                } else if (iterations >= budget) {
+                    result = -2;
+                }
+            }
+            leaf += 1;
+        } else {
+            top -= 1;
+            int node = stack[top];
+            int left = hier_ints[off_node_left + node];
+            if (left < 0) {
+                leaf = hier_ints[off_node_first + node];
+                leaf_stop = leaf + hier_ints[off_node_count + node];
+            } else {
+                int right = hier_ints[off_node_right + node];
+                dvec2 a = slab(left, o, inv), b = slab(right, o, inv);
+                bool hit1 = a.x <= a.y && a.y >= 0.0LF && a.x <= t_max;
+                bool hit2 = b.x <= b.y && b.y >= 0.0LF && b.x <= t_max;
+                // both children (the farther pushed first), one, or none; a full stack drops what the CPU's drops
+                int push = hit1 && hit2 && top + 2 <= STACK ? 2 : (hit1 || hit2 ? 1 : 0);
+                stack[min(top, STACK - 1)] = push == 2 || !hit1 ? right : left;
+                stack[min(top + 1, STACK - 1)] = left;
+                top += push;
+            }
+        }
+    }
+    return result;
+}

@@ -1,0 +1,214 @@
+"""Shadow rays on the GPU (bsrt/rendering/gpu_shade.py, shaders/anyhit.glsl) on a
+real GL context: Mesa's llvmpipe here and in CI, never skipped.
+
+- a closed form: a square plane above a larger one, rays straight up from the
+  lower one: blocked exactly under the square and below its height;
+- the any-hit walk against the CPU's (bvh.intersect with any_hit, the walk of
+  kernels/lighting.py) on shadow rays from every hit of scenes/ and trimmed
+  IGES files toward their lights: the same answer for every ray that neither
+  leaves its start grazing nor meets a grazing blocker (GRAZING_COSINE: there
+  the pieces are cut into quarters and Newton's path depends on rounding).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bsrt
+from bsrt.geometry.bspline import make_surface
+from bsrt.geometry.patches import PatchSet
+from bsrt.kernels.traverse import GRAZING_COSINE
+from bsrt.rendering import gl, gpu, gpu_shade
+from bsrt.rendering.bvh import build_bvh
+from bsrt.rendering.shade import facing_frames, light_arrays
+from bsrt.scene.camera import pixel_rays
+
+pytestmark = pytest.mark.gl
+
+ROOT = Path(__file__).resolve().parents[1]
+IGES = ROOT / "tests" / "data" / "iges"
+SOURCES = [ROOT / "scenes" / f"{name}.toml" for name in ("column", "water-lily", "quad")] + [
+    IGES / "plane_circle_144.igs",
+    IGES / "sphere_torus.igs",
+]
+
+
+def _context():
+    device, ctx = gpu.choose_device("gpu")
+    assert device == "gpu"
+    return ctx
+
+
+def test_a_software_renderer_runs_workgroups_of_one():
+    ctx = _context()
+    with ctx:
+        caps = gl.capabilities(ctx)
+        assert gpu.group_size(ctx) == (gpu.GROUP if caps.hardware else 1)
+
+
+def _plane(half: float, z: float):
+    """The square [-half, half]^2 at height z, bilinear."""
+    corners = [[[-half, -half, z], [-half, half, z]], [[half, -half, z], [half, half, z]]]
+    return make_surface((1, 1), [0, 0, 1, 1], [0, 0, 1, 1], corners)
+
+
+def test_a_square_shadows_the_plane_under_it():
+    """Rays straight up from the plane z = 0 (its surface 0, excluded at the start)
+    meet the square |x|, |y| <= 0.5 at z = 1: blocked under it (away from its
+    edges) when t_max > 1, never beside it nor when t_max < 1."""
+    bvh = build_bvh(PatchSet([_plane(2.0, 0.0), _plane(0.5, 1.0)]))
+    rng = np.random.default_rng(11)
+    n = 4000
+    xy = rng.uniform(-1.5, 1.5, (n, 2))
+    xy = xy[np.abs(np.abs(xy) - 0.5).min(axis=1) > 1e-3]  # away from the square's edges
+    n = xy.shape[0]
+    origins = np.column_stack([xy, np.zeros(n)])
+    up = np.tile([0.0, 0.0, 1.0], (n, 1))
+    exclude = (np.zeros(n, dtype=np.int64), (xy[:, 0] + 2) / 4, (xy[:, 1] + 2) / 4, np.full(n, 1e-6), np.full(n, 1e-6))
+    under = (np.abs(xy) < 0.5).all(axis=1)
+    assert 0 < under.sum() < n
+    for t_max, want in ((np.inf, under), (5.0, under), (0.9, np.zeros(n, dtype=bool))):
+        blocked, exhausted = gpu_shade.occluded_gpu(_context(), bvh, origins, up, t_max, 1e-9, exclude)
+        np.testing.assert_array_equal(blocked, want)
+        assert not exhausted.any()
+    assert _context().error == "GL_NO_ERROR"
+
+
+def _shadow_rays(result, lights):
+    """Per non-ambient light of a CPU render: (origins, directions, t_max, exclusion,
+    cosine at the start) of the shadow rays its hits send (the points facing the light),
+    as rendering/pipeline.py's shading sends them."""
+    geometry, hits, options = result.geometry, result.hits, result.options
+    size = result.pixels.shape[:2]
+    position, normal, speed = facing_frames(geometry.patches, hits, pixel_rays(options.camera, size[1], size[0]))
+    h = np.flatnonzero(hits.hit)
+    eps = 1e-6 * geometry.diagonal
+    bounds = geometry.patches.arrays.bounds[hits.patch[h]]
+    with np.errstate(divide="ignore"):
+        ru = np.minimum(np.where(speed[h, 0] > 0, eps / speed[h, 0], np.inf), 0.25 * (bounds[:, 1] - bounds[:, 0]))
+        rv = np.minimum(np.where(speed[h, 1] > 0, eps / speed[h, 1], np.inf), 0.25 * (bounds[:, 3] - bounds[:, 2]))
+    kind, light_position, light_direction, _ = light_arrays(lights)
+    for j in np.flatnonzero(kind != 0):
+        if kind[j] == 1:
+            to_light = light_position[j] - position[h]
+            t_max = np.linalg.norm(to_light, axis=1)
+            to_light = to_light / t_max[:, None]
+        else:
+            to_light, t_max = np.tile(light_direction[j], (h.size, 1)), np.full(h.size, np.inf)
+        cosine = np.einsum("ij,ij->i", normal[h], to_light)
+        face = cosine > 0
+        exclusion = (hits.surface[h][face], hits.u[h][face], hits.v[h][face], ru[face], rv[face])
+        yield position[h][face], to_light[face], t_max[face], exclusion, cosine[face]
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)
+def test_shadow_rays_agree_with_the_cpu_walk(path):
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
+    geometry = result.geometry
+    tolerance = result.options.tolerance * geometry.diagonal
+    rays = 0
+    for origins, directions, t_max, exclusion, cosine in _shadow_rays(result, scene.lights):
+        cpu = geometry.intersect(
+            origins, directions, t_min=0.0, t_max=t_max, tolerance=tolerance, exclude=exclusion, any_hit=True
+        )
+        blocked, exhausted = gpu_shade.occluded_gpu(
+            _context(), geometry.bvh, origins, directions, t_max, tolerance, exclusion
+        )
+        blocker = np.ones(cpu.hit.size)
+        if cpu.hit.any():
+            _, blocker_normal, _ = facing_frames(
+                geometry.patches, cpu.take(np.flatnonzero(cpu.hit)), directions[cpu.hit]
+            )
+            blocker[cpu.hit] = np.abs(np.einsum("ij,ij->i", blocker_normal, directions[cpu.hit]))
+        clear = (cosine >= GRAZING_COSINE) & (blocker >= GRAZING_COSINE)
+        np.testing.assert_array_equal(blocked[clear], cpu.hit[clear])
+        assert (blocked != cpu.hit).sum() <= max(2, cpu.hit.size // 50)  # grazing cases: rounding decides a few
+        assert not exhausted.any()
+        rays += origins.shape[0]
+    assert rays > 1000
+    assert _context().error == "GL_NO_ERROR"
+
+
+def _shade_inputs(scene, result):
+    """shade_hits' arguments for a render's pixel-centre hits, as rendering/pipeline.py passes them."""
+    from bsrt.scene.camera import pixel_rays
+
+    options = result.options
+    h, w = result.pixels.shape[:2]
+    materials = (
+        np.array([m.color for m in scene.materials], dtype=np.float64).reshape(-1, 3),
+        np.array([m.specular for m in scene.materials], dtype=np.float64),
+        np.array([m.shininess for m in scene.materials], dtype=np.float64),
+    )
+    background = np.array(options.background, dtype=np.float64).reshape(3)
+    directions = np.ascontiguousarray(pixel_rays(options.camera, w, h))
+    return directions, materials, light_arrays(scene.lights), background
+
+
+LIGHTING_CASES = [(p, 64) for p in SOURCES + [ROOT / "scenes" / "bench-64.toml"]] + [
+    (ROOT / "scenes" / "column.toml", 160)
+]
+
+
+@pytest.mark.parametrize("path, size", LIGHTING_CASES, ids=lambda c: getattr(c, "stem", str(c)))
+def test_the_lighting_shader_agrees_with_the_kernel(path, size):
+    """shade.glsl against kernels/lighting.py's shade_hits on every pixel of a render:
+    the same frames and exclusion boxes (bit for bit: the same float64 steps), the
+    same shadow rays per hit, colours within 1e-12 relative (the specular power by
+    squaring, not pow: GLSL has none in float64), the 8-bit image within 1/255. The
+    column at 160 x 160 holds the hits where llvmpipe's SIMD lanes got mixed up
+    (gpu.group_size)."""
+    from bsrt.kernels.lighting import shade_hits
+    from bsrt.kernels.threads import run_chunks
+    from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
+    from bsrt.rendering.image import srgb_encode
+
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=size, height=size, spp=1, adaptive_spp=0, device="cpu")
+    geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
+    directions, materials, lights, background = _shade_inputs(scene, result)
+    tolerance, eps, n = result.options.tolerance * geometry.diagonal, 1e-6 * geometry.diagonal, len(hits)
+
+    def outputs():
+        return tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + (
+            np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64),
+        )
+
+    cpu, on_gpu = outputs(), outputs()
+    run_chunks(
+        shade_hits, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch,
+        hits.surface, hits.u, hits.v, directions, geometry.material, *materials, *lights, background, eps,
+        float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), *cpu,
+    )  # fmt: skip
+    gpu_shade.shade_hits_gpu(
+        _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, on_gpu
+    )
+    assert _context().error == "GL_NO_ERROR"
+    for name, want, got in zip(("position", "normal", "radius", "shadow_rays", "exhausted"), cpu[1:], on_gpu[1:]):
+        np.testing.assert_array_equal(got, want, err_msg=name)
+    assert cpu[4].sum() > 1000  # shadow rays were traced
+    np.testing.assert_allclose(on_gpu[0], cpu[0], rtol=1e-12, atol=1e-15)
+    assert np.abs(srgb_encode(on_gpu[0]).astype(int) - srgb_encode(cpu[0]).astype(int)).max() <= 1
+
+
+@pytest.mark.parametrize("extra", [{}, {"ao": True, "ground": True}], ids=["mirrors", "ao-ground"])
+def test_a_gpu_render_shades_as_the_cpu(extra):
+    """The column (a mirror among its materials) rendered with device = "gpu": the
+    direct lighting on the GPU, mirrors, ambient occlusion and the ground's contact
+    shadow on the CPU from its positions, normals and exclusion boxes: the same
+    image within 1/255 (the same hits everywhere away from silhouettes:
+    test_gpu.py)."""
+    size = dict(width=48, height=48, spp=1, adaptive_spp=0, **extra)
+    path = ROOT / "scenes" / "column.toml"
+    cpu = bsrt.render(path, device="cpu", **size)
+    on_gpu = bsrt.render(path, device="gpu", **size)
+    assert on_gpu.stats["devices"]["shade"] == "gpu" and cpu.stats["devices"]["shade"] == "cpu"
+    assert on_gpu.stats["shadow_rays"] == cpu.stats["shadow_rays"] > 1000
+    assert on_gpu.stats["reflection_rays"] == cpu.stats["reflection_rays"] > 0
+    np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
+    assert np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max() <= 1
