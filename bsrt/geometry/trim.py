@@ -289,10 +289,12 @@ def point_outside(curve: TrimCurve, box) -> np.ndarray | None:
     u0, u1, v0, v1 = box
     p = curve.degree
     knots, ctrl = curve.knots, curve.homogeneous()
-    for x in np.unique(knots[p + 1 : -p - 1]):
-        for _ in range(p - int(np.count_nonzero(knots == x))):
-            knots, ctrl = insert_knot(knots, ctrl, p, x)
-    nets = np.stack([ctrl[i * p : i * p + p + 1] for i in range((ctrl.shape[0] - 1) // p)])  # (S, p + 1, 3)
+    inner = knots[p + 1 : -p - 1]
+    if inner.size % p or np.any(inner[::p] != inner[p - 1 :: p]):  # not Bezier spans already: made so
+        for x in np.unique(inner):
+            for _ in range(p - int(np.count_nonzero(knots == x))):
+                knots, ctrl = insert_knot(knots, ctrl, p, x)
+    nets = ctrl[p * np.arange((ctrl.shape[0] - 1) // p)[:, None] + np.arange(p + 1)[None, :]]  # (S, p + 1, 3)
     low, high = np.array([u0, v0], dtype=np.float64), np.array([u1, v1], dtype=np.float64)
     for _ in range(30):
         xy = nets[..., :2] / nets[..., 2:3]

@@ -28,7 +28,7 @@ holds one face's two maps.
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -75,7 +75,7 @@ class ParamMap:
         return self.kinds[0]
 
     def with_shift(self, shift: float) -> ParamMap:
-        return replace(self, shift=shift)
+        return ParamMap(self.x, self.s, self.kinds, self.table, self.period, shift, self.extend)
 
     def _wrapped(self, v: np.ndarray, breaks: np.ndarray):
         """(v within one period from breaks[0], the whole periods taken off (or None), each v's piece)."""
@@ -110,16 +110,31 @@ class ParamMap:
         """(k,) bool: the pieces of that kind."""
         return np.array([k == kind for k in self.kinds])
 
+    @cached_property
+    def _pieces(self) -> dict[str, np.ndarray]:
+        """Each piece's constants (k,), computed once for every call: x0, s0, the slope (s1 - s0) / (x1 - x0)
+        (a linear piece's), the middle m, the half width d / 2, the half rise (s1 - s0) / 2 and, for an
+        angular piece, f(d / 4) (d = x1 - x0)."""
+        x0, x1, s0, s1 = self.x[:-1], self.x[1:], self.s[:-1], self.s[1:]
+        d = x1 - x0
+        out = {"x0": x0, "s0": s0, "slope": (s1 - s0) / d, "m": 0.5 * (x0 + x1), "hd": 0.5 * d, "rise": 0.5 * (s1 - s0)}
+        for kind, (f, _) in _ANGULAR.items():
+            if kind in self.kinds:
+                out[kind] = f(0.25 * d)
+        return out
+
     def _local(self, kind: str, i: np.ndarray, x: np.ndarray) -> np.ndarray:
-        x0, x1, s0, s1 = self.x[i], self.x[i + 1], self.s[i], self.s[i + 1]
+        c = self._pieces
         if kind == "linear":
-            return s0 + (x - x0) * ((s1 - s0) / (x1 - x0))
+            return c["s0"][i] + (x - c["x0"][i]) * c["slope"][i]
         if kind == "table":
             return _barycentric(self.table[0][i], self.table[1][i], x)
         f, _ = _ANGULAR[kind]
-        d, m = x1 - x0, 0.5 * (x0 + x1)
-        y = x - m if self.extend else np.clip(x - m, -0.5 * d, 0.5 * d)
-        return s0 + 0.5 * (s1 - s0) * (1.0 + f(0.5 * y) / f(0.25 * d))
+        y = x - c["m"][i]
+        if not self.extend:
+            hd = c["hd"][i]
+            y = np.clip(y, -hd, hd)
+        return c["s0"][i] + c["rise"][i] * (1.0 + f(0.5 * y) / c[kind][i])
 
     def inverse(self, s) -> np.ndarray:
         """x at s (the inverse map): (N,) -> (N,)."""

@@ -146,14 +146,10 @@ def evaluator(curve: TrimCurve):
     """s (N,) -> (N, 2) points of the curve, for many calls on one curve: of a high degree, through its
     Bezier pieces (extracted once; then a handful of NumPy calls per call whatever the degree), else
     :func:`curve_points`."""
-    from bsrt.geometry.bspline import _span_matrices
-
-    p, n = curve.degree, curve.points.shape[0]
+    p = curve.degree
     if p < 4:
         return lambda s: curve_points(curve, s)
-    matrices, spans = _span_matrices(curve.knots, n, p)
-    window = spans[:, None] - p + np.arange(p + 1)[None, :]
-    bezier = np.einsum("skj,sjc->skc", matrices, curve.homogeneous()[window])  # (S, p + 1, 3)
+    bezier, spans = bezier_nets(curve)
     starts, ends = curve.knots[spans], curve.knots[spans + 1]
     powers = np.arange(p + 1)
     binomials = np.array([comb(p, int(k)) for k in powers], dtype=np.float64)
@@ -169,9 +165,39 @@ def evaluator(curve: TrimCurve):
     return points
 
 
+def bezier_nets(curve: TrimCurve) -> tuple[np.ndarray, np.ndarray]:
+    """(nets (S, p + 1, 3), spans (S,)): the homogeneous Bezier net of each non-empty span
+    [knots[spans[s]], knots[spans[s] + 1]] of the curve, all at once (Bezier extraction)."""
+    from bsrt.geometry.bspline import _span_matrices
+
+    p, n = curve.degree, curve.points.shape[0]
+    matrices, spans = _span_matrices(curve.knots, n, p)
+    window = spans[:, None] - p + np.arange(p + 1)[None, :]
+    return np.einsum("skj,sjc->skc", matrices, curve.homogeneous()[window]), spans
+
+
+def bezier_form(curve: TrimCurve) -> TrimCurve:
+    """The curve with every inner knot of multiplicity p, its control points its spans' Bezier nets
+    (the same curve, to rounding; the curve itself where it is so already): what
+    :func:`~bsrt.geometry.trim.point_outside` works on, made in a few NumPy calls (it would insert
+    the knots one at a time)."""
+    p, knots = curve.degree, curve.knots
+    inner = knots[p + 1 : -p - 1]
+    if inner.size % p == 0 and not np.any(inner[::p] != inner[p - 1 :: p]):
+        return curve
+    nets, spans = bezier_nets(curve)
+    h = np.concatenate([nets[:1, 0], nets[:, 1:].reshape(-1, 3)])
+    breaks = knots[spans[1:]]
+    knots = np.concatenate(
+        [np.full(p + 1, knots[spans[0]]), np.repeat(breaks, p), np.full(p + 1, knots[spans[-1] + 1])]
+    )
+    return TrimCurve(p, knots, h[:, :2] / h[:, 2:3], None if curve.weights is None else h[:, 2].copy())
+
+
 def shifted(curve: TrimCurve, offset) -> TrimCurve:
     """The curve moved by ``offset`` (2,) in (u, v)."""
-    if not np.any(offset):
+    du, dv = offset
+    if not (du or dv):
         return curve
     return TrimCurve(curve.degree, curve.knots, curve.points + np.asarray(offset, dtype=np.float64), curve.weights)
 

@@ -27,9 +27,12 @@ direction, in closed form:
   interpolated (barycentric), to rounding level.
 
 ``shift`` is a whole number of periods (OpenCASCADE may convert a torus cut
-at -1 rad over [-1 + 2 pi, ...]). Which kind holds is decided per direction by
-testing points inside every span, and the whole map is checked on a grid
-against the original surface: ``FaceMap.deviation``.
+at -1 rad over [-1 + 2 pi, ...]). Which kind holds is known for planes,
+B-splines, cylinders, cones, spheres and tori (from how OpenCASCADE converts
+them) and decided per direction for other surfaces by testing points inside
+every span; the whole map is checked on a grid against the original surface
+(``FaceMap.deviation``; a face of a known kind that fails it has its kinds
+tested). The checks evaluate an elementary surface in closed form (NumPy).
 
 The seam. A face of a periodic direction may straddle the B-spline's own
 seam (a cylinder face from -60 to +60 degrees, converted over [0, 2 pi]), or
@@ -69,49 +72,108 @@ def _points(original, u, v) -> np.ndarray:
     return np.array(coords, dtype=np.float64).reshape(-1, 3)
 
 
+def _checker(original):
+    """(u (N,), v (N,)) -> (N, 3) points of the OpenCASCADE surface, for the checks (:func:`_kinds`,
+    :func:`_deviation`), which compare them with the B-spline's to a tolerance: a plane, cylinder,
+    cone, sphere or torus in closed form (NumPy, all points at once: the same formulas as OpenCASCADE's
+    ``ElSLib``, equal to its ``Value`` to rounding), any other surface point by point (:func:`_points`)."""
+    from OCP.Geom import (
+        Geom_ConicalSurface,
+        Geom_CylindricalSurface,
+        Geom_Plane,
+        Geom_RectangularTrimmedSurface,
+        Geom_SphericalSurface,
+        Geom_ToroidalSurface,
+    )
+
+    while isinstance(original, Geom_RectangularTrimmedSurface):  # (the same parameters: its basis's points)
+        original = original.BasisSurface()
+    kind = type(original)
+    if kind not in (
+        Geom_Plane,
+        Geom_CylindricalSurface,
+        Geom_ConicalSurface,
+        Geom_SphericalSurface,
+        Geom_ToroidalSurface,
+    ):
+        return lambda u, v: _points(original, u, v)
+    frame = original.Position()
+    o, x, y, z = (
+        np.array(a.Coord()) for a in (frame.Location(), frame.XDirection(), frame.YDirection(), frame.Direction())
+    )
+
+    def at(u, radius, height):
+        """o + radius (cos u x + sin u y) + height z, radius and height (N,) (a plane: u x + v y)."""
+        u = np.asarray(u, dtype=np.float64)[:, None]
+        return o + radius[:, None] * (np.cos(u) * x + np.sin(u) * y) + height[:, None] * z
+
+    if kind is Geom_Plane:
+
+        def plane(u, v):
+            return o + np.asarray(u, float)[:, None] * x + np.asarray(v, float)[:, None] * y
+
+        plane.affine = True  # (see _deviation)
+        return plane
+    if kind is Geom_CylindricalSurface:
+        r = original.Radius()
+        return lambda u, v: at(u, np.full(len(u), r), np.asarray(v, float))
+    if kind is Geom_ConicalSurface:
+        r, sin, cos = original.RefRadius(), np.sin(original.SemiAngle()), np.cos(original.SemiAngle())
+        return lambda u, v: at(u, r + np.asarray(v, float) * sin, np.asarray(v, float) * cos)
+    if kind is Geom_SphericalSurface:
+        r = original.Radius()
+        return lambda u, v: at(u, r * np.cos(v), r * np.sin(v))
+    big, small = original.MajorRadius(), original.MinorRadius()
+    return lambda u, v: at(u, big + small * np.cos(v), small * np.sin(v))
+
+
 def _breaks(knots: np.ndarray, degree: int, n: int) -> np.ndarray:
     k = knots[degree : n + 1]  # sorted: the distinct values are where it steps
     return k[np.concatenate([[True], k[1:] != k[:-1]])]
 
 
-def _kind(
-    original,
-    whole: BSplineSurface,
-    axis: int,
-    breaks: np.ndarray,
-    others: np.ndarray,
-    size: float,
-    arc_first: bool = False,
-) -> str:
-    """ "identity" or "tan" (an arc) if that model of x = f(t) holds inside every span (t = x at the knots), else "table".
+def _kinds(at, whole: BSplineSurface, all_breaks, size: float, arc_first: tuple[bool, bool]) -> list[str]:
+    """Each direction's kind: "identity" or "tan" (an arc) if that model of x = f(t) holds inside every
+    span (t = x at the knots), else "table".
 
-    Tested on the iso-lines of the other direction's knots (where its own
-    parameter is unchanged), all of them: one may be degenerate (a pole),
-    where any model fits. arc_first: test "tan" before "identity" (a periodic direction's likelier kind).
+    A direction is tested on the iso-lines of the other direction's knots
+    (where its own parameter is unchanged), all of them: one may be
+    degenerate (a pole), where any model fits. at: the original surface's
+    :func:`_checker`; all_breaks: each direction's distinct knots; arc_first:
+    per direction, test "tan" before "identity" (a periodic direction's likelier
+    kind). One evaluation of the B-spline serves both directions: the grid of
+    (samples in the u spans, the u knots) x (samples in the v spans, the v knots).
     """
     s = np.array([0.23, 0.71])
-    x = (breaks[:-1, None] + (breaks[1:] - breaks[:-1])[:, None] * s).ravel()
-
-    def arc() -> np.ndarray:
-        h = np.repeat(breaks[1:] - breaks[:-1], s.size)
-        m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
-        ss = np.tile(s, breaks.size - 1)
-        return m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))
-
-    candidates = {"identity": lambda: x, "tan": arc}  # (each computed only if tested)
-    if arc_first:  # (the same tests, the likelier first)
-        candidates = {"tan": candidates["tan"], "identity": candidates["identity"]}
-    y = np.repeat(others, x.size)
-    # the points (x[j], others[i]) in that order (index i * x.size + j), on the tensor grid
-    got = grid_points(whole, x, others).transpose(1, 0, 2) if axis == 0 else grid_points(whole, others, x)
-    got = got.reshape(-1, 3)
+    samples = [(b[:-1, None] + (b[1:] - b[:-1])[:, None] * s).ravel() for b in all_breaks]
+    nu, nv = samples[0].size, samples[1].size
+    grid = grid_points(whole, np.concatenate([samples[0], all_breaks[0]]), np.concatenate([samples[1], all_breaks[1]]))
     tol = EXACT_TOLERANCE * size
-    for kind, t in candidates.items():
-        t_all = np.tile(t(), others.size)
-        want = _points(original, t_all, y) if axis == 0 else _points(original, y, t_all)
-        if np.max(np.linalg.norm(want - got, axis=1)) <= tol:
-            return kind
-    return "table"
+    kinds = []
+    for axis in (0, 1):
+        breaks, others, x = all_breaks[axis], all_breaks[1 - axis], samples[axis]
+
+        def arc(breaks=breaks) -> np.ndarray:
+            h = np.repeat(breaks[1:] - breaks[:-1], s.size)
+            m = np.repeat(0.5 * (breaks[:-1] + breaks[1:]), s.size)
+            ss = np.tile(s, breaks.size - 1)
+            return m + 2.0 * np.arctan((2.0 * ss - 1.0) * np.tan(0.25 * h))
+
+        candidates = {"identity": lambda x=x: x, "tan": arc}  # (each computed only if tested)
+        if arc_first[axis]:  # (the same tests, the likelier first)
+            candidates = {"tan": candidates["tan"], "identity": candidates["identity"]}
+        y = np.repeat(others, x.size)
+        # the points (x[j], others[i]) in that order (index i * x.size + j)
+        got = (grid[:nu, nv:].transpose(1, 0, 2) if axis == 0 else grid[nu:, :nv]).reshape(-1, 3)
+        kind = "table"
+        for name, t in candidates.items():
+            t_all = np.tile(t(), others.size)
+            want = at(t_all, y) if axis == 0 else at(y, t_all)
+            if np.max(np.linalg.norm(want - got, axis=1)) <= tol:
+                kind = name
+                break
+        kinds.append(kind)
+    return kinds
 
 
 def _table(original, whole: BSplineSurface, axis: int, breaks: np.ndarray, other: float, size: float):
@@ -152,40 +214,55 @@ def convert_surface(original, bounds, size: float) -> tuple[BSplineSurface, Face
     one period long in a periodic direction). size: the model's size in
     local units (the scale of the tolerances). Raises FaceError.
     """
+    known = _known_kinds(original)
     bs, approx_error = _to_bspline(original, bounds, size)
     try:
-        return _converted(original, bounds, size, bs, approx_error, _keeps_parameters(original))
+        return _converted(original, bounds, size, bs, approx_error, known)
     except FaceError:
-        if approx_error is not None or not _keeps_parameters(original):
+        if approx_error is not None or known is None:
             raise
-    # (not expected: a plane's or B-spline's conversion keeps its parameters) test the maps after all
+    # (not expected: OpenCASCADE's conversion of these surfaces follows the known kinds) test the maps after all
     bs, approx_error = _to_bspline(original, bounds, size)
-    return _converted(original, bounds, size, bs, approx_error, False)
+    return _converted(original, bounds, size, bs, approx_error, None)
 
 
-def _keeps_parameters(original) -> bool:
-    """Whether OpenCASCADE's conversion keeps both parameters as they are (a plane, a B-spline or Bezier
-    surface, trimmed or not): their maps are the identity without testing (the deviation still checks)."""
+def _known_kinds(original) -> tuple[str, str] | None:
+    """The two directions' map kinds OpenCASCADE's conversion gives a plane, a B-spline or Bezier surface
+    (both "identity": it keeps their parameters), a cylinder or a cone (its circles "tan",
+    ``Convert_TgtThetaOver2``; its lines "identity") or a sphere or torus (both circles: "tan"),
+    trimmed or not; None for other surfaces (their kinds are tested). The deviation still checks
+    them: a face that fails it has its kinds tested after all."""
     from OCP.Geom import (
         Geom_BezierSurface,
         Geom_BSplineSurface,
+        Geom_ConicalSurface,
+        Geom_CylindricalSurface,
         Geom_Plane,
         Geom_RectangularTrimmedSurface,
+        Geom_SphericalSurface,
+        Geom_ToroidalSurface,
     )
 
     surface = original
     while isinstance(surface, Geom_RectangularTrimmedSurface):
         surface = surface.BasisSurface()
-    return isinstance(surface, (Geom_Plane, Geom_BSplineSurface, Geom_BezierSurface))
+    if isinstance(surface, (Geom_Plane, Geom_BSplineSurface, Geom_BezierSurface)):
+        return ("identity", "identity")
+    if isinstance(surface, (Geom_CylindricalSurface, Geom_ConicalSurface)):
+        return ("tan", "identity")
+    if isinstance(surface, (Geom_SphericalSurface, Geom_ToroidalSurface)):
+        return ("tan", "tan")
+    return None
 
 
-def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
-    """convert_surface's work on OpenCASCADE's B-spline ``bs``; identity: take both maps to be the
-    identity (else each direction's kind is tested)."""
+def _converted(original, bounds, size: float, bs, approx_error, known: tuple[str, str] | None):
+    """convert_surface's work on OpenCASCADE's B-spline ``bs``; known: the two maps' kinds
+    (:func:`_known_kinds`), or None: each direction's kind is tested."""
     umin, umax, vmin, vmax = bounds
     approximated = approx_error is not None
     periodic = (bool(bs.IsUPeriodic()), bool(bs.IsVPeriodic()))
     whole = _extract(bs)
+    at = _checker(original)
     periods = (
         original.UPeriod() if original.IsUPeriodic() else 0.0,
         original.VPeriod() if original.IsVPeriodic() else 0.0,
@@ -196,14 +273,13 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
         _breaks(whole.knots_u, whole.degree[0], whole.shape[0]),
         _breaks(whole.knots_v, whole.degree[1], whole.shape[1]),
     )
-    for axis in (0, 1):
+    if approximated:
+        kinds = ("identity", "identity")
+    else:
+        kinds = known or _kinds(at, whole, all_breaks, size, (periods[0] > 0, periods[1] > 0))
+    for axis, kind in enumerate(kinds):
         breaks, other_breaks = all_breaks[axis], all_breaks[1 - axis]
         other = float(other_breaks[other_breaks.size // 2])  # the tables' knot line: a middle one (poles are at ends)
-        kind = (
-            "identity"
-            if approximated or identity
-            else _kind(original, whole, axis, breaks, other_breaks, size, periods[axis] > 0)
-        )
         table = _table(original, whole, axis, breaks, other, size) if kind == "table" else None
         fmap = ParamMap.on_knots(kind, breaks, (doms[axis][1] - doms[axis][0]) if periodic[axis] else 0.0, table)
         lo, hi = (umin, umax) if axis == 0 else (vmin, vmax)
@@ -213,12 +289,12 @@ def _converted(original, bounds, size: float, bs, approx_error, identity: bool):
     local = whole
     for axis, fmap in enumerate(maps):
         lo, hi = (umin, umax) if axis == 0 else (vmin, vmax)
-        a, b = float(fmap(np.array([lo]))[0]), float(fmap(np.array([hi]))[0])
+        a, b = fmap(np.array([lo, hi])).tolist()
         if fmap.period > 0:
             local = _rotated(local, axis, a)
         local = _restricted(local, axis, a, b)
     pmap = FaceMap(fu, fv, (umin, umax, vmin, vmax), *periods, approximated=approximated)
-    pmap.deviation = max(_deviation(original, local, pmap), approx_error or 0.0)
+    pmap.deviation = max(_deviation(at, local, pmap), approx_error or 0.0)
     if pmap.deviation > EXACT_TOLERANCE * size and not approximated:
         raise FaceError(
             f"the conversion of a {type(original).__name__} does not match it "
@@ -339,15 +415,25 @@ def _restricted(surface: BSplineSurface, axis: int, a: float, b: float) -> BSpli
     return restrict(surface, *ranges)
 
 
-def _deviation(original, local: BSplineSurface, pmap: FaceMap) -> float:
-    """The largest distance between the original surface and the B-spline at mapped points of a grid."""
+def _deviation(at, local: BSplineSurface, pmap: FaceMap) -> float:
+    """The largest distance between the original surface (its :func:`_checker` ``at``) and the B-spline
+    at mapped points of a grid.
+
+    A plane converted to a bilinear patch (2 x 2 poles, parameters kept): their difference is bilinear,
+    its length convex along every line of the grid, so largest at a corner of the domain (the grid's
+    bounds lie inside it), where the patch is its poles: measured there, exactly.
+    """
+    if getattr(at, "affine", False) and local.shape == (2, 2) and local.degree == (1, 1) and pmap.identity:
+        (x0, x1), (y0, y1) = local.domain_u, local.domain_v
+        want = at(np.array([x0, x0, x1, x1]), np.array([y0, y1, y0, y1]))  # the poles' order, (i, j) i-major
+        return float(np.max(np.linalg.norm(local.points.reshape(4, 3) - want, axis=1)))
     umin, umax, vmin, vmax = pmap.bounds
     fractions = np.array([0.0, 0.137, 0.291, 0.5, 0.618, 0.853, 1.0])
     us, vs = umin + fractions * (umax - umin), vmin + fractions * (vmax - vmin)
     # the map is separable: the grid's (x, y) is the grid of f(u) and g(v)
     x = np.clip(pmap.fu(us), *local.domain_u)
     y = np.clip(pmap.fv(vs), *local.domain_v)
-    want = _points(original, np.repeat(us, vs.size), np.tile(vs, us.size))  # the grid (us[i], vs[j]), i-major
+    want = at(np.repeat(us, vs.size), np.tile(vs, us.size))  # the grid (us[i], vs[j]), i-major
     got = grid_points(local, x, y).reshape(-1, 3)
     return float(np.max(np.linalg.norm(got - want, axis=1)))
 

@@ -41,6 +41,7 @@ from bsrt.geometry.trim import TrimCurve, TrimLoop, point_outside
 from bsrt.io.occt.curves import (
     FIT_TOLERANCE,
     TrimError,
+    bezier_form,
     derivative_bounds,
     evaluator,
     map_curve,
@@ -400,7 +401,7 @@ def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
         x_lo >= a0 - near and x_hi <= a1 + near and y_lo >= b0 - near and y_hi <= b1 + near
     ):  # out by rounding of the bounds: onto the edge, moved <= that
         return TrimCurve(curve.degree, curve.knots, np.clip(p_all, [a0, b0], [a1, b1]), curve.weights)
-    if point_outside(curve, (a0 - near, a1 + near, b0 - near, b1 + near)) is None:
+    if point_outside(bezier_form(curve), (a0 - near, a1 + near, b0 - near, b1 + near)) is None:
         # the curve itself is out by rounding only, while control points lie far past the edge (an arc
         # touching it): kept as it is; clipping them would bend it (a Pro/E part's 145.6-degree arc,
         # 1.78e-9 past its plane's bound, lost 43 units of its middle)
@@ -456,15 +457,16 @@ def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
     points = ctrl[:, :2] / ctrl[:, 2:3]
     weights = ctrl[:, 2]
     bounds = np.concatenate([[lo], cuts, [hi]])
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        if not inside(0.5 * (a + b))[0]:  # an excursion: its control points onto the edge
+    middles_inside = inside(0.5 * (bounds[:-1] + bounds[1:])).tolist()
+    for a, b, middle_inside in zip(bounds[:-1], bounds[1:], middles_inside):
+        if not middle_inside:  # an excursion: its control points onto the edge
             first = int(np.searchsorted(knots, a, side="right")) - 1 - p
             last = int(np.searchsorted(knots, b, side="left"))
             piece = points[max(first, 0) : last]
             piece[:, 0] = np.clip(piece[:, 0], a0, a1)
             piece[:, 1] = np.clip(piece[:, 1], b0, b1)
     out = TrimCurve(p, knots, points, None if curve.weights is None else weights)
-    if point_outside(out, (a0 - eps, a1 + eps, b0 - eps, b1 + eps)) is not None:
+    if point_outside(bezier_form(out), (a0 - eps, a1 + eps, b0 - eps, b1 + eps)) is not None:
         # it weaves along the edge (within the file's tolerance of it) and pokes out between the samples:
         # its control points outside go onto the edge, which moves it by less than it pokes out
         points[:, 0] = np.clip(points[:, 0], a0, a1)
