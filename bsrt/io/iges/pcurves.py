@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.geometry.trim import TrimCurve
-from bsrt.io.iges.bspline import clamp, evaluate, from_bezier, line_curve, polyline_curve
+from bsrt.io.iges.bspline import clamp, from_bezier, line_curve, polyline_curve
 from bsrt.io.param_map import ParamMap
 
 TWO_PI = 2 * np.pi
@@ -65,7 +65,7 @@ def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> Tri
     (a collapsed edge, which the loop then crosses in a straight line).
     """
     t = _start_samples(c)
-    uv = to_uv(evaluate(c, t), None)
+    uv = to_uv(c.evaluate(t), None)
     for k in range(2):  # NaN: any value (a pole, an apex): the neighbours' one
         bad = np.isnan(uv[:, k])
         if bad.all():
@@ -83,7 +83,7 @@ def invert_curve(c: TrimCurve, to_uv, tol: float, angular=(False, False)) -> Tri
     while len(t) < _MAX_POINTS:
         mid_t = 0.5 * (t[:-1] + t[1:])
         chord = 0.5 * (uv[:-1] + uv[1:])
-        mid = to_uv(evaluate(c, mid_t), chord)
+        mid = to_uv(c.evaluate(mid_t), chord)
         mid = _near(np.where(np.isnan(mid), chord, mid), chord, angular)
         for k, lo, hi in seams:  # the chord's turn; on the seam: the side of the chord
             mid[:, k] += (hi - lo) * np.round((chord[:, k] - mid[:, k]) / (hi - lo))
@@ -160,7 +160,7 @@ def map_curve(c: TrimCurve, mu: ParamMap, mv: ParamMap, tol: float) -> tuple[Tri
 
 def _hermite(c: TrimCurve, mu: ParamMap, mv: ParamMap, tol: float) -> TrimCurve:
     def g(t):
-        p, dp = evaluate(c, t, derivative=True)
+        p, dp = c.evaluate(t, derivative=True)
         val = np.stack([mu(p[:, 0]), mv(p[:, 1])], 1)
         der = np.stack([mu.derivative(p[:, 0]) * dp[:, 0], mv.derivative(p[:, 1]) * dp[:, 1]], 1)
         return val, der
