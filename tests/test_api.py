@@ -818,7 +818,7 @@ def test_splipy_trimmed_surface_brings_its_loops():
     )
     surface = bsrt.from_splipy(trimmed).geometry()
     assert len(surface.trims) == 2 and [len(loop.curves) for loop in surface.trims] == [4, 4]
-    from bsrt.geometry.trim import kept
+    from bsrt.geometry.trim_table import kept
 
     keep = kept(surface, np.array([0.1, 0.5, 0.9, 0.5]), np.array([0.5, 0.5, 0.5, 0.1]))
     assert keep.tolist() == [True, False, True, True]

@@ -15,7 +15,7 @@ import pytest
 
 from bsrt.errors import InputError
 from bsrt.geometry.bspline import evaluate
-from bsrt.geometry.trim import kept
+from bsrt.geometry.trim_table import kept
 from bsrt.io import load_model
 
 HERE = Path(__file__).parent / "data" / "iges"

@@ -22,7 +22,6 @@ from bsrt.geometry.bspline import evaluate
 from bsrt.geometry.trim import check_loops
 from bsrt.io import load_model
 from bsrt.io.iges.bspline import arc_curve, reverse
-from bsrt.io.iges.bspline import evaluate as curve_eval
 from bsrt.io.iges.curves import curve
 from bsrt.io.iges.records import IgesFile
 from bsrt.io.param_map import ParamMap
@@ -376,7 +375,7 @@ def test_curve_entities_against_closed_forms():
         by_label.setdefault(e.type, []).append(e)
 
     def sample(c, n=101):
-        return curve_eval(c, np.linspace(*c.domain, n))
+        return c.evaluate(np.linspace(*c.domain, n))
 
     # 100 with its 124 (90 degrees about z, then (1, 2, 3)): centre (0, 3, 3.5), radius 2
     arc = curve(f, by_label[100][0])
@@ -388,7 +387,7 @@ def test_curve_entities_against_closed_forms():
     comp = curve(f, by_label[102][0])
     assert comp.domain == (0.0, 2.0)
     expected = [[0, 0, 0], [0.5, 0, 0], [1, 0, 0], [1, 1, 0], [1, 2, 0]]
-    assert np.allclose(curve_eval(comp, [0.0, 0.5, 1.0, 1.5, 2.0]), expected, rtol=0, atol=1e-15)
+    assert np.allclose(comp.evaluate([0.0, 0.5, 1.0, 1.5, 2.0]), expected, rtol=0, atol=1e-15)
     ellipse, hyperbola, parabola = (curve(f, e) for e in by_label[104])
     p = sample(ellipse)
     assert np.abs(p[:, 0] ** 2 / 4 + p[:, 1] ** 2 - 1).max() < 1e-14 and np.all(p[:, 2] == 1)
@@ -407,14 +406,14 @@ def test_curve_entities_against_closed_forms():
     spline = curve(f, by_label[112][0])
     t = np.linspace(-1, 2, 31)
     assert spline.domain == (-1.0, 2.0)
-    assert np.abs(curve_eval(spline, t) - np.stack([t, t**2, t**3], 1)).max() < 1e-14
+    assert np.abs(spline.evaluate(t) - np.stack([t, t**2, t**3], 1)).max() < 1e-14
     # 126 restricted to [0.25, 0.75]: the same cubic Bezier there
     bs = curve(f, by_label[126][0])
     assert bs.domain == (0.25, 0.75)
     t = np.linspace(0.25, 0.75, 11)[:, None]
     ctrl = np.array([(0, 0, 0), (1, 2, 0), (2, -1, 1), (3, 0, 0)], float)
     bez = (1 - t) ** 3 * ctrl[0] + 3 * t * (1 - t) ** 2 * ctrl[1] + 3 * t**2 * (1 - t) * ctrl[2] + t**3 * ctrl[3]
-    assert np.abs(curve_eval(bs, t[:, 0]) - bez).max() < 1e-14
+    assert np.abs(bs.evaluate(t[:, 0]) - bez).max() < 1e-14
 
 
 def test_angle_maps_invert_exactly():
@@ -422,7 +421,7 @@ def test_angle_maps_invert_exactly():
     x = np.linspace(0.3, 5.9, 57)
     s = arc.pmap(x)
     assert np.abs(arc.pmap.inverse(s) - x).max() < 1e-14
-    p = curve_eval(arc, s)
+    p = arc.evaluate(s)
     assert np.abs(np.unwrap(np.arctan2(p[:, 1], p[:, 0])) - x).max() < 1e-14
     m = ParamMap.identity(0.0, 2.0)
     assert m.affine_on(0.5, 1.5) == (1.0, 0.0)
@@ -482,7 +481,7 @@ def test_hammer_loops_lie_on_their_model_space_curves():
         q.pointer("SPTR")
         q.pointer("BPTR")
         model_pts = np.concatenate(
-            [curve_eval(c, np.linspace(*c.domain, 3000)) for c in pieces(f, f.entities[q.pointer("CPTR")])]
+            [c.evaluate(np.linspace(*c.domain, 3000)) for c in pieces(f, f.entities[q.pointer("CPTR")])]
         )
         size = np.ptp(model_pts, axis=0).max()
         xyz = on_surface(s, np.concatenate([c.ends() for c in s.trims[0].curves]))
@@ -551,7 +550,7 @@ def test_508_loop_that_does_not_close(tmp_path, capsys):
 def _kept_against(s, inside, boundary, n: int = 241) -> None:
     """Over an n x n grid of s's domain: kept by the trims exactly where the closed form
     says inside (points within 1e-6 of the region's boundary, by ``boundary``, excepted)."""
-    from bsrt.geometry.trim import kept
+    from bsrt.geometry.trim_table import kept
 
     mid = (np.arange(n) + 0.5) / n  # cell centres: not on the domain's edges (a seam lies there)
     (u0, u1), (v0, v1) = s.domain_u, s.domain_v
@@ -708,7 +707,7 @@ def test_144_whose_parameter_space_loop_does_not_close_is_trimmed_by_its_model_s
     bug22566_test_Bad.igs): the 142's parameter-space loop, in the writer's arc parameter (from 0
     at the arc's start), does not close in IGES's; its model-space loop does and bounds the
     quarter of the unit sphere with y <= 0 and z >= 0 (area pi), which is drawn, with a warning."""
-    from bsrt.geometry.trim import kept
+    from bsrt.geometry.trim_table import kept
 
     model = load_model(HERE / "sphere_120_shifted_pcurve.igs")
     (s,) = model.surfaces
@@ -796,7 +795,6 @@ def test_one_param_map_for_both_readers():
     knots as the OpenCASCADE import does (extended, not clipped, past its ends; periodic:
     f(x + 2 pi) = f(x) + 2 pi); inverse undoes it."""
     from bsrt.geometry.trim import TrimCurve
-    from bsrt.io.iges.bspline import evaluate as curve_eval
     from bsrt.io.iges.bspline import unit_arc
 
     knots, pts, w, iges_map = unit_arc(0.0, 2 * math.pi)
@@ -804,7 +802,7 @@ def test_one_param_map_for_both_readers():
     on_knots = ParamMap.on_knots("tan", iges_map.x, 2 * math.pi)
     angle = np.linspace(0.0, 2 * math.pi, 101)
     for f in (iges_map, on_knots):
-        p = curve_eval(circle, f(angle))
+        p = circle.evaluate(f(angle))
         assert np.abs(p - np.stack([np.cos(angle), np.sin(angle)], 1)).max() < 1e-14
         assert np.abs(f.inverse(f(angle)) - angle).max() < 1e-14
     assert np.abs(on_knots(angle + 2 * math.pi) - on_knots(angle) - 2 * math.pi).max() < 1e-13

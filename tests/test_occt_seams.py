@@ -16,7 +16,7 @@ closed form of the shape, never against OpenCASCADE's own answers:
   lies in a kept region of some face; bsrt's rays (``Geometry.intersect``
   of the pipeline, trims included) must hit exactly those rays, at that t
   to within 1e-7 of the model's size;
-* ``bsrt.geometry.trim.kept`` at points of the converted surfaces (``evaluate``)
+* ``bsrt.geometry.trim_table.kept`` at points of the converted surfaces (``evaluate``)
   must agree with the kept regions, and the points must lie on the closed
   form surfaces to 1e-7 of the size.
 
@@ -90,7 +90,7 @@ from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS_Compound, TopoDS_Face, TopoDS_Wire
 
 from bsrt.geometry.bspline import evaluate
-from bsrt.geometry.trim import kept
+from bsrt.geometry.trim_table import kept
 from bsrt.io import load_model
 from bsrt.rendering.pipeline import Geometry
 from bsrt.scene import scene_for_model
@@ -337,7 +337,7 @@ def check_rays(model, faces, origins, directions, size, min_hits=50, min_misses=
 
 def check_surfaces(model, faces, size, n=24, seed=0):
     """Every converted surface lies on one of the closed-form surfaces (to 1e-7 of
-    the size) and bsrt.geometry.trim.kept agrees with that face's kept region, at the
+    the size) and bsrt.geometry.trim_table.kept agrees with that face's kept region, at the
     centres of an n x n grid of cells of its (u, v) domain plus random points (those within MARGIN of
     the region's boundary left out). Returns the faces matched, in model order."""
     rng = np.random.default_rng(seed)
@@ -1004,7 +1004,8 @@ def test_chains_once_round_are_closed_into_the_band_between_them(flip):
     along the domain's edge they keep exactly 0 < v < 1, for every u of the period, whichever way the
     chains start; reversed (flip: the face outside the band) they keep the rest."""
     from bsrt.geometry.bspline import make_surface
-    from bsrt.geometry.trim import TrimLoop, kept
+    from bsrt.geometry.trim import TrimLoop
+    from bsrt.geometry.trim_table import kept
     from bsrt.io.occt.curves import segment
     from bsrt.io.occt.topology import _close, _closed_around
     from bsrt.io.param_map import FaceMap, ParamMap

@@ -19,7 +19,8 @@ from numba import njit
 
 from bsrt.errors import InputError
 from bsrt.geometry.bspline import make_surface
-from bsrt.geometry.trim import TrimCurve, TrimLoop, build_trim_table, check_loops, kept, make_trim_curve
+from bsrt.geometry.trim import TrimCurve, TrimLoop, check_loops, make_trim_curve
+from bsrt.geometry.trim_table import build_trim_table, kept
 from bsrt.kernels import trim as K
 from bsrt.kernels import trim_pieces as P
 

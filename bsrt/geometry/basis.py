@@ -112,3 +112,31 @@ def basis_matrix(knots: np.ndarray, p: int, n: int, x: np.ndarray) -> np.ndarray
     out = np.zeros((vals.shape[0], n))
     out[np.arange(vals.shape[0])[:, None], (span - p)[:, None] + np.arange(p + 1)[None, :]] = vals
     return out
+
+
+def span_matrices(knots: np.ndarray, n: int, p: int):
+    """The Bezier extraction matrices of every non-empty span of a degree-p
+    B-spline with n control points along one axis.
+
+    Returns (matrices (S, p + 1, p + 1), spans (S,) int64): span s is
+    [knots[i], knots[i + 1]) with i = spans[s], and its Bezier point k is
+    sum_j matrices[s, k, j] P[i - p + j]. Bezier point k of span [a, b] is
+    the blossom f(a, .., a, b, .., b) (p - k a's): de Boor's triangle with
+    argument x_r at level r, run on unit vectors for all spans at once (no
+    knot insertion, no per-span Python loop).
+    """
+    spans = np.flatnonzero(knots[p:n] < knots[p + 1 : n + 1]).astype(np.int64) + p
+    a, b = knots[spans, None], knots[spans + 1, None]
+    # all p + 1 Bezier points at once (axis 1): at level r, point k's argument is a if r <= p - k else b
+    ks = np.arange(p + 1)
+    unit = np.eye(p + 1)
+    d = [np.broadcast_to(unit[j], (spans.size, p + 1, p + 1)) for j in range(p + 1)]  # d[j] ~ P[i - p + j]
+    for r in range(1, p + 1):
+        x = np.where(r <= p - ks, a, b)[:, :, None]  # (S, p + 1, 1)
+        for j in range(p, r - 1, -1):  # knot index i - p + j
+            lo = knots[spans - p + j, None, None]
+            hi = knots[spans + j + 1 - r, None, None]
+            alpha = (x - lo) / (hi - lo)  # hi > lo on a non-empty span
+            d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
+    matrices = np.ascontiguousarray(d[p])
+    return matrices, spans

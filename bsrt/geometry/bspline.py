@@ -7,10 +7,10 @@ grid of positive weights. Its parameter domain is
 clamped or uniform. Everything is float64.
 
 This module is the reference evaluator (Cox-de Boor, any knot vector) and owns
-knot insertion and Bezier extraction; the fast per-pixel evaluator built on
-the extracted Bezier patches lives in ``patches.py``. The one-direction
-basics (spans, basis functions, knot insertion) are in ``basis.py``, shared
-with the trim curves.
+the surfaces' Bezier extraction; the fast per-pixel evaluator built on the
+extracted Bezier patches lives in ``patches.py``. The one-direction basics
+(spans, basis functions, knot insertion, a span's Bezier extraction
+matrices) are in ``basis.py``, shared with the trim curves.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bsrt.errors import InputError
-from bsrt.geometry.basis import basis_functions, basis_matrix, find_span, insert_knot  # noqa: F401  (re-exported: the readers')
+from bsrt.geometry.basis import basis_functions, basis_matrix, find_span, insert_knot, span_matrices  # noqa: F401  (re-exported: the readers')
 
 
 @dataclass(frozen=True, eq=False)
@@ -218,34 +218,6 @@ def rational_quotient(h, hu, hv):
 # Bezier extraction
 
 
-def _span_matrices(knots: np.ndarray, n: int, p: int):
-    """The Bezier extraction matrices of every non-empty span of a degree-p
-    B-spline with n control points along one axis.
-
-    Returns (matrices (S, p + 1, p + 1), spans (S,) int64): span s is
-    [knots[i], knots[i + 1]) with i = spans[s], and its Bezier point k is
-    sum_j matrices[s, k, j] P[i - p + j]. Bezier point k of span [a, b] is
-    the blossom f(a, .., a, b, .., b) (p - k a's): de Boor's triangle with
-    argument x_r at level r, run on unit vectors for all spans at once (no
-    knot insertion, no per-span Python loop).
-    """
-    spans = np.flatnonzero(knots[p:n] < knots[p + 1 : n + 1]).astype(np.int64) + p
-    a, b = knots[spans, None], knots[spans + 1, None]
-    # all p + 1 Bezier points at once (axis 1): at level r, point k's argument is a if r <= p - k else b
-    ks = np.arange(p + 1)
-    unit = np.eye(p + 1)
-    d = [np.broadcast_to(unit[j], (spans.size, p + 1, p + 1)) for j in range(p + 1)]  # d[j] ~ P[i - p + j]
-    for r in range(1, p + 1):
-        x = np.where(r <= p - ks, a, b)[:, :, None]  # (S, p + 1, 1)
-        for j in range(p, r - 1, -1):  # knot index i - p + j
-            lo = knots[spans - p + j, None, None]
-            hi = knots[spans + j + 1 - r, None, None]
-            alpha = (x - lo) / (hi - lo)  # hi > lo on a non-empty span
-            d[j] = (1.0 - alpha) * d[j - 1] + alpha * d[j]
-    matrices = np.ascontiguousarray(d[p])
-    return matrices, spans
-
-
 EXTRACT_CHUNK = 1 << 18  # Bezier points (x 4 floats) gathered at once in the second direction
 
 
@@ -260,8 +232,8 @@ def bezier_patches(surface: BSplineSurface):
     (p, q) = surface.degree
     ku, kv = surface.knots_u, surface.knots_v
     nu, nv = surface.shape
-    mu, spans_u = _span_matrices(ku, nu, p)  # (Su, p+1, p+1)
-    mv, spans_v = _span_matrices(kv, nv, q)  # (Sv, q+1, q+1)
+    mu, spans_u = span_matrices(ku, nu, p)  # (Su, p+1, p+1)
+    mv, spans_v = span_matrices(kv, nv, q)  # (Sv, q+1, q+1)
     window_u = spans_u[:, None] - p + np.arange(p + 1)  # (Su, p+1) control rows of each span
     rows = np.einsum("skj,sjvc->skvc", mu, surface.homogeneous()[window_u])  # (Su, p+1, nv, 4)
     window_v = spans_v[:, None] - q + np.arange(q + 1)  # (Sv, q+1)

@@ -117,7 +117,7 @@ class PatchSet:
     @cached_property
     def trims(self):
         """trim.TrimTable of the surfaces' trim loops, for the kernels (built on first use)."""
-        from bsrt.geometry.trim import build_trim_table
+        from bsrt.geometry.trim_table import build_trim_table
 
         return build_trim_table(self.surfaces)
 

@@ -1,6 +1,6 @@
 """Cutting trim curves into the trim table's pieces: rational Bezier nets, monotone in u and v.
 
-Called by :func:`bsrt.geometry.trim.build_trim_table`; the point and box
+Called by :func:`bsrt.geometry.trim_table.build_trim_table`; the point and box
 tests on the pieces are in kernels/trim.py.
 """
 

@@ -33,7 +33,7 @@ def surface_points(surfaces) -> np.ndarray:
     when the model has many surfaces), trimmed surfaces by their kept points and points of their
     trim curves. Their box and extent are the model's, to the grid's spacing."""
     from bsrt.geometry.bspline import evaluate, grid_points
-    from bsrt.geometry.trim import build_trim_table
+    from bsrt.geometry.trim_table import build_trim_table
     from bsrt.kernels.trim import kept_many
 
     n = int(max(9, min(GRID, np.sqrt(MAX_POINTS / max(len(surfaces), 1)))))

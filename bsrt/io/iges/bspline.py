@@ -22,8 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from bsrt.geometry.basis import basis_values
-from bsrt.geometry.bspline import basis_functions, find_span, insert_knot
+from bsrt.geometry.bspline import insert_knot
 from bsrt.geometry.trim import TrimCurve
 from bsrt.io.param_map import ParamMap, concat_maps
 
@@ -40,32 +39,6 @@ def from_homogeneous(degree: int, knots, h: np.ndarray, pmap: ParamMap | None = 
     pts = h[:, :-1] / w[:, None]
     weights = None if np.all(w == w[0]) else w / np.max(w)
     return TrimCurve(int(degree), np.asarray(knots, float), pts, weights, pmap)
-
-
-def evaluate(c: TrimCurve, t, derivative: bool = False):
-    """Points (N, d) at parameters t (N,); with derivative=True also d/dt (N, d)."""
-    t = np.atleast_1d(np.asarray(t, float))
-    p = c.degree
-    if not derivative and p >= 2:  # the values alone: the same triangle, without the derivatives' work
-        span, b = basis_values(c.knots, p, c.n, t)
-    else:
-        span = find_span(c.knots, p, c.n, t)
-        b, db = basis_functions(c.knots, p, span, t)
-    ctrl = c.homogeneous()[(span - p)[:, None] + np.arange(p + 1)[None, :]]
-    h = np.einsum("na,nak->nk", b, ctrl)
-    pts = h[:, :-1] / h[:, -1:]
-    if not derivative:
-        return pts
-    dh = np.einsum("na,nak->nk", db, ctrl)
-    return pts, (dh[:, :-1] - pts * dh[:, -1:]) / h[:, -1:]
-
-
-def ends(c: TrimCurve) -> np.ndarray:
-    """(2, d): the first and last point."""
-    p = c.degree
-    if c.knots[0] == c.knots[p] and c.knots[-1] == c.knots[-1 - p]:  # clamped: the end control points
-        return c.points[:: c.n - 1].copy()  # (n >= 2: a slice)
-    return evaluate(c, np.array(c.domain))
 
 
 def reverse(c: TrimCurve) -> TrimCurve:

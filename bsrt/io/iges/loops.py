@@ -41,7 +41,7 @@ import numpy as np
 from bsrt.errors import InputError
 from bsrt.geometry.bspline import evaluate as evaluate_surface
 from bsrt.geometry.trim import TrimCurve, TrimLoop, make_trim_curve
-from bsrt.io.iges.bspline import clamp, ends, evaluate, line_curve, reverse
+from bsrt.io.iges.bspline import clamp, line_curve, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, pieces
 from bsrt.io.iges.pcurves import invert_curves, map_curve
 from bsrt.io.iges.seams import Open, close_once_round
@@ -224,7 +224,7 @@ class LoopBuilder:
 
         curves = [clamp(r.items[i].curve) for i in idx]
         bridged = [False] + [any(x is BRIDGE for x in r.items[i + 1 : j]) for i, j in zip(idx[:-1], idx[1:])]
-        (a0, b0), (a1, b1) = ends(curves[0]), ends(curves[1])
+        (a0, b0), (a1, b1) = curves[0].ends(), curves[1].ends()
         # a curve closed across the seam (a full circle) meets its neighbour at both ends
         # modulo the period: then the nearer end as written (unwrapped) decides
         tie = 1e-9 * float(per.max())
@@ -245,8 +245,8 @@ class LoopBuilder:
         for k in range(1, len(curves)):
             if bridged[k]:  # a pole or apex lies between: the chain joins them as they are
                 continue
-            prev = ends(curves[k - 1])[1]
-            a, b = ends(curves[k])
+            prev = curves[k - 1].ends()[1]
+            a, b = curves[k].ends()
             if nearer(gap(prev, a), gap(prev, b), raw_gap(prev, a), raw_gap(prev, b)):
                 curves[k] = reverse(curves[k])
                 a = b
@@ -292,7 +292,7 @@ class LoopBuilder:
         nat = self.sd.natural
         if self.sd.fixed and (lo[0] < nat[0] or hi[0] > nat[1] or lo[1] < nat[2] or hi[1] > nat[3]):
             # it only decides whether a 128 is cut: a tight, sampled box
-            pts = np.concatenate([evaluate(c, np.linspace(*c.domain, 16 * c.n + 1)) for c in iges])
+            pts = np.concatenate([c.evaluate(np.linspace(*c.domain, 16 * c.n + 1)) for c in iges])
             lo, hi = pts.min(axis=0), pts.max(axis=0)
         box = [lo[0], hi[0], lo[1], hi[1]]
         for k in range(2):
@@ -326,20 +326,20 @@ class LoopBuilder:
         if len(seq) > 1 and seq[0][3] and not seq[1][2]:  # the first curve's seam side, from its neighbour
             seq[0][0] = _seam_side(seq[0][0], _meeting_end(seq[1][0], seq[0][0], closed, s), closed, s)
         if len(seq) > 1 and not seq[1][2]:  # the first curve's sense, from its neighbour
-            (a0, b0), (a1, b1) = ends(seq[0][0]), ends(seq[1][0])
+            (a0, b0), (a1, b1) = seq[0][0].ends(), seq[1][0].ends()
             if min(dist(a0, a1), dist(a0, b1)) < min(dist(b0, a1), dist(b0, b1)):
                 seq[0][0] = reverse(seq[0][0])
         for k in range(1, len(seq)):
-            prev = ends(seq[k - 1][0])[1]
+            prev = seq[k - 1][0].ends()[1]
             if seq[k][3]:  # a model-space curve on the seam: its side was arbitrary
                 seq[k][0] = _seam_side(seq[k][0], prev, closed, s)
-            a, b = ends(seq[k][0])
+            a, b = seq[k][0].ends()
             if dist(prev, b) < dist(prev, a):
                 seq[k][0] = reverse(seq[k][0])
         curves: list[tuple[TrimCurve, int]] = []
         for k, (c, src, bridge, _) in enumerate(seq):
             if bridge:
-                prev, start = ends(seq[k - 1][0])[1], ends(c)[0]
+                prev, start = seq[k - 1][0].ends()[1], c.ends()[0]
                 if dist(prev, start) > 0:
                     curves.append((line_curve(prev, start), -1))
             curves.append((c, src))
@@ -350,7 +350,7 @@ class LoopBuilder:
         bridges = {}
         for j in range(len(out)):
             i = j - 1
-            end, start = ends(out[i])[1], ends(out[j])[0]
+            end, start = out[i].ends()[1], out[j].ends()[0]
             g = float(np.hypot(*(end - start)))
             if g > gap:
                 p, q = evaluate_surface(s, np.array([end[0], start[0]]), np.array([end[1], start[1]]))[0]
@@ -378,7 +378,7 @@ class LoopBuilder:
             pts = c.points
             over = max(u0 - pts[:, 0].min(), pts[:, 0].max() - u1, v0 - pts[:, 1].min(), pts[:, 1].max() - v1)
             if over > 0:
-                sampled = evaluate(c, np.linspace(*c.domain, 16 * c.n + 1))
+                sampled = c.evaluate(np.linspace(*c.domain, 16 * c.n + 1))
                 far = max(
                     u0 - sampled[:, 0].min(),
                     sampled[:, 0].max() - u1,
@@ -436,8 +436,8 @@ def _meeting_end(c: TrimCurve, other: TrimCurve, closed: list, s):
         d = np.abs(p - q)
         return float(np.hypot(*np.where(period > 0, np.minimum(d, period - d), d)))
 
-    a, b = ends(c)
-    return min((a, b), key=lambda p: min(gap(p, q) for q in ends(other)))
+    a, b = c.ends()
+    return min((a, b), key=lambda p: min(gap(p, q) for q in other.ends()))
 
 
 def _set_end(c: TrimCurve, point, last: bool) -> TrimCurve:

@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.geometry.trim import TrimCurve
-from bsrt.io.iges.bspline import clamp, evaluate, from_bezier, line_curve, polyline_curve
+from bsrt.io.iges.bspline import clamp, from_bezier, line_curve, polyline_curve
 from bsrt.io.param_map import ParamMap
 
 TWO_PI = 2 * np.pi
@@ -69,7 +69,7 @@ def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -
     """
     ts = [_start_samples(c) for c in curves]
     cuts = np.cumsum([0] + [len(t) for t in ts])
-    uv_all = to_uv(np.concatenate([evaluate(c, t) for c, t in zip(curves, ts)]), None)
+    uv_all = to_uv(np.concatenate([c.evaluate(t) for c, t in zip(curves, ts)]), None)
     seams = [(k, lo, hi) for k, (lo, hi, closed) in enumerate(getattr(to_uv, "seams", ())) if closed]
     out: list[TrimCurve | None] = [None] * len(curves)
     todo = []
@@ -89,7 +89,7 @@ def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -
                 _snap(uv[:, k], lo, hi)
             todo.append(_Refinement(i, t, uv, tol(uv) if callable(tol) else tol))
     while todo:
-        pts = np.concatenate([evaluate(curves[r.index], r.want_t) for r in todo])
+        pts = np.concatenate([curves[r.index].evaluate(r.want_t) for r in todo])
         hint = np.concatenate([r.want_hint for r in todo])
         new = to_uv(pts, hint)
         new = _near(np.where(np.isnan(new), hint, new), hint, angular)
@@ -228,7 +228,7 @@ def map_curve(c: TrimCurve, mu: ParamMap, mv: ParamMap, tol: float) -> tuple[Tri
 
 def _hermite(c: TrimCurve, mu: ParamMap, mv: ParamMap, tol: float) -> TrimCurve:
     def g(t):
-        p, dp = evaluate(c, t, derivative=True)
+        p, dp = c.evaluate(t, derivative=True)
         val = np.stack([mu(p[:, 0]), mv(p[:, 1])], 1)
         der = np.stack([mu.derivative(p[:, 0]) * dp[:, 0], mv.derivative(p[:, 1]) * dp[:, 1]], 1)
         return val, der

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from bsrt.geometry.trim import TrimCurve
-from bsrt.io.iges.bspline import clamp, ends, evaluate, line_curve, restrict, reverse
+from bsrt.io.iges.bspline import clamp, line_curve, restrict, reverse
 
 
 class Open(Exception):
@@ -53,7 +53,7 @@ def _crossing(c: TrimCurve, k: int, x: float):
     """A parameter t of c where its coordinate k equals x (None if none is found)."""
     lo, hi = c.domain
     t = np.linspace(lo, hi, 64 * max(c.n, 2) + 1)
-    f = evaluate(c, t)[:, k] - x
+    f = c.evaluate(t)[:, k] - x
     sign = np.flatnonzero(np.sign(f[:-1]) * np.sign(f[1:]) <= 0)
     if not len(sign):
         return None
@@ -61,7 +61,7 @@ def _crossing(c: TrimCurve, k: int, x: float):
     fa = f[sign[0]]
     for _ in range(200):
         m = 0.5 * (a + b)
-        fm = evaluate(c, np.array([m]))[0, k] - x
+        fm = c.evaluate(np.array([m]))[0, k] - x
         if (fm <= 0) == (fa <= 0):
             a, fa = m, fm
         else:
@@ -81,7 +81,7 @@ def winding(loop: list, period) -> np.ndarray:
     curves = _curves(loop)
     if len(curves) < len(loop):
         return np.zeros(2, int)
-    d = ends(curves[-1])[1] - ends(curves[0])[0]
+    d = curves[-1].ends()[1] - curves[0].ends()[0]
     return np.array([round(d[k] / period[k]) if period[k] else 0 for k in range(2)])
 
 
@@ -89,7 +89,7 @@ def rotate(curves: list[TrimCurve], k: int, a: float, period: float, w: int) -> 
     """The loop (going w = +-1 times round along k) starting at coordinate a exactly."""
     tol = 1e-12 * period
     for i, c in enumerate(curves):  # a piece that starts on the seam: no split needed
-        x = ends(c)[0][k]
+        x = c.ends()[0][k]
         m = round((x - a) / period)
         if abs(x - a - m * period) <= tol:
             out = curves[i:] + [_shift(c, k, w * period) for c in curves[:i]]
@@ -97,7 +97,7 @@ def rotate(curves: list[TrimCurve], k: int, a: float, period: float, w: int) -> 
             break
     else:
         for i, c in enumerate(curves):
-            pts = evaluate(c, np.linspace(*c.domain, 16 * c.n + 1))[:, k]
+            pts = c.evaluate(np.linspace(*c.domain, 16 * c.n + 1))[:, k]
             m = math.ceil((pts.min() - a) / period)
             x = a + m * period
             if x > pts.max():
@@ -136,7 +136,7 @@ def close_once_round(loops: list[list[TrimCurve]], labels: list[str], period, na
         k = int(np.flatnonzero(turns[round_[0]])[0])
         if any(not turns[i][k] for i in round_):
             raise Open(f"{labels[round_[-1]]} goes round in the other direction than {labels[round_[0]]}")
-        a = float(ends(loops[round_[0]][0])[0][k])
+        a = float(loops[round_[0]][0].ends()[0][k])
         windows[k] = a
         j = 1 - k
         rotated = {i: rotate(loops[i], k, a, period[k], int(turns[i][k])) for i in round_}
@@ -150,10 +150,10 @@ def close_once_round(loops: list[list[TrimCurve]], labels: list[str], period, na
             if turns[x][k] < 0:
                 first, second = second, first
             # first: a -> a + P; second: a + P -> a (shifted by P where it starts at a)
-            if abs(ends(second[0])[0][k] - a) < 0.5 * period[k]:
+            if abs(second[0].ends()[0][k] - a) < 0.5 * period[k]:
                 second = [_shift(c, k, period[k]) for c in second]
-            e1, s2 = ends(first[-1])[1], ends(second[0])[0]
-            e2, s1 = ends(second[-1])[1], ends(first[0])[0]
+            e1, s2 = first[-1].ends()[1], second[0].ends()[0]
+            e2, s1 = second[-1].ends()[1], first[0].ends()[0]
             loop = first + [line_curve(e1, s2)] + second + [line_curve(e2, s1)]
             out.append(loop)
             out_labels.append(labels[x])
@@ -174,7 +174,7 @@ def close_once_round(loops: list[list[TrimCurve]], labels: list[str], period, na
                     f"{labels[i]} goes once round the surface and nothing bounds the surface on its "
                     f"{'upper' if side > 0 else 'lower'} {'uv'[j]} side (no pole or edge to close it along)"
                 )
-            e, s = ends(c[-1])[1], ends(c[0])[0]
+            e, s = c[-1].ends()[1], c[0].ends()[0]
             p1, p2 = e.copy(), s.copy()
             p1[j] = p2[j] = bound
             out.append(c + [line_curve(e, p1), line_curve(p1, p2), line_curve(p2, s)])

@@ -53,8 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bsrt.io.iges import analytic, offset
-from bsrt.io.iges.bspline import affine, clamp, ends, param_map, reverse
-from bsrt.io.iges.bspline import ends as ends_of
+from bsrt.io.iges.bspline import affine, clamp, param_map, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, curve, direction, point
 from bsrt.io.invert import RevolutionInverse
 from bsrt.io.param_map import ParamMap
@@ -305,7 +304,7 @@ def _revolution(f, entity, params, m) -> SurfaceDef:
         return sd
     # a full turn: periodic in v; any window of one turn is the same surface, turned
     size = float(np.linalg.norm(np.ptp(s.points.reshape(-1, 3), axis=0)))
-    g0, g1 = ends_of(gen)
+    g0, g1 = gen.ends()
     poles = tuple(
         (0, float(x))
         for x, q in zip(mu.x[[0, -1]], (g0, g1))
@@ -327,7 +326,7 @@ def _tabulated(f, entity, params, m) -> SurfaceDef:
         end = m[:3, :3] @ end + m[:3, 3]
     pmap = param_map(c)
     t0, t1 = pmap.x[0], pmap.x[-1]
-    start = ends(c)[0]
+    start = c.ends()[0]
     s, mu, mv = analytic.extrusion(c, end - start, pmap.scaled_x(t1 - t0, t0))
     return _fixed(entity, s, mu, mv, natural=(0.0, 1.0, 0.0, 1.0))
 

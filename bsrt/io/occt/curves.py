@@ -25,7 +25,6 @@ from math import comb
 import numpy as np
 
 from bsrt.errors import InputError
-from bsrt.geometry.basis import basis_values
 from bsrt.geometry.bspline import BSplineSurface
 from bsrt.geometry.trim import TrimCurve, make_trim_curve
 from bsrt.io.occt.surfaces import flat_knots
@@ -129,53 +128,6 @@ def _occ():
     return _OCC
 
 
-def curve_points(curve: TrimCurve, s) -> np.ndarray:
-    """(N, 2) points of the curve at parameters s (N,): TrimCurve.evaluate without the derivatives'
-    work (the same triangle of basis values)."""
-    s = np.atleast_1d(np.asarray(s, dtype=np.float64))
-    p, n = curve.degree, curve.points.shape[0]
-    span, basis = basis_values(curve.knots, p, n, s)
-    index = (span - p)[:, None] + np.arange(p + 1)[None, :]
-    if curve.weights is None:
-        return np.einsum("na,nak->nk", basis, curve.points[index])
-    h = np.einsum("na,nak->nk", basis, curve.homogeneous()[index])
-    return h[:, :2] / h[:, 2:3]
-
-
-def evaluator(curve: TrimCurve):
-    """s (N,) -> (N, 2) points of the curve, for many calls on one curve: of a high degree, through its
-    Bezier pieces (extracted once; then a handful of NumPy calls per call whatever the degree), else
-    :func:`curve_points`."""
-    p = curve.degree
-    if p < 4:
-        return lambda s: curve_points(curve, s)
-    bezier, spans = bezier_nets(curve)
-    starts, ends = curve.knots[spans], curve.knots[spans + 1]
-    powers = np.arange(p + 1)
-    binomials = np.array([comb(p, int(k)) for k in powers], dtype=np.float64)
-
-    def points(s) -> np.ndarray:
-        s = np.atleast_1d(np.asarray(s, dtype=np.float64))
-        k = np.minimum(np.maximum(np.searchsorted(starts, s, side="right") - 1, 0), starts.size - 1)
-        u = ((s - starts[k]) / (ends[k] - starts[k]))[:, None]
-        basis = binomials * u**powers * (1.0 - u) ** (p - powers)
-        h = np.einsum("nk,nkc->nc", basis, bezier[k])
-        return h[:, :2] / h[:, 2:3]
-
-    return points
-
-
-def bezier_nets(curve: TrimCurve) -> tuple[np.ndarray, np.ndarray]:
-    """(nets (S, p + 1, 3), spans (S,)): the homogeneous Bezier net of each non-empty span
-    [knots[spans[s]], knots[spans[s] + 1]] of the curve, all at once (Bezier extraction)."""
-    from bsrt.geometry.bspline import _span_matrices
-
-    p, n = curve.degree, curve.points.shape[0]
-    matrices, spans = _span_matrices(curve.knots, n, p)
-    window = spans[:, None] - p + np.arange(p + 1)[None, :]
-    return np.einsum("skj,sjc->skc", matrices, curve.homogeneous()[window]), spans
-
-
 def bezier_form(curve: TrimCurve) -> TrimCurve:
     """The curve with every inner knot of multiplicity p, its control points its spans' Bezier nets
     (the same curve, to rounding; the curve itself where it is so already): what
@@ -185,7 +137,7 @@ def bezier_form(curve: TrimCurve) -> TrimCurve:
     inner = knots[p + 1 : -p - 1]
     if inner.size % p == 0 and not np.any(inner[::p] != inner[p - 1 :: p]):
         return curve
-    nets, spans = bezier_nets(curve)
+    nets, spans = curve.bezier_nets()
     h = np.concatenate([nets[:1, 0], nets[:, 1:].reshape(-1, 3)])
     breaks = knots[spans[1:]]
     knots = np.concatenate(
@@ -263,7 +215,7 @@ def map_curve(curve: TrimCurve, pmap: FaceMap, tolerance) -> TrimCurve:
                 ends[:, axis] = fixed.mean()
                 return TrimCurve(1, _UNIT_KNOTS, pmap.map(ends))  # the segment between the mapped ends
     t = np.linspace(t0, t1, 17 + 8 * curve.points.shape[0])
-    points = evaluator(curve)
+    points = curve.evaluator()
     uv = points(t)
     breaks = [np.array([t0, t1]), np.unique(curve.knots[(curve.knots > t0) & (curve.knots < t1)])]
     for axis, fmap in ((0, fu), (1, fv)):
@@ -288,7 +240,7 @@ def _break_lines(fmap, lo: float, hi: float) -> np.ndarray:
 
 def _crossings(points, axis: int, lines: np.ndarray, t: np.ndarray, samples: np.ndarray) -> np.ndarray:
     """Curve parameters where coordinate ``axis`` equals one of ``lines`` (``points``: the curve's
-    :func:`evaluator`; sign changes on the samples, then 24 halvings of each bracket, to 1e-7 of a
+    :meth:`TrimCurve.evaluator`; sign changes on the samples, then 24 halvings of each bracket, to 1e-7 of a
     sample step: they only help the fit converge (its error is checked), and the map is C1 at its
     breaks). One evaluation serves several halvings (8 for up to 2 crossings, 4 for up to 16, else
     2: 2^levels - 1 points a crossing): it takes the middles of every bracket they may reach (a
@@ -341,7 +293,7 @@ _AT_CHECKS = _bernstein(FIT_DEGREE, _CHECKS)
 
 def _fit(points, pmap: FaceMap, breaks: np.ndarray, tolerance) -> TrimCurve:
     """Piecewise polynomial fit (degree 7, C0 at the breaks) of t -> map(curve(t)) (``points``: the
-    curve's :func:`evaluator`)."""
+    curve's :meth:`TrimCurve.evaluator`)."""
     d = FIT_DEGREE
     todo = np.stack([breaks[:-1], breaks[1:]], axis=1)
     todo = todo[todo[:, 1] > todo[:, 0]]

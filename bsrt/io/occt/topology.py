@@ -43,7 +43,6 @@ from bsrt.io.occt.curves import (
     TrimError,
     bezier_form,
     derivative_bounds,
-    evaluator,
     map_curve,
     pcurve,
     reversed_curve,
@@ -408,7 +407,7 @@ def _inside_domain(curve: TrimCurve, domain, box=None) -> TrimCurve:
         return curve
     lo, hi = curve.domain
     t = np.linspace(lo, hi, 64 * (curve.points.shape[0] + 1))
-    curve_at = evaluator(curve)
+    curve_at = curve.evaluator()
 
     def inside(x):
         uv = curve_at(np.atleast_1d(x))
