@@ -9,26 +9,26 @@ from contextlib import contextmanager
 
 @contextmanager
 def compiling_if_cold(progress=None):
-    """The first render on a machine: the kernels compile in worker processes (said on stderr)
-    while the block runs (the model's load and the checks before the render), and are waited for
-    after it; nothing is done where they are cached. The render then loads the kernels it uses
-    from the cache (those the workers could not compile it compiles itself). An error in the
-    block ends the workers. progress: shown the stage "compile" (bsrt/progress.py keeps it out of
-    the render's time left)."""
+    """The first render on a machine: the kernels compile in worker processes while the block
+    runs (the model's load and the checks before the render), and are waited for after it, said
+    on stderr then with the time left (an error in the block ends the workers and is the only
+    message: bad input stays one line); nothing is done where they are cached. The render then
+    loads the kernels it uses from the cache (those the workers could not compile it compiles
+    itself). progress: shown the stage "compile" (bsrt/progress.py keeps it out of the render's
+    time left)."""
     from bsrt.kernels import compile as kernels
 
     if kernels.is_cached():
         yield
         return
-    _announce(progress)
+    clock = time.perf_counter()
     workers = kernels.start()
     try:
         yield
     except BaseException:
         kernels.finish(workers, stop=True)
         raise
-    if progress:
-        progress("compile", 0.5)
+    _announce(progress, max(1.0, kernels.estimate_seconds() - (time.perf_counter() - clock)))
     kernels.finish(workers)
 
 
@@ -63,14 +63,16 @@ def compile_kernels(progress=None, warm: bool = True) -> tuple[str, float]:
     return ("loaded from the cache" if cached else "compiled"), time.perf_counter() - clock
 
 
-def _announce(progress=None) -> None:
-    """Say on stderr (terminal or not) that the kernels compile now, and for about how long."""
+def _announce(progress=None, seconds: float | None = None) -> None:
+    """Say on stderr (terminal or not) that the kernels compile now, and for about how long
+    (seconds: the time left, default the whole compile's estimate)."""
     from bsrt.kernels import compile as kernels
 
     if progress:
         progress.clear()
+    seconds = kernels.estimate_seconds() if seconds is None else seconds
     print(
-        f"bsrt: compiling bsrt's kernels once for this machine (about {kernels.estimate_seconds():.0f} s)...",
+        f"bsrt: compiling bsrt's kernels once for this machine (about {seconds:.0f} s)...",
         file=sys.stderr,
         flush=True,
     )
