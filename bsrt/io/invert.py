@@ -1,9 +1,11 @@
 """The closest point of a B-spline surface to given points: (x, y) with S(x, y) nearest each point.
 
-One inverter for every reader that needs one: :func:`invert` (from given
-starts: the OpenCASCADE import's tabulated parameter maps) and
-:class:`SurfaceInverse` (from a hint or the nearest point of a grid: the IGES
-reader's model-space curves on surfaces).
+One inverter for every reader that needs one, one damped Newton loop
+(``_damped_newton``): :func:`invert` (from given starts: the OpenCASCADE
+import's tabulated parameter maps), :class:`SurfaceInverse` (from a hint or the
+nearest point of a grid) and :class:`CurveInverse` (the same on the surface's
+Bezier pieces: the IGES reader's model-space curves on surfaces), and
+:class:`RevolutionInverse` in closed form.
 """
 
 from __future__ import annotations
@@ -39,67 +41,9 @@ def invert(surface: BSplineSurface, points: np.ndarray, x, y, size: float, itera
     ``size``). At a degenerate point (a pole) the free parameter stays at its
     start. Good starts matter: it converges to the nearest local minimum.
     """
-    (a0, a1), (b0, b1) = surface.domain_u, surface.domain_v
-    x = np.clip(np.array(x, dtype=np.float64), a0, a1)
-    y = np.clip(np.array(y, dtype=np.float64), b0, b1)
-    points = np.asarray(points, dtype=np.float64)
-    n = x.shape[0]
-    active = np.ones(n, dtype=bool)
-    scale = max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
-    best = np.full(n, np.inf)  # |residual| at the last accepted parameters (bx, by)
-    bx, by = x.copy(), y.copy()
-    normal = np.zeros((5, n))  # a, b, c, g0, g1 of the normal equations at (bx, by)
-    mu = np.full(n, _DAMP)
-
-    def step(ids):
-        """Move points ids from their accepted parameters by a damped, projected step; True where it is negligible."""
-        a, b, c, g0, g1 = normal[:, ids]
-        damp = mu[ids] * (a + c) + 1e-300
-        a, c = a + damp, c + damp
-        det = a * c - b * b
-        det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-        dx, dy = (c * g0 - b * g1) / det, (a * g1 - b * g0) / det
-        x0, y0 = bx[ids], by[ids]
-        held_x = ((x0 <= a0) & (dx < 0)) | ((x0 >= a1) & (dx > 0))
-        held_y = ((y0 <= b0) & (dy < 0)) | ((y0 >= b1) & (dy > 0))
-        dx, dy = (
-            np.where(held_x, 0.0, np.where(held_y, g0 / a, dx)),
-            np.where(held_y, 0.0, np.where(held_x, g1 / c, dy)),
-        )
-        x[ids] = np.clip(x0 + dx, a0, a1)
-        y[ids] = np.clip(y0 + dy, b0, b1)
-        return np.hypot(x[ids] - x0, y[ids] - y0) <= 1e-14 * scale
-
-    for _ in range(iterations):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        s, su, sv = evaluate(surface, x[idx], y[idx])
-        r = points[idx] - s
-        dist = np.sqrt(np.einsum("ni,ni->n", r, r))
-        worse = dist > best[idx] * (1 + 1e-12) + 1e-15 * size
-        w = idx[worse]
-        if w.size:  # undone: retried from the accepted parameters with more damping
-            mu[w] *= 10.0
-            stop = step(w)
-            x[w[stop]], y[w[stop]] = bx[w[stop]], by[w[stop]]
-            active[w[stop]] = False
-        keep = ~worse
-        idx, su, sv, r, dist = idx[keep], su[keep], sv[keep], r[keep], dist[keep]
-        if idx.size == 0:
-            continue
-        best[idx], bx[idx], by[idx] = dist, x[idx], y[idx]
-        normal[:, idx] = (
-            np.einsum("ni,ni->n", su, su),
-            np.einsum("ni,ni->n", su, sv),
-            np.einsum("ni,ni->n", sv, sv),
-            np.einsum("ni,ni->n", su, r),
-            np.einsum("ni,ni->n", sv, r),
-        )
-        done = step(idx) | (dist <= 1e-14 * size)
-        mu[idx] = np.maximum(mu[idx] * 0.1, _DAMP)
-        active[idx[done]] = False
-    return x, y
+    return _damped_newton(
+        lambda u, v: evaluate(surface, u, v), (surface.domain_u, surface.domain_v), points, x, y, size, iterations
+    )
 
 
 def _grid_points(s: BSplineSurface, gu, gv) -> np.ndarray:
@@ -144,7 +88,7 @@ class SurfaceInverse:
         self.grid_uv = np.stack([uu.ravel(), vv.ravel()], 1)
         self.grid = grid.reshape(-1, 3)
         # closed directions (the surface's two edges across them coincide): their seam samples
-        # are put on the side their neighbours along a curve are on (``invert_curve``)
+        # are put on the side their neighbours along a curve are on (``iges.pcurves.invert_curves``)
         self.closed = tuple(
             bool(np.abs(np.take(grid, 0, axis=k) - np.take(grid, -1, axis=k)).max() <= 1e-9 * self.size)
             for k in range(2)
@@ -171,7 +115,7 @@ class SurfaceInverse:
 
     @property
     def seams(self):
-        """((u0, u1, closed in u), (v0, v1, closed in v)) for ``invert_curve``."""
+        """((u0, u1, closed in u), (v0, v1, closed in v)) for ``iges.pcurves.invert_curves``."""
         return tuple((self.lo[k], self.hi[k], self.closed[k]) for k in range(2))
 
     def __call__(self, pts, hint=None):
@@ -231,7 +175,7 @@ class RevolutionInverse:
 
     @property
     def seams(self):
-        """((x0, x1, False), (y0, y1, closed in y)) for ``invert_curve``."""
+        """((x0, x1, False), (y0, y1, closed in y)) for ``iges.pcurves.invert_curves``."""
         y0, y1 = (float(v) for v in self.to_y(np.array(self.angles)))
         return ((*self.x_range, False), (y0, y1, self.closed[1]))
 
@@ -308,11 +252,13 @@ def _power_from_bernstein(n: int) -> np.ndarray:
     return np.where(j >= k, comb(n, j) * comb(np.maximum(j, k), k) * (-1.0) ** (j - k), 0.0)
 
 
-def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float, iterations: int = 60):
-    """(x, y), each (N,) float64: :func:`invert`'s damped, projected Gauss-Newton on a surface
-    given as its Bezier ``pieces`` (domain ((u0, u1), (v0, v1))), stopping where the step is
-    1e-12 of the domain (points off the surface converge linearly: the last digits cost
-    many steps and move (x, y) by less than 1e-10) or the residual 1e-14 of ``size``."""
+def _damped_newton(at, domain, points, x, y, size: float, iterations: int = 60, step_tol=1e-14, stall_tol=0.0):
+    """(x, y), each (N,) float64: :func:`invert`'s loop (its docstring says what it does) on the
+    surface evaluator ``at`` ((u, v) (N,) -> S, S_u, S_v (N, 3)) over ``domain`` ((u0, u1), (v0, v1)).
+    A point stops where its step is ``step_tol`` of the domain or its residual 1e-14 of ``size``; a
+    step that made things worse after a step below ``stall_tol`` of the domain also stops it, at its
+    accepted parameters (points off the surface converge linearly: the last digits cost many
+    steps and move (x, y) by less than that)."""
     (a0, a1), (b0, b1) = domain
     x = np.clip(np.array(x, dtype=np.float64), a0, a1)
     y = np.clip(np.array(y, dtype=np.float64), b0, b1)
@@ -330,7 +276,7 @@ def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float
     for _ in range(iterations):
         if idx.size == 0:
             break
-        s, su, sv = pieces(cur[idx, 0], cur[idx, 1])
+        s, su, sv = at(cur[idx, 0], cur[idx, 1])
         r = points[idx] - s
         dist = np.sqrt(np.einsum("ni,ni->n", r, r))
         good = dist <= best[idx] * (1 + 1e-12) + 1e-15 * size
@@ -361,7 +307,7 @@ def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float
         cur[idx] = np.clip(start + d, lo, hi)
         moved = np.hypot(*(cur[idx] - start).T)
         # a step this small that made things worse: rounding, the accepted parameters stand
-        done = np.where(good, moved <= 1e-12 * scale, last[idx] <= 1e-10 * scale)
+        done = (moved <= step_tol * scale) | (~good & (last[idx] <= stall_tol * scale))
         last[idx] = moved
         back = idx[done & ~good]
         cur[back] = acc[back]
@@ -373,7 +319,7 @@ def invert_pieces(pieces: _Pieces, domain, points: np.ndarray, x, y, size: float
 
 class CurveInverse(SurfaceInverse):
     """:class:`SurfaceInverse` whose Newton steps evaluate the surface as its Bezier pieces
-    (:func:`invert_pieces`): the IGES reader's inverter for model-space trim curves, called
+    (:func:`_damped_newton` stopping at steps of 1e-12 of the domain): the IGES reader's inverter for model-space trim curves, called
     with hundreds to thousands of points a few dozen times per face."""
 
     def __init__(self, s: BSplineSurface):
@@ -381,6 +327,7 @@ class CurveInverse(SurfaceInverse):
         self.pieces = _Pieces(s)
 
     def _newton(self, pts, uv):
-        u, v = invert_pieces(self.pieces, (self.s.domain_u, self.s.domain_v), pts, uv[:, 0], uv[:, 1], self.size)
+        domain = (self.s.domain_u, self.s.domain_v)
+        u, v = _damped_newton(self.pieces, domain, pts, uv[:, 0], uv[:, 1], self.size, step_tol=1e-12, stall_tol=1e-10)
         s, su, sv = self.pieces(u, v)
         return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)
