@@ -252,6 +252,18 @@ def test_a_first_render_with_an_empty_cache_announces_the_compile_and_fills_the_
     assert again.returncode == 0 and again.stderr == ""
 
 
+def test_bad_input_on_a_first_run_is_one_line_the_compile_unsaid_and_stopped(tmp_path):
+    """The compile starts before the model loads; a scene that fails to load is its one message
+    (the compile's notice comes only once the load is done), exit 2, nothing written."""
+    env = _env(XDG_CACHE_HOME=tmp_path / "xdg", NUMBA_CACHE_DIR=None)
+    scene = tmp_path / "bad.toml"
+    scene.write_text(COLUMN.read_text().replace("[camera]", "[camera]\nzoom = 2", 1))
+    argv = [sys.executable, "-m", "bsrt", "render", str(scene), "-o", str(tmp_path / "c.png")]
+    run = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600)
+    assert (run.returncode, run.stderr) == (2, "bsrt: error: bad.toml: camera.zoom: unknown key\n")
+    assert not (tmp_path / "c.png").exists()
+
+
 @pytest.mark.gl
 def test_doctor_compile_fills_an_empty_cache(tmp_path):
     env = _env(XDG_CACHE_HOME=tmp_path / "xdg", NUMBA_CACHE_DIR=None)
