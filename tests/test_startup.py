@@ -162,6 +162,21 @@ def test_machine_code_of_another_version_is_dropped_once(tmp_path):
     assert (folder / "b.g-2.py311.nbi").exists()  # the same version: kept
 
 
+def test_an_edit_to_any_kernel_file_invalidates_every_kernel_of_the_folder(tmp_path, cache_home):
+    """A kernel inlines its callees from other files: its machine code is checked against all the
+    folder's sources (numba alone checks the kernel's own file), and files that are not sources
+    do not count."""
+    (tmp_path / "caller.py").write_text("def f():\n    return g()\n")
+    (tmp_path / "callee.py").write_text("def g():\n    return 1\n")
+    before = jit.folder_source_stamp(str(tmp_path))
+    (tmp_path / "notes.txt").write_text("not a source")
+    assert jit.folder_source_stamp(str(tmp_path)) == before
+    (tmp_path / "callee.py").write_text("def g():\n    return 2\n")
+    assert jit.folder_source_stamp(str(tmp_path)) != before
+    locator = jit.KernelCacheLocator.from_function(tables.permute_rows.py_func, tables.__file__)
+    assert locator.get_source_stamp() == jit.folder_source_stamp(str(Path(tables.__file__).resolve().parent))
+
+
 @pytest.mark.gl
 def test_a_second_cli_render_takes_the_geometry_from_the_cache_and_no_cache_writes_none(tmp_path):
     env = _env(BSRT_CACHE_DIR=tmp_path / "cache")

@@ -21,10 +21,19 @@ folder used is dropped once (numba's index pickles the argument types of
 each kernel by module path and loads them before it compares the source's
 hash: an index written before such a type moved would fail to load with
 ModuleNotFoundError instead of being recompiled).
+
+numba checks a kernel's cached machine code against a hash of the kernel's
+own source file, but a kernel inlines the kernels it calls from other files
+of the package: :meth:`KernelCacheLocator.get_source_stamp` hashes every
+source file of the kernel's folder instead, so an edit to any kernel
+recompiles all of them (in a development checkout; an installed bsrt
+changes only with its version).
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import sys
 import tempfile
@@ -134,8 +143,27 @@ def njit_typed(signature: str, *, cache: bool = False, **options):
     return wrap
 
 
+def folder_source_stamp(folder: str) -> bytes:
+    """SHA-256 over the names and contents of the folder's ``*.py`` files, in name order
+    (each file's (mtime, size) keys the memo, so an edit while the process runs is seen)."""
+    names = sorted(n for n in os.listdir(folder) if n.endswith(".py"))
+    stats = tuple((n, os.stat(os.path.join(folder, n))) for n in names)
+    return _hash_files(folder, tuple((n, st.st_mtime_ns, st.st_size) for n, st in stats))
+
+
+@functools.cache
+def _hash_files(folder: str, files: tuple) -> bytes:
+    digest = hashlib.sha256()
+    for name, _, _ in files:
+        digest.update(name.encode() + b"\0")
+        with open(os.path.join(folder, name), "rb") as f:
+            digest.update(f.read())
+    return digest.digest()
+
+
 class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
-    """numba's cache locator for bsrt's kernels: :func:`cache_root` / <source folder's name and hash>."""
+    """numba's cache locator for bsrt's kernels: :func:`cache_root` / <source folder's name and hash>;
+    the machine code is valid while no source file of the folder changes (:func:`folder_source_stamp`)."""
 
     def __init__(self, py_func, py_file):
         self._py_file = py_file
@@ -144,6 +172,9 @@ class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLo
 
     def get_cache_path(self):
         return self._cache_path
+
+    def get_source_stamp(self):
+        return folder_source_stamp(os.path.dirname(os.path.abspath(self._py_file)))
 
     def ensure_cache_path(self):
         if self._cache_path in _writable:  # checked once per folder (numba writes a file to check, per kernel)
