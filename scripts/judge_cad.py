@@ -37,6 +37,10 @@ load starts cold; ``--timeout`` seconds per part):
    hit is on the shape, else bsrt. Wrong depth: the side whose hit alone is on
    the shape, or, both on it, the nearer hit (the other passed through a
    surface); neither on it: undecided.
+   A ray OpenCASCADE's intersector raises on (``Standard_NullObject`` on some
+   degenerate faces) is left out of the classes and reported as
+   ``OCC-RAISED n``: of those, how many bsrt hits lie on the shape, how many
+   off it, and how many bsrt misses (which cannot be judged).
 
 Prints one table row per part; ``--json`` writes everything (per part: file,
 size, authoring system from the header, faces, periodic faces, load seconds,
@@ -289,7 +293,8 @@ def tight_diagonal(faces) -> float:
 
 
 def occ_hits(shape, faces, eye, directions, size):
-    """(hit (N,) bool, t (N,) float64 NaN where no hit, face (N,) int64 index into faces, -1 where no hit)."""
+    """(hit (N,) bool, t (N,) float64 NaN where no hit, face (N,) int64 index into faces, -1 where no hit,
+    failed (N,) bool: OpenCASCADE raised on the ray, counted as no hit)."""
     import numpy as np
     from OCP.gp import gp_Dir, gp_Lin, gp_Pnt
     from OCP.IntCurvesFace import IntCurvesFace_ShapeIntersector
@@ -303,9 +308,14 @@ def occ_hits(shape, faces, eye, directions, size):
     hit = np.zeros(n, dtype=bool)
     t = np.full(n, np.nan)
     face = np.full(n, -1, dtype=np.int64)
+    failed = np.zeros(n, dtype=bool)
     origin = gp_Pnt(*map(float, eye))
     for k, d in enumerate(directions):
-        intersector.Perform(gp_Lin(origin, gp_Dir(*map(float, d))), 0.0, math.inf)
+        try:
+            intersector.Perform(gp_Lin(origin, gp_Dir(*map(float, d))), 0.0, math.inf)
+        except Exception:  # e.g. Standard_NullObject on a degenerate face: this ray has no answer
+            failed[k] = True
+            continue
         if intersector.IsDone() and intersector.NbPnt() > 0:
             i = min(range(1, intersector.NbPnt() + 1), key=intersector.WParameter)
             hit[k], t[k] = True, intersector.WParameter(i)
@@ -313,7 +323,7 @@ def occ_hits(shape, faces, eye, directions, size):
             face[k] = next((j for j, g in index.get(hash(f), ()) if g.IsSame(f)), -2)
             if face[k] == -2:  # hash and IsSame disagree: search them all
                 face[k] = next((j for j, g in enumerate(faces) if g.IsSame(f)), len(faces))
-    return hit, t, face
+    return hit, t, face, failed
 
 
 class Distance:
@@ -421,14 +431,16 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
     hit_b, t_b, surf_b = aovs["hit"], aovs["t"], aovs["surface"]
     directions = pixel_rays(scene.camera, size, size)
     start = time.perf_counter()
-    hit_o, t_o, face_o = occ_hits(shape, faces, scene.camera.eye, directions, diag)
+    hit_o, t_o, face_o, failed = occ_hits(shape, faces, scene.camera.eye, directions, diag)
     out["occ_trace_s"] = time.perf_counter() - start
     hit_o, t_o, face_o = hit_o.reshape(size, size), t_o.reshape(size, size), face_o.reshape(size, size)
+    failed = failed.reshape(size, size)
 
     labels_b = np.where(hit_b, surf_b, -1)
     labels_o = np.where(hit_o, face_o, -1)
     inner = interior(labels_b) & interior(labels_o)
     cls = classify(hit_b, t_b, hit_o, t_o, diag)
+    cls[failed] = "occ_error"  # judged below by bsrt's hit alone
     counts = {"both_miss": int((cls == "miss").sum())}
     for c in CLASSES:
         counts[c] = int(((cls == c) & inner).sum())
@@ -436,7 +448,7 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
     out["counts"] = counts
 
     # who is right where they disagree
-    bad = np.argwhere((cls != "miss") & (cls != "agree"))
+    bad = np.argwhere(np.isin(cls, CLASSES[1:]))
     out["disagreements"] = len(bad)
     if len(bad) > max_decide:
         bad = bad[np.sort(np.random.default_rng(0).choice(len(bad), max_decide, replace=False))]
@@ -470,6 +482,14 @@ def judge_one(path: Path, size: int, max_decide: int, format: str = "auto") -> d
                     "occ_face": None if not hit_o[i, j] else int(face_o[i, j]),
                 }
             )
+    # rays OpenCASCADE raised on: bsrt's hit is on the shape or not; a miss cannot be judged
+    on, off = 0, 0
+    for i, j in np.argwhere(failed & hit_b):
+        if distance(eye + t_b[i, j] * dirs[i, j]) <= tol:
+            on += 1
+        else:
+            off += 1
+    out["occ_error"] = {"rays": int(failed.sum()), "bsrt_on_shape": on, "bsrt_off_shape": off}
     out["decide_s"] = time.perf_counter() - start
     out["decisions"] = decisions
     out["examples"] = examples  # interior disagreements; distances as fractions of the diagonal
@@ -541,7 +561,18 @@ def row(r: dict) -> str:
         f"{name:34} {short_system(r['header']):28} {r['faces']:5d} {r['periodic_faces']:5d} "
         f"{r['load_s']:7.2f} {r['occ_read_s']:6.2f} {r['untrimmed']:4d} {skipped:4d} {len(r['warnings']):3d} "
         f"{c['agree']:6d} {c['extra']:5d} {c['missed']:5d} {c['wrong_depth']:5d} {edges:6d} "
-        f"{d['bsrt']:5d} {d['occ']:5d} {d['undecided']:5d}{'' if r['units_ok'] else '  UNITS?'}"
+        f"{d['bsrt']:5d} {d['occ']:5d} {d['undecided']:5d}{'' if r['units_ok'] else '  UNITS?'}{occ_errors(r)}"
+    )
+
+
+def occ_errors(r: dict) -> str:
+    """'' or a note of the rays OpenCASCADE's intersector raised on, with bsrt's hits judged alone."""
+    e = r.get("occ_error") or {"rays": 0}
+    if not e["rays"]:
+        return ""
+    missed = e["rays"] - e["bsrt_on_shape"] - e["bsrt_off_shape"]
+    return (
+        f"  OCC-RAISED {e['rays']} (bsrt hit on shape {e['bsrt_on_shape']}, off {e['bsrt_off_shape']}, no hit {missed})"
     )
 
 
