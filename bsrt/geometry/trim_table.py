@@ -108,6 +108,22 @@ def build_trim_table(surfaces) -> TrimTable:
     )
 
 
+def loop_points(table: TrimTable, per_piece: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points on the trim loops of a table's surfaces: every piece at s = 0, 1/per_piece, ...
+    (its end is the next piece's start). Returns (surface (P,) int64 index into the table's
+    surfaces, u (P,), v (P,)), P = per_piece x pieces."""
+    surface_of_band = np.repeat(np.arange(table.band_count.size), table.band_count)
+    band_of_entry = np.repeat(np.arange(table.band_start.size - 1), np.diff(table.band_start))
+    owner = np.zeros(table.degree.size, dtype=np.int64)
+    owner[table.entry_piece] = surface_of_band[band_of_entry]  # every piece is in a band of its surface
+    s = np.arange(per_piece) / per_piece
+    powers = s[:, None] ** np.arange(table.coef.shape[1])  # (per_piece, D + 1)
+    h = np.einsum("sj,kjc->ksc", powers, table.coef)  # (K, per_piece, 3): (w (u - u_a), w (v - v_a), w)
+    u = table.ends[:, 0, None] + h[..., 0] / h[..., 2]
+    v = table.ends[:, 1, None] + h[..., 1] / h[..., 2]
+    return np.repeat(owner, per_piece), u.ravel(), v.ravel()
+
+
 def _bernstein_to_power(d: int) -> np.ndarray:
     """(d + 1, d + 1) M with sum_k B_k,d(s) c_k = sum_j s^j (M^T c)_j, i.e. M[k, j] = C(d, j) C(j, k) (-1)^(j - k)."""
     return np.array(

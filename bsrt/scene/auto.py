@@ -25,7 +25,8 @@ __all__ = ["VIEWS", "VIEW_NAMES", "fit_camera", "studio_lights", "surface_points
 FILL = 0.9  # the fraction of the frame (each side) the automatic camera gives the model
 DEFAULT_FOV = 35.0  # degrees, vertical
 GRID = 64  # samples per direction of a surface's domain
-MAX_POINTS = 1 << 21  # fewer samples per surface on models of many surfaces
+MAX_POINTS = 1 << 18  # fewer grid samples per surface on models of many surfaces (at least 9 x 9)
+HULL_DIRECTIONS = 8  # extreme points that outline a 2-D point set, to drop the points inside
 
 
 def surface_points(surfaces) -> np.ndarray:
@@ -33,7 +34,7 @@ def surface_points(surfaces) -> np.ndarray:
     when the model has many surfaces), trimmed surfaces by their kept points and points of their
     trim curves. Their box and extent are the model's, to the grid's spacing."""
     from bsrt.geometry.bspline import evaluate, grid_points
-    from bsrt.geometry.trim_table import build_trim_table
+    from bsrt.geometry.trim_table import build_trim_table, loop_points
     from bsrt.kernels.trim import kept_many
 
     n = int(max(9, min(GRID, np.sqrt(MAX_POINTS / max(len(surfaces), 1)))))
@@ -41,17 +42,18 @@ def surface_points(surfaces) -> np.ndarray:
     parts = [grid_points(s, gu, gv).reshape(-1, 3) for s, (gu, gv) in zip(surfaces, grids) if not s.is_trimmed]
     trimmed = [(s, g) for s, g in zip(surfaces, grids) if s.is_trimmed]
     if trimmed:
-        u = np.concatenate([np.repeat(gu, gv.size) for _, (gu, gv) in trimmed])
-        v = np.concatenate([np.tile(gv, gu.size) for _, (gu, gv) in trimmed])
-        sizes = [gu.size * gv.size for _, (gu, gv) in trimmed]
         table = build_trim_table([s for s, _ in trimmed])
-        keep = kept_many(table, np.repeat(np.arange(len(trimmed)), sizes), u, v)
-        starts = np.cumsum([0] + sizes)
+        u = np.concatenate([np.repeat(gu, n) for _, (gu, gv) in trimmed])
+        v = np.concatenate([np.tile(gv, n) for _, (gu, gv) in trimmed])
+        keep = kept_many(table, np.repeat(np.arange(len(trimmed)), n * n), u, v).reshape(len(trimmed), n * n)
+        owner, lu, lv = loop_points(table)
+        order = np.argsort(owner, kind="stable")
+        starts = np.searchsorted(owner[order], np.arange(len(trimmed) + 1))
         for m, (surf, (gu, gv)) in enumerate(trimmed):
-            parts.append(grid_points(surf, gu, gv).reshape(-1, 3)[keep[starts[m] : starts[m + 1]]])
-            uv = np.concatenate([c.evaluate(np.linspace(*c.domain, 33)) for loop in surf.trims for c in loop.curves])
+            parts.append(grid_points(surf, gu, gv).reshape(-1, 3)[keep[m]])
+            at = order[starts[m] : starts[m + 1]]
             (u0, u1), (v0, v1) = surf.domain_u, surf.domain_v
-            parts.append(evaluate(surf, np.clip(uv[:, 0], u0, u1), np.clip(uv[:, 1], v0, v1))[0])
+            parts.append(evaluate(surf, np.clip(lu[at], u0, u1), np.clip(lv[at], v0, v1))[0])
     return np.concatenate(parts)
 
 
@@ -112,6 +114,8 @@ def fit_camera(
     r /= np.linalg.norm(r)
     u = np.cross(r, f)
     x, y, z = rel @ r, rel @ u, rel @ f
+    keep = np.union1d(hull_vertices(z, x), hull_vertices(z, y))  # every max below is at one of them
+    x, y, z = x[keep], y[keep], z[keep]
     aspect = width / height
     ty = np.tan(np.radians(fov) / 2.0)
     kx, ky = FILL * ty * aspect, FILL * ty
@@ -129,6 +133,43 @@ def fit_camera(
     d = max(float(np.max(np.abs(x - sx) / kx - z)), float(np.max(np.abs(y - sy) / ky - z)), 1e-9 * size)
     look = centre + sx * r + sy * u
     return Camera(look - d * f, look, np.asarray(cam_up, dtype=np.float64), float(fov), "y")
+
+
+def hull_vertices(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Indices (sorted, int64) of points (a, b), (N,) each, that include every vertex of their
+    convex hull: the points that can maximise a linear function of (a, b), or (b - s) / (a + d)
+    (the tangent of the angle under which a point of the plane, with every point in front of it,
+    sees them: a projection's extent). Points inside or on the polygon of the extreme points
+    along a few directions, other than its corners, are dropped first (Akl and Toussaint's
+    filter, twice: HULL_DIRECTIONS, then 8 times as many on what is left), and the rest go
+    through Andrew's monotone chain."""
+    rest = np.arange(a.size)
+    for count in (HULL_DIRECTIONS, 8 * HULL_DIRECTIONS):
+        if rest.size <= count:
+            break
+        x, y = a[rest], b[rest]
+        angles = np.linspace(0.0, 2.0 * np.pi, count, endpoint=False)
+        corners = np.unique(np.argmax(np.cos(angles)[:, None] * x + np.sin(angles)[:, None] * y, axis=1))
+        if corners.size < 3:  # on a line: nothing is inside
+            break
+        ring = corners[np.argsort(np.arctan2(y[corners] - y[corners].mean(), x[corners] - x[corners].mean()))]
+        inside = np.ones(rest.size, dtype=bool)
+        for i, j in zip(ring, np.roll(ring, -1)):  # counter-clockwise
+            inside &= (x[j] - x[i]) * (y - y[i]) - (y[j] - y[i]) * (x - x[i]) >= 0.0
+        inside[ring] = False  # on the polygon's edges only its corners can be hull vertices
+        rest = rest[~inside]
+    rest = rest[np.lexsort((b[rest], a[rest]))]
+    chain: list[int] = []
+    for sweep in (rest, rest[::-1]):  # lower hull left to right, then upper hull back
+        start = len(chain)
+        for k in sweep.tolist():
+            while len(chain) - start >= 2:
+                i, j = chain[-2], chain[-1]
+                if (a[j] - a[i]) * (b[k] - b[i]) - (b[j] - b[i]) * (a[k] - a[i]) > 0.0:
+                    break
+                chain.pop()
+            chain.append(k)
+    return np.unique(np.asarray(chain, dtype=np.int64))
 
 
 def studio_lights(points_or_box, camera: Camera) -> tuple[Light, ...]:
