@@ -382,6 +382,7 @@ def test_stats_show_the_load_stage(folder, tmp_path, step, capsys):
         stats = json.loads(capsys.readouterr().out)
         load = stats["load"]
         assert load["cached"] is cached and load["files"] == 1 and 0 < load["seconds"] < 60
+        assert 0 < load["framing_seconds"] < 60  # a model file alone: the automatic camera framed it
         if cached:
             assert "faces_converted" not in load
         else:

@@ -16,7 +16,8 @@ class LoadRecord:
     seconds: the whole :func:`load_model` call. cached: whether the model came
     from the converted-model cache. faces: (converted, total) as the reader
     last reported them through its progress callback, or None (a reader that
-    does not report, or a cached load).
+    does not report, or a cached load). framing_seconds: the automatic camera's fit to the
+    model (``bsrt.scene.scene_for_model``), where it was framed.
     """
 
     path: str
@@ -24,6 +25,7 @@ class LoadRecord:
     seconds: float
     cached: bool
     faces: tuple[int, int] | None = None
+    framing_seconds: float | None = None
 
 
 @dataclass

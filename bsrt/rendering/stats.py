@@ -44,7 +44,8 @@ class Stats:
 def load_entry(loads) -> dict | None:
     """--stats' "load" for the model files a scene was made from (None: it loaded none):
     seconds (all of them), files, cached (every one came from the model cache), and
-    faces_converted / faces_total where the readers reported them (OpenCASCADE, not cached)."""
+    faces_converted / faces_total where the readers reported them (OpenCASCADE, not cached),
+    framing_seconds where the automatic camera was fitted to a model."""
     loads = [r for r in loads if r is not None]
     if not loads:
         return None
@@ -53,4 +54,7 @@ def load_entry(loads) -> dict | None:
     if counted:
         entry["faces_converted"] = sum(done for done, _ in counted)
         entry["faces_total"] = sum(total for _, total in counted)
+    framed = [r.framing_seconds for r in loads if r.framing_seconds is not None]
+    if framed:
+        entry["framing_seconds"] = sum(framed)
     return entry

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 
 from bsrt import validate
@@ -33,6 +36,7 @@ def scene_for_model(
     """
     if fov is not None:
         validate.fov(fov, "--fov")
+    clock = time.perf_counter()
     points = surface_points(model.surfaces)
     up = np.asarray(up, dtype=np.float64)
     if np.linalg.norm(up) == 0:
@@ -59,6 +63,9 @@ def scene_for_model(
         raise InputError(f"{model.path}: {'the automatic ' if automatic else ''}{exc}") from None
     camera = Camera(eye, look, up, fov, "y")
     lights = studio_lights(points, camera)
+    load = getattr(model, "load", None)
+    if load is not None:
+        load = dataclasses.replace(load, framing_seconds=time.perf_counter() - clock)
     materials = [MODEL_MATERIAL]
     colored = _colour_materials(model, materials, MODEL_MATERIAL, "") or [None] * len(model.surfaces)
     flips = model.reversed or [False] * len(model.surfaces)
@@ -76,5 +83,5 @@ def scene_for_model(
         str(model.path),
         notes,
         (str(model.path),),
-        loads=(model.load,) if getattr(model, "load", None) is not None else (),
+        loads=(load,) if load is not None else (),
     )
