@@ -36,6 +36,20 @@ CONE_MAX_DEGREE = 8
 
 
 @njit(cache=True, no_cpython_wrapper=True)
+def _extent(net, i0, i1, j0, j1):
+    """The diagonal of the box of the projected points net[i0:i1+1, j0:j1+1] (a row or a column)."""
+    lo0 = lo1 = lo2 = np.inf
+    hi0 = hi1 = hi2 = -np.inf
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            w = net[i, j, 3]
+            x0, x1, x2 = net[i, j, 0] / w, net[i, j, 1] / w, net[i, j, 2] / w
+            lo0, lo1, lo2 = min(lo0, x0), min(lo1, x1), min(lo2, x2)
+            hi0, hi1, hi2 = max(hi0, x0), max(hi1, x1), max(hi2, x2)
+    return np.sqrt((hi0 - lo0) ** 2 + (hi1 - lo1) ** 2 + (hi2 - lo2) ** 2)
+
+
+@njit(cache=True, no_cpython_wrapper=True)
 def measures(net, p, q):
     """(dev, dev_u, dev_v, twist, size) of one homogeneous net ([:p+1, :q+1, 4])."""
     dev = dev_u = dev_v = 0.0
@@ -77,21 +91,21 @@ def measures(net, p, q):
             + net[p, q, k] / net[p, q, 3]
         ) ** 2
     twist = 0.25 * np.sqrt(twist)
-    if uneven:  # uneven weights bend the parametrisation even of a flat piece
-        spread_u = spread_v = 0.0
-        for j in range(q + 1):
+    if uneven:  # uneven weights bend the parametrisation even of a flat piece, along their line
+        bend_u = bend_v = 0.0
+        for j in range(q + 1):  # the rows (along u): their spread of weights times their extent
             wl, wh = np.inf, 0.0
             for i in range(p + 1):
                 wl, wh = min(wl, net[i, j, 3]), max(wh, net[i, j, 3])
-            spread_u = max(spread_u, wh / wl - 1.0)
-        for i in range(p + 1):
+            bend_u = max(bend_u, (wh / wl - 1.0) * _extent(net, 0, p, j, j))
+        for i in range(p + 1):  # the columns (along v)
             wl, wh = np.inf, 0.0
             for j in range(q + 1):
                 wl, wh = min(wl, net[i, j, 3]), max(wh, net[i, j, 3])
-            spread_v = max(spread_v, wh / wl - 1.0)
-        dev_u += spread_u * size
-        dev_v += spread_v * size
-        dev += max(spread_u, spread_v) * size
+            bend_v = max(bend_v, (wh / wl - 1.0) * _extent(net, i, i, 0, q))
+        dev_u += bend_u
+        dev_v += bend_v
+        dev += max(bend_u, bend_v)
     return dev, dev_u, dev_v, twist, size
 
 

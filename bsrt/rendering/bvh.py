@@ -20,10 +20,15 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
        dev_u = max_ij |P_ij - ((1 - i/p) P_0j + (i/p) P_pj)|     (rows)
        dev_v = max_ij |P_ij - ((1 - j/q) P_i0 + (j/q) P_iq)|     (columns)
 
-   For a rational piece, the spread of its weights adds
-   ``(max w / min w - 1) * diag`` (diag = diagonal of the piece's box; per
-   row/column for the directional measures), since uneven weights bend the
-   parametrisation even of a flat piece. A piece is a leaf when
+   For a rational piece, the spread of its weights along each row (along u)
+   adds ``(max w / min w - 1) * extent`` (extent = the diagonal of that
+   row's points' box; the largest over the rows, to dev_u and dev), and the
+   same along each column to dev_v and dev, since uneven weights bend the
+   parametrisation even of a flat piece, along the line where they vary.
+   (It was the spread times the whole piece's diagonal: a long thin
+   rational cylinder, 70 across and 1,140 long, was cut into 1,159 slivers
+   of 0.3 degrees instead of 35 pieces, and the 1,018-face 11752.stp had
+   206 k leaves, 192 MB cached, instead of 27 k.) A piece is a leaf when
    ``dev <= flatness * scene_diagonal`` or it has been cut ``max_depth``
    times; otherwise it is cut across the direction with the larger
    directional measure. dev is zero exactly when the piece *is* the bilinear
