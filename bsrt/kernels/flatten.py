@@ -414,23 +414,32 @@ def leaf_boxes(start, stop, patch_net, piece_net, row, degree, padding, box_min,
     degree (L, 2) fills their corner."""
     axes = np.empty((3, 3))
     lo, hi = np.empty(3), np.empty(3)
-    corner = np.empty((4, 3))
+    du, dv = np.empty(3), np.empty(3)
     for n in range(start, stop):
         net = leaf_net(patch_net, piece_net, row, n)
         p, q = degree[n, 0], degree[n, 1]
-        for c, (i, j) in enumerate(((0, 0), (p, 0), (0, q), (p, q))):
+        for k in range(3):  # (P10 + P11 - P00 - P01) and (P01 + P11 - P00 - P10), projected corners
+            c00, cp0 = net[0, 0, k] / net[0, 0, 3], net[p, 0, k] / net[p, 0, 3]
+            c0q, cpq = net[0, q, k] / net[0, q, 3], net[p, q, k] / net[p, q, 3]
+            du[k] = cp0 + cpq - c00 - c0q
+            dv[k] = c0q + cpq - c00 - cp0
+        n0 = du[1] * dv[2] - du[2] * dv[1]
+        n1 = du[2] * dv[0] - du[0] * dv[2]
+        n2 = du[0] * dv[1] - du[1] * dv[0]
+        lu = np.sqrt(du[0] * du[0] + du[1] * du[1] + du[2] * du[2])
+        ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        lv = np.sqrt(dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2])
+        if lu > 0 and ln > 1e-12 * max(lu, 1e-300) * lv:
             for k in range(3):
-                corner[c, k] = net[i, j, k] / net[i, j, 3]
-        du = corner[1] + corner[3] - corner[0] - corner[2]
-        dv = corner[2] + corner[3] - corner[0] - corner[1]
-        normal = np.cross(du, dv)
-        lu, ln = np.sqrt(np.sum(du * du)), np.sqrt(np.sum(normal * normal))
-        if lu > 0 and ln > 1e-12 * max(lu, 1e-300) * np.sqrt(np.sum(dv * dv)):
-            axes[0] = du / lu
-            axes[2] = normal / ln
-            axes[1] = np.cross(axes[2], axes[0])
+                axes[0, k] = du[k] / lu
+            axes[2, 0], axes[2, 1], axes[2, 2] = n0 / ln, n1 / ln, n2 / ln
+            axes[1, 0] = axes[2, 1] * axes[0, 2] - axes[2, 2] * axes[0, 1]
+            axes[1, 1] = axes[2, 2] * axes[0, 0] - axes[2, 0] * axes[0, 2]
+            axes[1, 2] = axes[2, 0] * axes[0, 1] - axes[2, 1] * axes[0, 0]
         else:
-            axes[:] = np.eye(3)
+            for a in range(3):
+                for k in range(3):
+                    axes[a, k] = 1.0 if a == k else 0.0
         for k in range(3):
             lo[k], hi[k] = np.inf, -np.inf
             box_min[n, k], box_max[n, k] = np.inf, -np.inf
