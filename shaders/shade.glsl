@@ -140,8 +140,9 @@ void main() {
         if (cos_l > 0.0LF) {  // else facing away: no shadow ray, nothing added
             rays += 1;
             double length = sqrt(l.x * l.x + l.y * l.y + l.z * l.z);  // the tracer's own normalisation (Rays)
+            int its;
             int blocked = occluded(p, dvec3(l.x / length, l.y / length, l.z / length), dist, shadow_tol,
-                                   shadow_iterations, cull_tol, budget, surface, dvec4(u, v, ru, rv));
+                                   shadow_iterations, cull_tol, budget, surface, dvec4(u, v, ru, rv), its);
             if (blocked == -2) exhausted += 1;
             if (blocked != 1) {  // visible
                 double specular = look_reals[off_specular + m], shininess = look_reals[off_shininess + m];

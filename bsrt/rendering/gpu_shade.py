@@ -2,7 +2,8 @@
 
 ``occluded_gpu`` answers, for shadow rays given as arrays, what the CPU's
 any-hit walk (kernels/lighting.py's occluded; bvh.intersect with any_hit)
-answers: blocked or not, and which rays spent their budget (taken as lit).
+answers: blocked or not, which rays spent their budget (taken as lit), and
+the Newton iterations each took.
 ``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
 per hierarchy beside the patch table (gpu.uploaded).
@@ -16,6 +17,7 @@ import moderngl
 import numpy as np
 
 from bsrt import interrupts
+from bsrt.kernels.crossings import ROUNDING
 from bsrt.kernels.hierarchy import BVHArrays
 from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
 from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
@@ -58,6 +60,7 @@ def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = D
         f"STACK {STACK}",
         f"GRAZING_COSINE {GRAZING_COSINE!r}LF",
         f"RECT_SLACK {RECT_SLACK!r}LF",
+        f"ROUNDING {ROUNDING!r}LF",
         f"LIGHT_AMBIENT {LIGHT_KINDS['ambient']}",
         f"LIGHT_POINT {LIGHT_KINDS['point']}",
         "POLE_STEPS double[](" + ", ".join(f"{s!r}LF" for s in POLE_STEPS) + ")",
@@ -90,7 +93,7 @@ def occluded_gpu(
     tolerance: float,
     exclude=None,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Any-hit shadow rays on ctx (OpenGL 4.5 with float64: gpu.choose_device).
 
     origins, directions: (N, 3) float64 (directions of unit length); t_max:
@@ -98,7 +101,8 @@ def occluded_gpu(
     exclude: (surface, u, v, radius_u, radius_v), each (N,), the root each ray
     starts from (bvh.intersect's). Returns (blocked (N,) bool, exhausted (N,)
     bool: not blocked within the budget, taken as lit), what bvh.intersect
-    with any_hit and max_iterations (Newton's per piece) answers on the CPU."""
+    with any_hit and max_iterations (Newton's per piece) answers on the CPU,
+    and iterations (N,) int64: each ray's Newton iterations."""
     d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
     n = d.shape[0]
     rays = np.zeros((n, 12))
@@ -109,10 +113,9 @@ def occluded_gpu(
     if exclude is not None:
         for c, a in enumerate(exclude, start=7):
             rays[:, c] = a
-    answer = np.empty(n, dtype=np.int32)
+    answer = np.zeros((n, 2), dtype=np.int32)  # occluded's answer, iterations
     if n == 0 or bvh.leaf_total == 0:
-        answer[:] = 0
-        return answer == 1, answer == -2
+        return answer[:, 0] == 1, answer[:, 0] == -2, answer[:, 1].astype(np.int64)
     with ctx:
         shader = hierarchy_shader(ctx, "shadow", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
@@ -122,18 +125,18 @@ def occluded_gpu(
             buffers = []
             try:
                 buffers.append(ctx.buffer(rays[first : first + count].tobytes()))
-                buffers.append(ctx.buffer(reserve=4 * count))
+                buffers.append(ctx.buffer(reserve=8 * count))
                 buffers[0].bind_to_storage_buffer(2)
                 buffers[1].bind_to_storage_buffer(3)
                 set_uniform(shader, "ray_count", count)
                 gpu.run(ctx, shader, count)
                 ctx.memory_barrier()
-                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32)
+                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32).reshape(count, 2)
             finally:
                 for buffer in buffers:
                     buffer.release()
             interrupts.safe_point()
-    return answer == 1, answer == -2
+    return answer[:, 0] == 1, answer[:, 0] == -2, answer[:, 1].astype(np.int64)
 
 
 LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
