@@ -12,6 +12,13 @@
 // loops leave by their conditions, never by return, break or continue inside
 // (with those, Mesa 22's llvmpipe mixed up the lanes of a SIMD group whose
 // invocations left at different points: some then skipped their next light).
+// llvmpipe also ends every loop of an invocation once all its loops together
+// have turned 65,535 times (gallivm's loop limiter, LP_MAX_TGSI_LOOP_ITERATIONS,
+// one count shared by every loop of a shader): from then on each loop stops
+// after one turn, silently. A long walk (a water-lily shadow ray of 643 Newton
+// iterations) ran into it and missed its blocker; occluded answers -3 where the
+// count ran out and the ray was not found blocked, and the host traces those
+// rays on the CPU (gpu_shade.py). A GPU has no such limit.
 //
 // The hierarchy (rendering/bvh.py's BVHArrays, packed by
 // rendering/gpu_shade.py) lies in storage buffers 6 (float64) and 7 (int32),
@@ -25,6 +32,7 @@ layout(std430, binding = 7) readonly buffer HierarchyInts { int hier_ints[]; };
 uniform int off_node_bounds, off_leaf_rect, off_leaf_obb, off_patch_net, off_leaf_net;
 uniform int off_node_left, off_node_right, off_node_first, off_node_count, off_leaf_surface, off_leaf_net_row;
 uniform int off_leaf_degree, off_leaf_planar, off_leaf_kept;
+uniform int canary_turns;  // 2 (gpu_shade.hierarchy_shader): a uniform, so loops_whole's loop is not unrolled
 
 #define SCRATCH (4 * RETRY_DEPTH + 8)
 #define NET_SIZE (NET_PM * NET_QM * 4)
@@ -36,6 +44,14 @@ dvec4 rects[SCRATCH];
 int depths[SCRATCH];
 double tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
 int stack[STACK];
+
+// Have this invocation's loops all run their course? (false: llvmpipe's loop limiter ran out, the
+// file's head) A loop of canary_turns turns that ends after one tells.
+bool loops_whole() {
+    int k = 0;
+    while (k < canary_turns) k += 1;
+    return k == canary_turns;
+}
 
 // Entry and exit distances of a ray (origin, inverse direction) into node's box.
 dvec2 slab(int node, dvec3 o, dvec3 inv) {
@@ -272,7 +288,8 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
 }
 
 // Any-hit shadow ray from o along the unit d with 0 < t < t_max (lighting.occluded): 1 blocked,
-// 0 not, -2 not blocked within budget Newton iterations (taken as lit, counted as out of budget).
+// 0 not, -2 not blocked within budget Newton iterations (taken as lit, counted as out of budget),
+// -3 not found blocked before llvmpipe's loop limiter ran out (not settled: the file's head).
 // ex_m, ex: the start root's surface and (u, v, radius u, radius v) (ex_m -1: none). iterations:
 // Newton's, in all.
 int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cull_tol, int budget, int ex_m,
@@ -335,5 +352,5 @@ int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cu
             }
         }
     }
-    return result;
+    return result != 1 && !loops_whole() ? -3 : result;
 }

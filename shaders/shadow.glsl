@@ -14,7 +14,7 @@ layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 // 12 per ray: origin (3), unit direction (3), t_max, the start root's surface (-1: none), u, v,
 // radius u, radius v (the exclusion box of traverse.Exclusion)
 layout(std430, binding = 2) readonly buffer ShadowRays { double shadow_rays[]; };
-layout(std430, binding = 3) writeonly buffer Blocked { int blocked[]; };  // 2 per ray: occluded's answer, iterations
+layout(std430, binding = 3) writeonly buffer Blocked { int blocked[]; };  // 2 per ray: occluded's answer (-3: to the CPU), iterations
 
 uniform int ray_count;  // in this dispatch
 uniform double shadow_tol;

@@ -77,13 +77,11 @@ def test_a_square_shadows_the_plane_under_it():
     assert _context().error == "GL_NO_ERROR"
 
 
-def _shadow_rays(result, lights):
-    """Per non-ambient light of a CPU render: (origins, directions, t_max, exclusion)
-    of the shadow rays its hits send (the points facing the light),
+def _shadow_rays(geometry, hits, rays, lights):
+    """Per non-ambient light: (origins, directions, t_max, exclusion) of the shadow rays
+    that hits (of the camera rays along rays (K, 3)) send (the points facing the light),
     as rendering/pipeline.py's shading sends them."""
-    geometry, hits, options = result.geometry, result.hits, result.options
-    size = result.pixels.shape[:2]
-    position, normal, speed = facing_frames(geometry.patches, hits, pixel_rays(options.camera, size[1], size[0]))
+    position, normal, speed = facing_frames(geometry.patches, hits, rays)
     h = np.flatnonzero(hits.hit)
     eps = 1e-6 * geometry.diagonal
     bounds = geometry.patches.arrays.bounds[hits.patch[h]]
@@ -111,7 +109,9 @@ def test_shadow_rays_agree_with_the_cpu_walk(path):
     geometry = result.geometry
     tolerance = result.options.tolerance * geometry.diagonal
     rays = 0
-    for origins, directions, t_max, exclusion in _shadow_rays(result, scene.lights):
+    h, w = result.pixels.shape[:2]
+    camera_rays = pixel_rays(result.options.camera, w, h)
+    for origins, directions, t_max, exclusion in _shadow_rays(geometry, result.hits, camera_rays, scene.lights):
         cpu = geometry.intersect(
             origins, directions, t_min=0.0, t_max=t_max, tolerance=tolerance, exclude=exclusion, any_hit=True
         )
@@ -125,20 +125,15 @@ def test_shadow_rays_agree_with_the_cpu_walk(path):
     assert _context().error == "GL_NO_ERROR"
 
 
-def _shade_inputs(scene, result):
-    """shade_hits' arguments for a render's pixel-centre hits, as rendering/pipeline.py passes them."""
-    from bsrt.scene.camera import pixel_rays
-
-    options = result.options
-    h, w = result.pixels.shape[:2]
+def _look(scene, options):
+    """shade_hits' (materials, lights, background), as rendering/pipeline.py passes them."""
     materials = (
         np.array([m.color for m in scene.materials], dtype=np.float64).reshape(-1, 3),
         np.array([m.specular for m in scene.materials], dtype=np.float64),
         np.array([m.shininess for m in scene.materials], dtype=np.float64),
     )
     background = np.array(options.background, dtype=np.float64).reshape(3)
-    directions = np.ascontiguousarray(pixel_rays(options.camera, w, h))
-    return directions, materials, light_arrays(scene.lights), background
+    return materials, light_arrays(scene.lights), background
 
 
 LIGHTING_CASES = [(p, 64) for p in SOURCES + [ROOT / "scenes" / "bench-64.toml"]] + [
@@ -162,7 +157,8 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
     scene = bsrt.load(path)
     result = bsrt.render(scene, width=size, height=size, spp=1, adaptive_spp=0, device="cpu")
     geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
-    directions, materials, lights, background = _shade_inputs(scene, result)
+    directions = np.ascontiguousarray(pixel_rays(result.options.camera, size, size))
+    materials, lights, background = _look(scene, result.options)
     tolerance, eps, n = result.options.tolerance * geometry.diagonal, 1e-6 * geometry.diagonal, len(hits)
 
     def outputs():
@@ -204,3 +200,47 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     assert on_gpu.stats["reflection_rays"] == cpu.stats["reflection_rays"] > 0
     np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
     assert np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max() <= 1
+
+
+def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu():
+    """Water-lily at 256 x 256, pixel (row 123, column 66), sub-sample (0.75, 0.25) of
+    --adaptive-spp 4: its shadow ray toward the first light is blocked by surface 5 at
+    t = 0.673 (|cos| 0.94 there, residual 8e-12, inside the surface), found after 703
+    Newton iterations; on llvmpipe the walk's loops ran into Mesa's loop limiter
+    (anyhit.glsl's head) before that piece and the ray came out lit, 14/255 off. Left
+    unsettled, it is traced on the CPU: blocked, and its hit shaded as the kernel does."""
+    from bsrt.kernels.lighting import shade_hits
+    from bsrt.kernels.threads import run_chunks
+    from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
+    from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import Geometry
+    from bsrt.rendering.screen import film_rays
+
+    scene = bsrt.load(ROOT / "scenes" / "water-lily.toml")
+    options = RenderOptions.resolve(scene, width=256, height=256)
+    geometry = Geometry(scene)
+    tolerance = options.tolerance * geometry.diagonal
+    camera_rays = film_rays(options.camera, 256, 256, np.array([[66.75, 123.25]]))
+    hits = geometry.intersect(np.asarray(options.camera.eye)[None, :], camera_rays, tolerance=tolerance)
+    assert hits.hit.all()
+    origins, directions, t_max, exclusion = next(_shadow_rays(geometry, hits, camera_rays, scene.lights))
+    cpu = geometry.intersect(origins, directions, t_max=t_max, tolerance=tolerance, exclude=exclusion, any_hit=True)
+    blocked, _, iterations = gpu_shade.occluded_gpu(_context(), geometry.bvh, origins, directions, t_max, tolerance,
+                                                    exclusion)  # fmt: skip
+    assert cpu.hit.all() and blocked.all() and iterations[0] > 500
+    materials, lights, background = _look(scene, options)
+    n, bvh, eps = 1, geometry.bvh, 1e-6 * geometry.diagonal
+    want, got = (
+        tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + tuple(np.empty(n, dtype=np.int64) for _ in "ab")
+        for _ in "ab"
+    )
+    run_chunks(
+        shade_hits, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch, hits.surface,
+        hits.u, hits.v, camera_rays, geometry.material, *materials, *lights, background, eps, float(tolerance), 16,
+        DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), *want,
+    )  # fmt: skip
+    gpu_shade.shade_hits_gpu(
+        _context(), bvh, hits, camera_rays, geometry.material, materials, lights, background, eps, tolerance, 16, got
+    )
+    for a, b in zip(want, got):
+        np.testing.assert_array_equal(b, a)

@@ -6,7 +6,10 @@ answers: blocked or not, which rays spent their budget (taken as lit), and
 the Newton iterations each took.
 ``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
-per hierarchy beside the patch table (gpu.uploaded).
+per hierarchy beside the patch table (gpu.uploaded). ``shade_hits_gpu`` is
+kernels/lighting.py's shade_hits by ``shaders/shade.glsl``. The rays a
+software renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's
+head) are traced, and their hits shaded, by those CPU kernels instead.
 """
 
 from __future__ import annotations
@@ -19,10 +22,12 @@ import numpy as np
 from bsrt import interrupts
 from bsrt.kernels.crossings import ROUNDING
 from bsrt.kernels.hierarchy import BVHArrays
+from bsrt.kernels.lighting import shade_hits
 from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
+from bsrt.kernels.threads import run_chunks
 from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
 from bsrt.rendering import gl, gpu
-from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, ray_budget
+from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, intersect, ray_budget
 from bsrt.rendering.gpu import Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
 
 
@@ -72,6 +77,7 @@ def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = D
         set_uniform(shader, f"off_{key}", offset)
     table.reals.bind_to_storage_buffer(6)
     table.ints.bind_to_storage_buffer(7)
+    set_uniform(shader, "canary_turns", 2)
     return shader
 
 
@@ -102,7 +108,8 @@ def occluded_gpu(
     starts from (bvh.intersect's). Returns (blocked (N,) bool, exhausted (N,)
     bool: not blocked within the budget, taken as lit), what bvh.intersect
     with any_hit and max_iterations (Newton's per piece) answers on the CPU,
-    and iterations (N,) int64: each ray's Newton iterations."""
+    and iterations (N,) int64: each ray's Newton iterations. The rays the
+    shader leaves unsettled (anyhit.glsl's -3) are traced by bvh.intersect."""
     d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
     n = d.shape[0]
     rays = np.zeros((n, 12))
@@ -136,6 +143,20 @@ def occluded_gpu(
                 for buffer in buffers:
                     buffer.release()
             interrupts.safe_point()
+    redo = np.flatnonzero(answer[:, 0] == -3)
+    if redo.size:
+        cpu = intersect(
+            bvh,
+            rays[redo, 0:3],
+            d[redo],
+            t_max=rays[redo, 6],
+            tolerance=tolerance,
+            max_iterations=max_iterations,
+            any_hit=True,
+            exclude=(rays[redo, 7].astype(np.int64),) + tuple(rays[redo, c] for c in range(8, 12)),
+        )
+        answer[redo, 0] = np.where(cpu.hit, 1, np.where(cpu.iterations >= ray_budget(max_iterations), -2, 0))
+        answer[redo, 1] = cpu.iterations
     return answer[:, 0] == 1, answer[:, 0] == -2, answer[:, 1].astype(np.int64)
 
 
@@ -166,7 +187,9 @@ def shade_hits_gpu(
     light_arrays; background: (3,); eps: the exclusion half-width (scene
     units); tolerance, max_iterations: the shadow rays' solve (bvh.intersect's).
     out: (colour (K, 3), position (K, 3), normal (K, 3), radius (K, 2),
-    shadow_rays (K,) int64, exhausted (K,) int64), written here."""
+    shadow_rays (K,) int64, exhausted (K,) int64), written here. The hits
+    with a shadow ray the shader leaves unsettled (anyhit.glsl's -3) are
+    shaded again by the CPU kernel."""
     colour, position, normal, radius, shadow_rays, exhausted = out
     n = len(hits)
     if n == 0:
@@ -186,6 +209,7 @@ def shade_hits_gpu(
     look_reals, look_ints, look_offsets = pack_tables([(look, "", LOOK_REAL, LOOK_INT)], {})
     hit_reals = np.column_stack([hits.u, hits.v, np.asarray(directions, dtype=np.float64).reshape(-1, 3)])
     hit_ints = np.column_stack([hits.hit, hits.patch, hits.surface]).astype(np.int32)
+    unsettled = np.zeros(n, dtype=bool)
     with ctx:
         shader = hierarchy_shader(ctx, "shade", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
@@ -209,21 +233,33 @@ def shade_hits_gpu(
                     reals[:, 6:9],
                     reals[:, 9:11],
                 )
-                shadow_rays[part], exhausted[part] = ints[:, 0], ints[:, 1]
+                shadow_rays[part], exhausted[part], unsettled[part] = ints[:, 0], ints[:, 1], ints[:, 2] != 0
                 interrupts.safe_point()
         finally:
             for buffer in tables:
                 buffer.release()
+    redo = np.flatnonzero(unsettled)
+    if redo.size:
+        again = tuple(np.empty((redo.size,) + a.shape[1:], dtype=a.dtype) for a in out)
+        P, rays = bvh.patches, np.ascontiguousarray(directions, dtype=np.float64)
+        run_chunks(
+            shade_hits, redo.size, P.arrays, P.trims, bvh.arrays, hits.hit[redo], hits.patch[redo],
+            hits.surface[redo], hits.u[redo], hits.v[redo], rays[redo], material_of, *materials, *lights,
+            background, eps, float(tolerance), max_iterations, DEFAULT_RETRY_DEPTH,
+            bvh.padding + float(tolerance), ray_budget(max_iterations), *again,
+        )  # fmt: skip
+        for whole, part in zip(out, again):
+            whole[redo] = part
 
 
 def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
-    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 2))."""
+    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 3))."""
     buffers = []
     try:
         buffers.append(ctx.buffer(np.ascontiguousarray(hit_reals).tobytes()))
         buffers.append(ctx.buffer(np.ascontiguousarray(hit_ints).tobytes()))
         buffers.append(ctx.buffer(reserve=count * 11 * 8))
-        buffers.append(ctx.buffer(reserve=count * 2 * 4))
+        buffers.append(ctx.buffer(reserve=count * 3 * 4))
         for buffer, binding in zip(buffers, (2, 3, 8, 9)):
             buffer.bind_to_storage_buffer(binding)
         set_uniform(shader, "hit_count", count)
@@ -232,7 +268,7 @@ def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
             gpu.run(ctx, shader, count)
             ctx.memory_barrier()
         reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(count, 11)
-        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 2)
+        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 3)
         return reals, ints
     finally:
         for buffer in buffers:
