@@ -209,16 +209,15 @@ int root_in(int m, dvec4 rect, bool kept, double u, double v, double t, double t
     return 1;
 }
 
-// Does piece leaf hold a valid root with 0 < t < t_max? (lighting._leaf_blocks: the oriented box,
-// the hull, then _solve_piece: Newton from the centre, quarters where it found nothing or a grazing
-// root; true at the first valid root). iterations: Newton's, added to.
-bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, double tol, int max_iter,
-                 double cull_tol, int ex_m, dvec4 ex, inout int iterations) {
-    dvec2 span = obb_slab(leaf, o, d);
-    if (!(span.x <= span.y && span.y >= 0.0LF && span.x <= t_max)) return false;
-    int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
-    load_net(leaf, 0);
-    if (!straddles(0, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
+// The valid root of piece leaf (its net in scratch slot 0, p, q its degrees) with t_min < t < t_far
+// nearest the ray's origin, or with any_hit the first found (traverse._solve_piece: Newton from the
+// centre, quarters where it found nothing or a grazing root, culled where their hull misses the ray
+// or their one crossing is the start; a grazing nearest root takes one more Newton step, not with
+// any_hit: it moves t, not the answer): found, best = (u, v, t, residual), best_k its patch.
+// iterations: Newton's, added to.
+bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_min, double t_far,
+                double tol, int max_iter, double cull_tol, int ex_m, dvec4 ex, bool any_hit, inout int iterations,
+                out dvec4 best, out int best_k) {
     int m = hier_ints[off_leaf_surface + leaf];
     int at = off_leaf_rect + 4 * leaf;
     dvec4 rect = dvec4(hier_reals[at], hier_reals[at + 1], hier_reals[at + 2], hier_reals[at + 3]);
@@ -231,31 +230,39 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
     solve_one(o, d, m, 0.5LF * (rect.x + rect.y), 0.5LF * (rect.z + rect.w), NEWTON, tol2, max_iter, true, root, k,
               ok, its, c);
     iterations += its;
-    int state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
-    if (state == 1) return true;
-    if (RETRY_DEPTH == 0 || (state != 0 && !(c < GRAZING_COSINE))) return false;
-    // the retries on quarters, depth-first, in the scratch (slot 0 holds the leaf's net)
+    int state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, t_min, t_far, ex_m, ex) : 0;
+    bool found = state == 1;
+    best = found ? root : dvec4(0.0LF, 0.0LF, packDouble2x32(uvec2(0u, 0x7ff00000u)), 0.0LF);
+    best_k = found ? k : -1;
+    double best_c = c;  // |cos| at the best root
+    // the retries on quarters, depth-first, in the scratch (slot 0 holds the leaf's net); none after a root
+    // that is not grazing, a planar piece's only when its centre start found nothing
     rects[0] = rect;
     depths[0] = 0;
-    int top = state == 0 || hier_ints[off_leaf_planar + leaf] == 0 ? 1 : 0;
-    bool found = false;
+    bool retry = RETRY_DEPTH > 0 && !(found && any_hit) && (state == 0 || c < GRAZING_COSINE);
+    int top = retry && (state == 0 || hier_ints[off_leaf_planar + leaf] == 0) ? 1 : 0;
     int s = 4, first = 0, dnext = 0;  // the quarter tried next (of first .. first + 3; none yet) and their depth
-    while (!found && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
+    while (!(found && any_hit) && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
         if (s < first + 4) {
             dvec4 sr = rects[s];
             // culled where the hull misses the ray, or where the quarter's one crossing is the start, excluded
-            if (straddles(s, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol) &&
+            if (straddles(s, p, q, o, e1, e2, d, t_min, min(t_far, best.z), cull_tol) &&
                 !(m == ex_m && holds_once(s, p, q, sr, ex.x, ex.y, o, e1, e2))) {
                 solve_one(o, d, m, 0.5LF * (sr.x + sr.y), 0.5LF * (sr.z + sr.w), NEWTON, tol2, max_iter, true, root,
                           k, ok, its, c);
                 iterations += its;
-                state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
-                found = state == 1;
+                state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, t_min, t_far, ex_m, ex) : 0;
+                if (state == 1 && root.z < best.z) {
+                    found = true;
+                    best = root;
+                    best_k = k;
+                    best_c = c;
+                }
                 // a root of this quarter: cut further only if it is grazing, not after a root that is not
                 // a hit and is the quarter's only one
                 bool again = state == 0 || (c < GRAZING_COSINE && !(state != 1 && holds_once(s, p, q, sr, root.x,
                                                                                            root.y, o, e1, e2)));
-                if (!found && again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
+                if (again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
                     if (s != top) {
                         copy_net(s, top);
                         rects[top] = rects[s];
@@ -284,7 +291,33 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
             }
         }
     }
+    if (found && !any_hit && best_c < GRAZING_COSINE) {
+        // t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the residual
+        // down to rounding; kept if it is a valid root of this piece that near
+        solve_one(o, d, m, best.x, best.y, NEWTON, 0.0LF, 2, true, root, k, ok, its, c);
+        iterations += its;
+        if (root.w < best.w && abs(root.z - best.z) * best_c <= 4.0LF * best.w &&
+            root_in(m, rect, kept, root.x, root.y, root.z, t_min, t_far, ex_m, ex) == 1) {
+            best = root;
+            best_k = k;
+        }
+    }
     return found;
+}
+
+// Does piece leaf hold a valid root with 0 < t < t_max? (lighting._leaf_blocks: the oriented box,
+// the hull, then piece_root's first root). iterations: Newton's, added to.
+bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, double tol, int max_iter,
+                 double cull_tol, int ex_m, dvec4 ex, inout int iterations) {
+    dvec2 span = obb_slab(leaf, o, d);
+    if (!(span.x <= span.y && span.y >= 0.0LF && span.x <= t_max)) return false;
+    int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
+    load_net(leaf, 0);
+    if (!straddles(0, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
+    dvec4 root;
+    int k;
+    return piece_root(leaf, p, q, o, d, e1, e2, 0.0LF, t_max, tol, max_iter, cull_tol, ex_m, ex, true, iterations,
+                      root, k);
 }
 
 // Any-hit shadow ray from o along the unit d with 0 < t < t_max (lighting.occluded): 1 blocked,

@@ -1,4 +1,4 @@
-"""Shadow rays on the GPU (bsrt/rendering/gpu_shade.py, shaders/anyhit.glsl) on a
+"""Shadow and mirror rays on the GPU (bsrt/rendering/gpu_shade.py, shaders/anyhit.glsl) on a
 real GL context: Mesa's llvmpipe here and in CI, never skipped.
 
 - a closed form: a square plane above a larger one, rays straight up from the
@@ -8,6 +8,8 @@ real GL context: Mesa's llvmpipe here and in CI, never skipped.
   IGES files toward their lights: the same answer for every ray, grazing ones
   included (the start's piece or quarter skipped where the ray crosses it at
   most once: crossings.py, ported to anyhit.glsl).
+- mirror rays (shaders/nearest.glsl, the nearest-hit walk) from the same hits:
+  the CPU's nearest hits, with the same Newton iterations.
 """
 
 from __future__ import annotations
@@ -77,10 +79,10 @@ def test_a_square_shadows_the_plane_under_it():
     assert _context().error == "GL_NO_ERROR"
 
 
-def _shadow_rays(geometry, hits, rays, lights):
-    """Per non-ambient light: (origins, directions, t_max, exclusion) of the shadow rays
-    that hits (of the camera rays along rays (K, 3)) send (the points facing the light),
-    as rendering/pipeline.py's shading sends them."""
+def _starts(geometry, hits, rays):
+    """(position (H, 3), normal (H, 3) facing the ray, exclusion: 5 (H,) arrays) of the H hits
+    of hits (of the camera rays along rays (K, 3)), as rendering/pipeline.py's shading has them
+    for the secondary rays it sends."""
     position, normal, speed = facing_frames(geometry.patches, hits, rays)
     h = np.flatnonzero(hits.hit)
     eps = 1e-6 * geometry.diagonal
@@ -88,18 +90,24 @@ def _shadow_rays(geometry, hits, rays, lights):
     with np.errstate(divide="ignore"):
         ru = np.minimum(np.where(speed[h, 0] > 0, eps / speed[h, 0], np.inf), 0.25 * (bounds[:, 1] - bounds[:, 0]))
         rv = np.minimum(np.where(speed[h, 1] > 0, eps / speed[h, 1], np.inf), 0.25 * (bounds[:, 3] - bounds[:, 2]))
+    return position[h], normal[h], (hits.surface[h], hits.u[h], hits.v[h], ru, rv)
+
+
+def _shadow_rays(geometry, hits, rays, lights):
+    """Per non-ambient light: (origins, directions, t_max, exclusion) of the shadow rays
+    that hits (of the camera rays along rays (K, 3)) send (the points facing the light),
+    as rendering/pipeline.py's shading sends them."""
+    position, normal, exclusion = _starts(geometry, hits, rays)
     kind, light_position, light_direction, _ = light_arrays(lights)
     for j in np.flatnonzero(kind != 0):
         if kind[j] == 1:
-            to_light = light_position[j] - position[h]
+            to_light = light_position[j] - position
             t_max = np.linalg.norm(to_light, axis=1)
             to_light = to_light / t_max[:, None]
         else:
-            to_light, t_max = np.tile(light_direction[j], (h.size, 1)), np.full(h.size, np.inf)
-        cosine = np.einsum("ij,ij->i", normal[h], to_light)
-        face = cosine > 0
-        exclusion = (hits.surface[h][face], hits.u[h][face], hits.v[h][face], ru[face], rv[face])
-        yield position[h][face], to_light[face], t_max[face], exclusion
+            to_light, t_max = np.tile(light_direction[j], (position.shape[0], 1)), np.full(position.shape[0], np.inf)
+        face = np.einsum("ij,ij->i", normal, to_light) > 0
+        yield position[face], to_light[face], t_max[face], tuple(a[face] for a in exclusion)
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)
@@ -244,3 +252,31 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu():
     )
     for a, b in zip(want, got):
         np.testing.assert_array_equal(b, a)
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)
+def test_mirror_rays_find_the_cpus_nearest_hits(path):
+    """Every hit of a 64 x 64 render sends a mirror ray (reflected about its normal, its start
+    excluded, as rendering/pipeline.py's bounce): shaders/nearest.glsl's walk gives the CPU's
+    nearest hit (bvh.intersect): the same hit or miss, surface and patch, t within 1e-12 of the
+    diagonal, the same Newton iterations (the same walk and per-piece solve)."""
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
+    geometry = result.geometry
+    h, w = result.pixels.shape[:2]
+    camera_rays = pixel_rays(result.options.camera, w, h)
+    position, normal, exclusion = _starts(geometry, result.hits, camera_rays)
+    d = camera_rays[result.hits.hit]
+    mirror = d - 2.0 * np.einsum("ij,ij->i", d, normal)[:, None] * normal
+    mirror /= np.linalg.norm(mirror, axis=1)[:, None]
+    tolerance = result.options.tolerance * geometry.diagonal
+    cpu = geometry.intersect(position, mirror, t_min=0.0, tolerance=tolerance, exclude=exclusion)
+    got = gpu_shade.nearest_gpu(_context(), geometry.bvh, position, mirror, 0.0, np.inf, tolerance, exclusion)
+    assert _context().error == "GL_NO_ERROR"
+    assert cpu.hit.any() == (path.stem != "quad") and not cpu.hit.all()  # a plane never sees itself
+    for name in ("hit", "surface", "patch", "iterations"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(cpu, name), err_msg=name)
+    both = cpu.hit
+    assert (np.abs(got.t[both] - cpu.t[both]) <= 1e-12 * geometry.diagonal).all()
+    np.testing.assert_allclose(got.u[both], cpu.u[both], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got.v[both], cpu.v[both], rtol=0, atol=1e-9)

@@ -7,13 +7,15 @@ the Newton iterations each took.
 ``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
 per hierarchy beside the patch table (gpu.uploaded). ``shade_hits_gpu`` is
-kernels/lighting.py's shade_hits by ``shaders/shade.glsl``. The rays a
+kernels/lighting.py's shade_hits by ``shaders/shade.glsl``; ``nearest_gpu``
+the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``. The rays a
 software renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's
 head) are traced, and their hits shaded, by those CPU kernels instead.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import moderngl
@@ -29,6 +31,7 @@ from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
 from bsrt.rendering import gl, gpu
 from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, intersect, ray_budget
 from bsrt.rendering.gpu import Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
+from bsrt.rendering.hits import Hits
 
 
 def hierarchy_arrays(arrays: BVHArrays) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -158,6 +161,83 @@ def occluded_gpu(
         answer[redo, 0] = np.where(cpu.hit, 1, np.where(cpu.iterations >= ray_budget(max_iterations), -2, 0))
         answer[redo, 1] = cpu.iterations
     return answer[:, 0] == 1, answer[:, 0] == -2, answer[:, 1].astype(np.int64)
+
+
+def nearest_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    origins,
+    directions,
+    t_min,
+    t_max,
+    tolerance: float,
+    exclude=None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+) -> Hits:
+    """Nearest hits (mirror rays) on ctx (OpenGL 4.5 with float64) by shaders/nearest.glsl: what
+    bvh.intersect answers without any_hit. origins, directions: (N, 3) float64 (unit directions);
+    t_min, t_max: (N,) or scalars, a hit needs t_min < t < t_max; tolerance: scene units; exclude:
+    (surface, u, v, radius_u, radius_v), each (N,), the root each ray starts from. Returns Hits
+    (N,). The rays the shader leaves unsettled (llvmpipe's loop limiter) are traced by bvh.intersect."""
+    d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    n = d.shape[0]
+    rays = np.zeros((n, 13))
+    rays[:, 0:3] = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), (n, 3))
+    rays[:, 3:6] = d
+    rays[:, 6] = np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,))
+    rays[:, 7] = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
+    rays[:, 8] = -1.0
+    if exclude is not None:
+        for c, a in enumerate(exclude, start=8):
+            rays[:, c] = a
+    hits = Hits.empty(n)
+    if n == 0 or bvh.leaf_total == 0:
+        return hits
+    reals, ints = np.empty((n, 4)), np.empty((n, 3), dtype=np.int32)
+    with ctx:
+        shader = hierarchy_shader(ctx, "nearest", bvh)
+        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
+        step = gpu.dispatch_size(ctx)
+        for first in range(0, n, step):
+            part = slice(first, min(n, first + step))
+            count = part.stop - part.start
+            buffers = []
+            try:
+                buffers.append(ctx.buffer(rays[part].tobytes()))
+                buffers.append(ctx.buffer(reserve=32 * count))
+                buffers.append(ctx.buffer(reserve=12 * count))
+                for binding, buffer in enumerate(buffers, start=2):
+                    buffer.bind_to_storage_buffer(binding)
+                set_uniform(shader, "ray_count", count)
+                gpu.run(ctx, shader, count)
+                ctx.memory_barrier()
+                reals[part] = np.frombuffer(buffers[1].read(), dtype=np.float64).reshape(count, 4)
+                ints[part] = np.frombuffer(buffers[2].read(), dtype=np.int32).reshape(count, 3)
+            finally:
+                for buffer in buffers:
+                    buffer.release()
+            interrupts.safe_point()
+    hit = np.flatnonzero(ints[:, 0] == 1)
+    hits.hit[hit] = True
+    hits.u[hit], hits.v[hit], hits.t[hit], hits.residual[hit] = reals[hit].T
+    hits.patch[hit] = ints[hit, 1]
+    hits.surface[hit] = bvh.patches.surface[ints[hit, 1]]
+    hits.iterations[:] = ints[:, 2]
+    redo = np.flatnonzero(ints[:, 0] == -3)
+    if redo.size:
+        cpu = intersect(
+            bvh,
+            rays[redo, 0:3],
+            d[redo],
+            t_min=rays[redo, 6],
+            t_max=rays[redo, 7],
+            tolerance=tolerance,
+            max_iterations=max_iterations,
+            exclude=(rays[redo, 8].astype(np.int64),) + tuple(rays[redo, c] for c in range(9, 13)),
+        )
+        for field in dataclasses.fields(Hits):
+            getattr(hits, field.name)[redo] = getattr(cpu, field.name)
+    return hits
 
 
 LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
