@@ -6,9 +6,9 @@
 // _obb_slab, and kernels/crossings.py's crosses_once and holds_once (their
 // docstrings explain each step), without the hint (the
 // leaf that blocked the previous ray of a CPU slice, tried first there: it
-// changes the order pieces are tried in, not whether a ray is blocked) and
-// without the final Newton step on a grazing root (it moves t, not the
-// answer). The CPU kernels are the reference the tests hold this to. The
+// changes the order pieces are tried in, not whether a ray is blocked) and,
+// for shadow rays, without the final Newton step on a grazing root (it moves
+// t, not the answer; nearest.glsl's mirror rays take it). The CPU kernels are the reference the tests hold this to. The
 // loops leave by their conditions, never by return, break or continue inside
 // (with those, Mesa 22's llvmpipe mixed up the lanes of a SIMD group whose
 // invocations left at different points: some then skipped their next light).
@@ -17,8 +17,9 @@
 // one count shared by every loop of a shader): from then on each loop stops
 // after one turn, silently. A long walk (a water-lily shadow ray of 643 Newton
 // iterations) ran into it and missed its blocker; occluded answers -3 where the
-// count ran out and the ray was not found blocked, and the host traces those
-// rays on the CPU (gpu_shade.py). A GPU has no such limit.
+// count ran out and the ray was not found blocked (nearest.glsl where it ran
+// out at all), and the host traces those rays on the CPU (gpu_shade.py). A GPU
+// has no such limit.
 //
 // The hierarchy (rendering/bvh.py's BVHArrays, packed by
 // rendering/gpu_shade.py) lies in storage buffers 6 (float64) and 7 (int32),
