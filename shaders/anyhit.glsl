@@ -3,20 +3,29 @@
 // #version here), after patches.glsl, trim64.glsl and solve_core.glsl. A
 // line-by-line port of bsrt/kernels/lighting.py's occluded (the walk) and
 // kernels/traverse.py's _solve_piece, _root_in, _straddles, _slab and
-// _obb_slab (their docstrings explain each step), without the hint (the
+// _obb_slab, and kernels/crossings.py's crosses_once and holds_once (their
+// docstrings explain each step), without the hint (the
 // leaf that blocked the previous ray of a CPU slice, tried first there: it
-// changes the order pieces are tried in, not whether a ray is blocked) and
-// without the final Newton step on a grazing root (it moves t, not the
-// answer). The CPU kernels are the reference the tests hold this to. The
+// changes the order pieces are tried in, not whether a ray is blocked) and,
+// for shadow rays, without the final Newton step on a grazing root (it moves
+// t, not the answer; nearest.glsl's mirror rays take it). The CPU kernels are the reference the tests hold this to. The
 // loops leave by their conditions, never by return, break or continue inside
 // (with those, Mesa 22's llvmpipe mixed up the lanes of a SIMD group whose
 // invocations left at different points: some then skipped their next light).
+// llvmpipe also ends every loop of an invocation once all its loops together
+// have turned 65,535 times (gallivm's loop limiter, LP_MAX_TGSI_LOOP_ITERATIONS,
+// one count shared by every loop of a shader): from then on each loop stops
+// after one turn, silently. A long walk (a water-lily shadow ray of 643 Newton
+// iterations) ran into it and missed its blocker; occluded answers -3 where the
+// count ran out and the ray was not found blocked (nearest.glsl where it ran
+// out at all), and the host traces those rays on the CPU (gpu_shade.py). A GPU
+// has no such limit.
 //
 // The hierarchy (rendering/bvh.py's BVHArrays, packed by
-// rendering/gpu_shade.py) lies in storage buffers 2 (float64) and 3 (int32),
+// rendering/gpu_shade.py) lies in storage buffers 6 (float64) and 7 (int32),
 // each array at the offset its uniform names. NET_PM, NET_QM (the nets'
-// largest p + 1, q + 1), RETRY_DEPTH, STACK, GRAZING_COSINE and RECT_SLACK
-// are #defined by gpu_shade.py from the kernels' values.
+// largest p + 1, q + 1), RETRY_DEPTH, STACK, GRAZING_COSINE, RECT_SLACK and
+// ROUNDING are #defined by gpu_shade.py from the kernels' values.
 
 layout(std430, binding = 6) readonly buffer HierarchyReals { double hier_reals[]; };
 layout(std430, binding = 7) readonly buffer HierarchyInts { int hier_ints[]; };
@@ -24,6 +33,7 @@ layout(std430, binding = 7) readonly buffer HierarchyInts { int hier_ints[]; };
 uniform int off_node_bounds, off_leaf_rect, off_leaf_obb, off_patch_net, off_leaf_net;
 uniform int off_node_left, off_node_right, off_node_first, off_node_count, off_leaf_surface, off_leaf_net_row;
 uniform int off_leaf_degree, off_leaf_planar, off_leaf_kept;
+uniform int canary_turns;  // 2 (gpu_shade.hierarchy_shader): a uniform, so loops_whole's loop is not unrolled
 
 #define SCRATCH (4 * RETRY_DEPTH + 8)
 #define NET_SIZE (NET_PM * NET_QM * 4)
@@ -35,6 +45,14 @@ dvec4 rects[SCRATCH];
 int depths[SCRATCH];
 double tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
 int stack[STACK];
+
+// Have this invocation's loops all run their course? (false: llvmpipe's loop limiter ran out, the
+// file's head) A loop of canary_turns turns that ends after one tells.
+bool loops_whole() {
+    int k = 0;
+    while (k < canary_turns) k += 1;
+    return k == canary_turns;
+}
 
 // Entry and exit distances of a ray (origin, inverse direction) into node's box.
 dvec2 slab(int node, dvec3 o, dvec3 inv) {
@@ -133,6 +151,50 @@ void split_half(int src, int lo, int hi, int p, int q, int axis) {
     }
 }
 
+// Does the ray from o (frame e1, e2) meet the piece with scratch net s at most once along its whole
+// line? (crossings.crosses_once: the same arithmetic and rounding bound; the projected coefficients
+// go to the scratch's last slot, which the retries never use.) One flat loop over the pairs of
+// differences, left by its condition (the file's head says why).
+bool crosses_once(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2) {
+    int g = SCRATCH - 1;
+    double reach = 0.0LF;  // a bound on the coefficients' terms, for their rounding
+    double ro = abs(o.x) + abs(o.y) + abs(o.z);
+    for (int i = 0; i <= p; ++i) {
+        for (int j = 0; j <= q; ++j) {
+            double w = NET(s, i, j, 3);
+            precise double x = NET(s, i, j, 0) - o.x * w, y = NET(s, i, j, 1) - o.y * w, z = NET(s, i, j, 2) - o.z * w;
+            precise double gx = e1.x * x + e1.y * y + e1.z * z, gy = e2.x * x + e2.y * y + e2.z * z;
+            NET(g, i, j, 0) = gx;
+            NET(g, i, j, 1) = gy;
+            reach = max(reach, abs(NET(s, i, j, 0)) + abs(NET(s, i, j, 1)) + abs(NET(s, i, j, 2)));
+            reach = max(reach, ro * abs(w));
+        }
+    }
+    // a difference of two coefficients is off by at most slack: a determinant counts only with its
+    // sign beyond what that error can change
+    double slack = 64.0LF * ROUNDING * reach;
+    double sign = 0.0LF;
+    bool once = true;
+    int along_u = p * (q + 1), along_v = (p + 1) * q;
+    for (int n = 0; once && n < along_u * along_v; ++n) {
+        int a = n / along_v, b = n - a * along_v;  // the difference a along u, b along v
+        int i = a / (q + 1), j = a - i * (q + 1), k = b / q, m = b - k * q;
+        precise double ax = NET(g, i + 1, j, 0) - NET(g, i, j, 0), ay = NET(g, i + 1, j, 1) - NET(g, i, j, 1);
+        precise double bx = NET(g, k, m + 1, 0) - NET(g, k, m, 0), by = NET(g, k, m + 1, 1) - NET(g, k, m, 1);
+        precise double d = ax * by - ay * bx;
+        precise double margin = slack * (abs(ax) + abs(ay) + abs(bx) + abs(by) + 2.0LF * slack);
+        if (sign == 0.0LF) sign = d > 0.0LF ? 1.0LF : -1.0LF;
+        once = d * sign > margin;
+    }
+    return once && sign != 0.0LF;
+}
+
+// Does the piece in scratch net s with parameter rectangle r hold (u, v), and does the ray's line cross
+// it at most once? Then a root at (u, v) is the piece's only one (crossings.holds_once).
+bool holds_once(int s, int p, int q, dvec4 r, double u, double v, dvec3 o, dvec3 e1, dvec3 e2) {
+    return r.x <= u && u <= r.y && r.z <= v && v <= r.w && crosses_once(s, p, q, o, e1, e2);
+}
+
 // 0: not a hit; 1: a hit; 2: the excluded start root; 3: a root of the piece that is not a hit (_root_in).
 // ex: the start root's (u, v, radius u, radius v) on surface ex_m.
 int root_in(int m, dvec4 rect, bool kept, double u, double v, double t, double t_min, double t_max, int ex_m,
@@ -148,16 +210,15 @@ int root_in(int m, dvec4 rect, bool kept, double u, double v, double t, double t
     return 1;
 }
 
-// Does piece leaf hold a valid root with 0 < t < t_max? (lighting._leaf_blocks: the oriented box,
-// the hull, then _solve_piece: Newton from the centre, quarters where it found nothing or a grazing
-// root; true at the first valid root). iterations: Newton's, added to.
-bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, double tol, int max_iter,
-                 double cull_tol, int ex_m, dvec4 ex, inout int iterations) {
-    dvec2 span = obb_slab(leaf, o, d);
-    if (!(span.x <= span.y && span.y >= 0.0LF && span.x <= t_max)) return false;
-    int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
-    load_net(leaf, 0);
-    if (!straddles(0, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
+// The valid root of piece leaf (its net in scratch slot 0, p, q its degrees) with t_min < t < t_far
+// nearest the ray's origin, or with any_hit the first found (traverse._solve_piece: Newton from the
+// centre, quarters where it found nothing or a grazing root, culled where their hull misses the ray
+// or their one crossing is the start; a grazing nearest root takes one more Newton step, not with
+// any_hit: it moves t, not the answer): found, best = (u, v, t, residual), best_k its patch.
+// iterations: Newton's, added to.
+bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_min, double t_far,
+                double tol, int max_iter, double cull_tol, int ex_m, dvec4 ex, bool any_hit, inout int iterations,
+                out dvec4 best, out int best_k) {
     int m = hier_ints[off_leaf_surface + leaf];
     int at = off_leaf_rect + 4 * leaf;
     dvec4 rect = dvec4(hier_reals[at], hier_reals[at + 1], hier_reals[at + 2], hier_reals[at + 3]);
@@ -170,26 +231,39 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
     solve_one(o, d, m, 0.5LF * (rect.x + rect.y), 0.5LF * (rect.z + rect.w), NEWTON, tol2, max_iter, true, root, k,
               ok, its, c);
     iterations += its;
-    int state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
-    if (state == 1) return true;
-    if (RETRY_DEPTH == 0 || (state != 0 && !(c < GRAZING_COSINE))) return false;
-    // the retries on quarters, depth-first, in the scratch (slot 0 holds the leaf's net)
+    int state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, t_min, t_far, ex_m, ex) : 0;
+    bool found = state == 1;
+    best = found ? root : dvec4(0.0LF, 0.0LF, packDouble2x32(uvec2(0u, 0x7ff00000u)), 0.0LF);
+    best_k = found ? k : -1;
+    double best_c = c;  // |cos| at the best root
+    // the retries on quarters, depth-first, in the scratch (slot 0 holds the leaf's net); none after a root
+    // that is not grazing, a planar piece's only when its centre start found nothing
     rects[0] = rect;
     depths[0] = 0;
-    int top = state == 0 || hier_ints[off_leaf_planar + leaf] == 0 ? 1 : 0;
-    bool found = false;
+    bool retry = RETRY_DEPTH > 0 && !(found && any_hit) && (state == 0 || c < GRAZING_COSINE);
+    int top = retry && (state == 0 || hier_ints[off_leaf_planar + leaf] == 0) ? 1 : 0;
     int s = 4, first = 0, dnext = 0;  // the quarter tried next (of first .. first + 3; none yet) and their depth
-    while (!found && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
+    while (!(found && any_hit) && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
         if (s < first + 4) {
-            if (straddles(s, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) {
-                dvec4 sr = rects[s];
+            dvec4 sr = rects[s];
+            // culled where the hull misses the ray, or where the quarter's one crossing is the start, excluded
+            if (straddles(s, p, q, o, e1, e2, d, t_min, min(t_far, best.z), cull_tol) &&
+                !(m == ex_m && holds_once(s, p, q, sr, ex.x, ex.y, o, e1, e2))) {
                 solve_one(o, d, m, 0.5LF * (sr.x + sr.y), 0.5LF * (sr.z + sr.w), NEWTON, tol2, max_iter, true, root,
                           k, ok, its, c);
                 iterations += its;
-                state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, 0.0LF, t_max, ex_m, ex) : 0;
-                found = state == 1;
-                bool again = state == 0 || c < GRAZING_COSINE;
-                if (!found && again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
+                state = ok ? root_in(m, rect, kept, root.x, root.y, root.z, t_min, t_far, ex_m, ex) : 0;
+                if (state == 1 && root.z < best.z) {
+                    found = true;
+                    best = root;
+                    best_k = k;
+                    best_c = c;
+                }
+                // a root of this quarter: cut further only if it is grazing, not after a root that is not
+                // a hit and is the quarter's only one
+                bool again = state == 0 || (c < GRAZING_COSINE && !(state != 1 && holds_once(s, p, q, sr, root.x,
+                                                                                           root.y, o, e1, e2)));
+                if (again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
                     if (s != top) {
                         copy_net(s, top);
                         rects[top] = rects[s];
@@ -201,7 +275,7 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
             s += 1;
         } else {
             top -= 1;
-            if (depths[top] < RETRY_DEPTH && top + 6 <= SCRATCH) {  // cut it into quarters in slots top .. top + 3
+            if (depths[top] < RETRY_DEPTH && top + 7 <= SCRATCH) {  // quarters in slots top .. top + 3 (the last: crosses_once's)
                 int a = top + 4, b2 = top + 5;
                 split_half(top, a, b2, p, q, 0);
                 split_half(a, top, top + 1, p, q, 1);
@@ -218,21 +292,49 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
             }
         }
     }
+    if (found && !any_hit && best_c < GRAZING_COSINE) {
+        // t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the residual
+        // down to rounding; kept if it is a valid root of this piece that near
+        solve_one(o, d, m, best.x, best.y, NEWTON, 0.0LF, 2, true, root, k, ok, its, c);
+        iterations += its;
+        if (root.w < best.w && abs(root.z - best.z) * best_c <= 4.0LF * best.w &&
+            root_in(m, rect, kept, root.x, root.y, root.z, t_min, t_far, ex_m, ex) == 1) {
+            best = root;
+            best_k = k;
+        }
+    }
     return found;
 }
 
+// Does piece leaf hold a valid root with 0 < t < t_max? (lighting._leaf_blocks: the oriented box,
+// the hull, then piece_root's first root). iterations: Newton's, added to.
+bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, double tol, int max_iter,
+                 double cull_tol, int ex_m, dvec4 ex, inout int iterations) {
+    dvec2 span = obb_slab(leaf, o, d);
+    if (!(span.x <= span.y && span.y >= 0.0LF && span.x <= t_max)) return false;
+    int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
+    load_net(leaf, 0);
+    if (!straddles(0, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
+    dvec4 root;
+    int k;
+    return piece_root(leaf, p, q, o, d, e1, e2, 0.0LF, t_max, tol, max_iter, cull_tol, ex_m, ex, true, iterations,
+                      root, k);
+}
+
 // Any-hit shadow ray from o along the unit d with 0 < t < t_max (lighting.occluded): 1 blocked,
-// 0 not, -2 not blocked within budget Newton iterations (taken as lit, counted as out of budget).
-// ex_m, ex: the start root's surface and (u, v, radius u, radius v) (ex_m -1: none).
+// 0 not, -2 not blocked within budget Newton iterations (taken as lit, counted as out of budget),
+// -3 not found blocked before llvmpipe's loop limiter ran out (not settled: the file's head).
+// ex_m, ex: the start root's surface and (u, v, radius u, radius v) (ex_m -1: none). iterations:
+// Newton's, in all.
 int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cull_tol, int budget, int ex_m,
-             dvec4 ex) {
+             dvec4 ex, out int iterations) {
     double sgn = d.z >= 0.0LF ? 1.0LF : -1.0LF;  // roots.ray_frame
     double fa = -1.0LF / (sgn + d.z);
     double fb = d.x * d.y * fa;
     dvec3 e1 = dvec3(1.0LF + sgn * d.x * d.x * fa, sgn * fb, -sgn * d.x);
     dvec3 e2 = dvec3(fb, sgn + d.y * d.y * fa, -d.y);
     bool skip_start = ex_m >= 0 && !grazing(locate_patch(ex_m, ex.x, ex.y), ex.x, ex.y, d);
-    int iterations = 0;
+    iterations = 0;
     dvec3 inv = dvec3(abs(d.x) > 1e-300LF ? 1.0LF / d.x : (d.x < 0.0LF ? -1e300LF : 1e300LF),
                       abs(d.y) > 1e-300LF ? 1.0LF / d.y : (d.y < 0.0LF ? -1e300LF : 1e300LF),
                       abs(d.z) > 1e-300LF ? 1.0LF / d.z : (d.z < 0.0LF ? -1e300LF : 1e300LF));
@@ -244,11 +346,17 @@ int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cu
     int leaf = 0, leaf_stop = 0;  // the leaves of the tree leaf popped last, not yet tried
     while (result == 0 && (leaf < leaf_stop || top > 0)) {  // one leaf or one node per turn
         if (leaf < leaf_stop) {
-            bool start = false;  // the start's own leaf, skipped unless the ray leaves it grazing
-            if (skip_start && hier_ints[off_leaf_surface + leaf] == ex_m) {
+            // the start's own leaf, skipped unless the ray leaves it grazing and may cross it more than once
+            bool start = false;
+            if (hier_ints[off_leaf_surface + leaf] == ex_m) {
                 int at = off_leaf_rect + 4 * leaf;
                 start = hier_reals[at] <= ex.x && ex.x <= hier_reals[at + 1] && hier_reals[at + 2] <= ex.y &&
                         ex.y <= hier_reals[at + 3];
+            }
+            if (start && !skip_start) {
+                load_net(leaf, 0);
+                start = crosses_once(0, hier_ints[off_leaf_degree + 2 * leaf], hier_ints[off_leaf_degree + 2 * leaf + 1],
+                                     o, e1, e2);
             }
             if (!start) {
                 if (leaf_blocks(leaf, o, d, e1, e2, t_max, tol, max_iter, cull_tol, ex_m, ex, iterations)) {
@@ -278,5 +386,5 @@ int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cu
             }
         }
     }
-    return result;
+    return result != 1 && !loops_whole() ? -3 : result;
 }

@@ -3,11 +3,12 @@
 // invocation per pixel of one tile of the map (shaders/prelim.glsl's two
 // passes, triangles and lines, still in their framebuffers' textures). Each
 // merges the passes and decodes the seed as bsrt/kernels/prelim.py's
-// decode_tile does, then runs solve_core.glsl's solve_item from it along
-// the pixel's camera ray. bsrt/rendering/gpu_map.py draws the tiles and
+// decode_tile does, then runs solve_core.glsl's solve_into from it along
+// the pixel's camera ray (the result into buffers 4 and 5). bsrt/rendering/gpu_map.py draws the tiles and
 // dispatches this, then reads back, once per band, the merged map and the
 // roots together (the CPU needs the map for the suspect-pixel rules).
 
+#define ROOT_BUFFERS
 #include "patches.glsl"
 #include "trim64.glsl"
 #include "solve_core.glsl"
@@ -23,8 +24,6 @@ layout(binding = 3) uniform sampler2D line_distance;
 
 layout(std430, binding = 2) readonly buffer Directions { double directions[]; };  // 3 per pixel of the band: unit
 layout(std430, binding = 3) writeonly buffer OutMap { vec4 out_map[]; };           // 1 per pixel: merged r, g, b, distance
-layout(std430, binding = 4) writeonly buffer OutReals { double out_reals[]; };     // 4 per pixel: u, v, t, residual
-layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };          // 4 per pixel: converged, patch, iterations, trimmed
 
 uniform dvec3 eye;        // every camera ray's origin
 uniform int float_map;    // 1: 32-bit float channels, 0: the 8-bit map (eq. 6)
@@ -52,24 +51,13 @@ void main() {
     if (float_map == 0) c = round(c * 255.0);  // the 8-bit map's bytes, exactly
     int m = int(roundEven(c.r)) - 1;
     out_map[p] = vec4(c.rgb, dist);
-    dvec4 root = dvec4(0.0LF);
-    int patch_index = -1, iterations = 0;
-    bool converged = false, trimmed = false;
+    precise double u0 = 0.0LF, v0 = 0.0LF;  // eq. 6, no fused multiply-add
     if (m >= 0) {
         double g = float_map != 0 ? double(c.g) : double(c.g) / 255.0LF;
         double b = float_map != 0 ? double(c.b) : double(c.b) / 255.0LF;
         int dm = off_domain + 4 * m;
-        precise double u0 = reals[dm] + (reals[dm + 1] - reals[dm]) * g;  // eq. 6, no fused multiply-add
-        precise double v0 = reals[dm + 2] + (reals[dm + 3] - reals[dm + 2]) * b;
-        dvec3 d = dvec3(directions[3 * p], directions[3 * p + 1], directions[3 * p + 2]);
-        solve_item(eye, d, m, u0, v0, root, patch_index, converged, iterations, trimmed);
+        u0 = reals[dm] + (reals[dm + 1] - reals[dm]) * g;
+        v0 = reals[dm + 2] + (reals[dm + 3] - reals[dm + 2]) * b;
     }
-    out_reals[4 * p] = root.x;
-    out_reals[4 * p + 1] = root.y;
-    out_reals[4 * p + 2] = root.z;
-    out_reals[4 * p + 3] = root.w;
-    out_ints[4 * p] = converged ? 1 : 0;
-    out_ints[4 * p + 1] = patch_index;
-    out_ints[4 * p + 2] = iterations;
-    out_ints[4 * p + 3] = trimmed ? 1 : 0;
+    solve_into(p, eye, dvec3(directions[3 * p], directions[3 * p + 1], directions[3 * p + 2]), m, u0, v0);
 }

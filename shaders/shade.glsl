@@ -32,7 +32,8 @@ layout(std430, binding = 5) readonly buffer LookInts { int look_ints[]; };
 // 11 per hit: colour (3, linear RGB, the lights before this one's added up), position (3), normal (3,
 // facing the ray's origin), radius (2)
 layout(std430, binding = 8) buffer OutReals { double out_reals[]; };
-layout(std430, binding = 9) buffer OutInts { int out_ints[]; };  // 2 per hit: shadow rays, out of budget, so far
+// 3 per hit, so far: shadow rays, out of budget, not settled (occluded's -3: the hit is shaded again on the CPU)
+layout(std430, binding = 9) buffer OutInts { int out_ints[]; };
 
 uniform int off_material_of, off_albedo, off_specular, off_shininess, off_kind;
 uniform int off_light_position, off_light_direction, off_strength, off_background;
@@ -100,8 +101,9 @@ void main() {
         out_reals[11 * i + 1] = bg.y;
         out_reals[11 * i + 2] = bg.z;
         for (int c = 3; c < 11; ++c) out_reals[11 * i + c] = NaN;
-        out_ints[2 * i] = 0;
-        out_ints[2 * i + 1] = 0;
+        out_ints[3 * i] = 0;
+        out_ints[3 * i + 1] = 0;
+        out_ints[3 * i + 2] = 0;
         return;
     }
     int k = hit_ints[3 * i + 1], surface = hit_ints[3 * i + 2];
@@ -117,7 +119,8 @@ void main() {
     dvec3 albedo = look3(off_albedo, m);
     bool first = light <= 0;
     dvec3 colour = first ? dvec3(0.0LF) : dvec3(out_reals[11 * i], out_reals[11 * i + 1], out_reals[11 * i + 2]);
-    int rays = first ? 0 : out_ints[2 * i], exhausted = first ? 0 : out_ints[2 * i + 1];
+    int rays = first ? 0 : out_ints[3 * i], exhausted = first ? 0 : out_ints[3 * i + 1];
+    int unsettled = first ? 0 : out_ints[3 * i + 2];
     int kind = light < 0 ? -1 : look_ints[off_kind + light];  // light -1: a scene without lights
     dvec3 strength = light < 0 ? dvec3(0.0LF) : look3(off_strength, light);
     if (kind == LIGHT_AMBIENT) {
@@ -140,9 +143,11 @@ void main() {
         if (cos_l > 0.0LF) {  // else facing away: no shadow ray, nothing added
             rays += 1;
             double length = sqrt(l.x * l.x + l.y * l.y + l.z * l.z);  // the tracer's own normalisation (Rays)
+            int its;
             int blocked = occluded(p, dvec3(l.x / length, l.y / length, l.z / length), dist, shadow_tol,
-                                   shadow_iterations, cull_tol, budget, surface, dvec4(u, v, ru, rv));
+                                   shadow_iterations, cull_tol, budget, surface, dvec4(u, v, ru, rv), its);
             if (blocked == -2) exhausted += 1;
+            if (blocked == -3) unsettled += 1;
             if (blocked != 1) {  // visible
                 double specular = look_reals[off_specular + m], shininess = look_reals[off_shininess + m];
                 dvec3 hv = l - view;
@@ -164,6 +169,7 @@ void main() {
     out_reals[11 * i + 8] = n.z;
     out_reals[11 * i + 9] = ru;
     out_reals[11 * i + 10] = rv;
-    out_ints[2 * i] = rays;
-    out_ints[2 * i + 1] = exhausted;
+    out_ints[3 * i] = rays;
+    out_ints[3 * i + 1] = exhausted;
+    out_ints[3 * i + 2] = unsettled;
 }

@@ -1,10 +1,11 @@
 #version 450
 // The seeded root finder in float64 as a compute shader, one invocation per
-// (ray, start) item given in buffers: solve_core.glsl's solve_item (the
-// loop of bsrt/kernels/roots.py's solve_one). bsrt/rendering/gpu.py's
+// (ray, start) item given in buffers: solve_core.glsl's solve_into (the
+// loop of bsrt/kernels/roots.py's solve_one, the result into buffers 4 and 5). bsrt/rendering/gpu.py's
 // find_roots_gpu uploads the items and dispatches it; map_solve.glsl takes
 // the starts from the preliminary map's textures instead.
 
+#define ROOT_BUFFERS
 #include "patches.glsl"
 #include "trim64.glsl"
 #include "solve_core.glsl"
@@ -13,8 +14,6 @@ layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer Items { double items[]; };        // 8 per item: origin, direction (unit), u0, v0
 layout(std430, binding = 3) readonly buffer ItemSurface { int item_surface[]; }; // 1 per item: the start's surface
-layout(std430, binding = 4) writeonly buffer OutReals { double out_reals[]; };  // 4 per item: u, v, t, residual
-layout(std430, binding = 5) writeonly buffer OutInts { int out_ints[]; };       // 4 per item: converged, patch, iterations, trimmed
 
 uniform int item_count;  // in this dispatch (gpu.py dispatches the items in slices, each with its buffers)
 
@@ -23,16 +22,5 @@ void main() {
     if (i >= item_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     dvec3 o = dvec3(items[8 * i], items[8 * i + 1], items[8 * i + 2]);
     dvec3 d = dvec3(items[8 * i + 3], items[8 * i + 4], items[8 * i + 5]);
-    dvec4 root;
-    int patch_index, iterations;
-    bool converged, trimmed;
-    solve_item(o, d, item_surface[i], items[8 * i + 6], items[8 * i + 7], root, patch_index, converged, iterations, trimmed);
-    out_reals[4 * i] = root.x;
-    out_reals[4 * i + 1] = root.y;
-    out_reals[4 * i + 2] = root.z;
-    out_reals[4 * i + 3] = root.w;
-    out_ints[4 * i] = converged ? 1 : 0;
-    out_ints[4 * i + 1] = patch_index;
-    out_ints[4 * i + 2] = iterations;
-    out_ints[4 * i + 3] = trimmed ? 1 : 0;
+    solve_into(i, o, d, item_surface[i], items[8 * i + 6], items[8 * i + 7]);
 }

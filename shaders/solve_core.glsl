@@ -8,8 +8,9 @@
 // roots (trim64.glsl), as rendering/solve.py's find_roots does on the CPU.
 // Kept in step with roots.py: the CPU kernel is the reference the tests
 // hold this shader to. solve.glsl (items from a buffer) and map_solve.glsl
-// (starts from the preliminary map's textures) run solve_item, anyhit.glsl
-// runs solve_one on the hierarchy's pieces.
+// (starts from the preliminary map's textures) #define ROOT_BUFFERS and run
+// solve_into (solve_item, its result written to storage buffers 4 and 5),
+// anyhit.glsl runs solve_one on the hierarchy's pieces.
 
 uniform int method;
 uniform int max_iterations;
@@ -177,3 +178,25 @@ void solve_item(dvec3 o, dvec3 d, int m, double u0, double v0, out dvec4 root, o
     }
 #endif
 }
+
+#ifdef ROOT_BUFFERS
+layout(std430, binding = 4) writeonly buffer RootReals { double root_reals[]; };  // 4 per item: u, v, t, residual
+layout(std430, binding = 5) writeonly buffer RootInts { int root_ints[]; };       // 4 per item: converged, patch, iterations, trimmed
+
+// solve_item from (u0, v0) on surface m along o + t d, its result written as item i of the root
+// buffers (gpu.py's decode_roots reads them); m < 0: no solve, the result of none (patch -1).
+void solve_into(int i, dvec3 o, dvec3 d, int m, double u0, double v0) {
+    dvec4 root = dvec4(0.0LF);
+    int patch_index = -1, iterations = 0;
+    bool converged = false, trimmed = false;
+    if (m >= 0) solve_item(o, d, m, u0, v0, root, patch_index, converged, iterations, trimmed);
+    root_reals[4 * i] = root.x;
+    root_reals[4 * i + 1] = root.y;
+    root_reals[4 * i + 2] = root.z;
+    root_reals[4 * i + 3] = root.w;
+    root_ints[4 * i] = converged ? 1 : 0;
+    root_ints[4 * i + 1] = patch_index;
+    root_ints[4 * i + 2] = iterations;
+    root_ints[4 * i + 3] = trimmed ? 1 : 0;
+}
+#endif

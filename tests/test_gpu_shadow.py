@@ -1,13 +1,15 @@
-"""Shadow rays on the GPU (bsrt/rendering/gpu_shade.py, shaders/anyhit.glsl) on a
+"""Shadow and mirror rays on the GPU (bsrt/rendering/gpu_shade.py, shaders/anyhit.glsl) on a
 real GL context: Mesa's llvmpipe here and in CI, never skipped.
 
 - a closed form: a square plane above a larger one, rays straight up from the
   lower one: blocked exactly under the square and below its height;
 - the any-hit walk against the CPU's (bvh.intersect with any_hit, the walk of
   kernels/lighting.py) on shadow rays from every hit of scenes/ and trimmed
-  IGES files toward their lights: the same answer for every ray that neither
-  leaves its start grazing nor meets a grazing blocker (GRAZING_COSINE: there
-  the pieces are cut into quarters and Newton's path depends on rounding).
+  IGES files toward their lights: the same answer for every ray, grazing ones
+  included (the start's piece or quarter skipped where the ray crosses it at
+  most once: crossings.py, ported to anyhit.glsl).
+- mirror rays (shaders/nearest.glsl, the nearest-hit walk) from the same hits:
+  the CPU's nearest hits, with the same Newton iterations.
 """
 
 from __future__ import annotations
@@ -20,7 +22,6 @@ import pytest
 import bsrt
 from bsrt.geometry.bspline import make_surface
 from bsrt.geometry.patches import PatchSet
-from bsrt.kernels.traverse import GRAZING_COSINE
 from bsrt.rendering import gl, gpu, gpu_shade
 from bsrt.rendering.bvh import build_bvh
 from bsrt.rendering.shade import facing_frames, light_arrays
@@ -71,37 +72,42 @@ def test_a_square_shadows_the_plane_under_it():
     under = (np.abs(xy) < 0.5).all(axis=1)
     assert 0 < under.sum() < n
     for t_max, want in ((np.inf, under), (5.0, under), (0.9, np.zeros(n, dtype=bool))):
-        blocked, exhausted = gpu_shade.occluded_gpu(_context(), bvh, origins, up, t_max, 1e-9, exclude)
+        blocked, exhausted, iterations = gpu_shade.occluded_gpu(_context(), bvh, origins, up, t_max, 1e-9, exclude)
         np.testing.assert_array_equal(blocked, want)
         assert not exhausted.any()
+        assert (iterations[blocked] > 0).all()
     assert _context().error == "GL_NO_ERROR"
 
 
-def _shadow_rays(result, lights):
-    """Per non-ambient light of a CPU render: (origins, directions, t_max, exclusion,
-    cosine at the start) of the shadow rays its hits send (the points facing the light),
-    as rendering/pipeline.py's shading sends them."""
-    geometry, hits, options = result.geometry, result.hits, result.options
-    size = result.pixels.shape[:2]
-    position, normal, speed = facing_frames(geometry.patches, hits, pixel_rays(options.camera, size[1], size[0]))
+def _starts(geometry, hits, rays):
+    """(position (H, 3), normal (H, 3) facing the ray, exclusion: 5 (H,) arrays) of the H hits
+    of hits (of the camera rays along rays (K, 3)), as rendering/pipeline.py's shading has them
+    for the secondary rays it sends."""
+    position, normal, speed = facing_frames(geometry.patches, hits, rays)
     h = np.flatnonzero(hits.hit)
     eps = 1e-6 * geometry.diagonal
     bounds = geometry.patches.arrays.bounds[hits.patch[h]]
     with np.errstate(divide="ignore"):
         ru = np.minimum(np.where(speed[h, 0] > 0, eps / speed[h, 0], np.inf), 0.25 * (bounds[:, 1] - bounds[:, 0]))
         rv = np.minimum(np.where(speed[h, 1] > 0, eps / speed[h, 1], np.inf), 0.25 * (bounds[:, 3] - bounds[:, 2]))
+    return position[h], normal[h], (hits.surface[h], hits.u[h], hits.v[h], ru, rv)
+
+
+def _shadow_rays(geometry, hits, rays, lights):
+    """Per non-ambient light: (origins, directions, t_max, exclusion) of the shadow rays
+    that hits (of the camera rays along rays (K, 3)) send (the points facing the light),
+    as rendering/pipeline.py's shading sends them."""
+    position, normal, exclusion = _starts(geometry, hits, rays)
     kind, light_position, light_direction, _ = light_arrays(lights)
     for j in np.flatnonzero(kind != 0):
         if kind[j] == 1:
-            to_light = light_position[j] - position[h]
+            to_light = light_position[j] - position
             t_max = np.linalg.norm(to_light, axis=1)
             to_light = to_light / t_max[:, None]
         else:
-            to_light, t_max = np.tile(light_direction[j], (h.size, 1)), np.full(h.size, np.inf)
-        cosine = np.einsum("ij,ij->i", normal[h], to_light)
-        face = cosine > 0
-        exclusion = (hits.surface[h][face], hits.u[h][face], hits.v[h][face], ru[face], rv[face])
-        yield position[h][face], to_light[face], t_max[face], exclusion, cosine[face]
+            to_light, t_max = np.tile(light_direction[j], (position.shape[0], 1)), np.full(position.shape[0], np.inf)
+        face = np.einsum("ij,ij->i", normal, to_light) > 0
+        yield position[face], to_light[face], t_max[face], tuple(a[face] for a in exclusion)
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)
@@ -111,42 +117,31 @@ def test_shadow_rays_agree_with_the_cpu_walk(path):
     geometry = result.geometry
     tolerance = result.options.tolerance * geometry.diagonal
     rays = 0
-    for origins, directions, t_max, exclusion, cosine in _shadow_rays(result, scene.lights):
+    h, w = result.pixels.shape[:2]
+    camera_rays = pixel_rays(result.options.camera, w, h)
+    for origins, directions, t_max, exclusion in _shadow_rays(geometry, result.hits, camera_rays, scene.lights):
         cpu = geometry.intersect(
             origins, directions, t_min=0.0, t_max=t_max, tolerance=tolerance, exclude=exclusion, any_hit=True
         )
-        blocked, exhausted = gpu_shade.occluded_gpu(
+        blocked, exhausted, _ = gpu_shade.occluded_gpu(
             _context(), geometry.bvh, origins, directions, t_max, tolerance, exclusion
         )
-        blocker = np.ones(cpu.hit.size)
-        if cpu.hit.any():
-            _, blocker_normal, _ = facing_frames(
-                geometry.patches, cpu.take(np.flatnonzero(cpu.hit)), directions[cpu.hit]
-            )
-            blocker[cpu.hit] = np.abs(np.einsum("ij,ij->i", blocker_normal, directions[cpu.hit]))
-        clear = (cosine >= GRAZING_COSINE) & (blocker >= GRAZING_COSINE)
-        np.testing.assert_array_equal(blocked[clear], cpu.hit[clear])
-        assert (blocked != cpu.hit).sum() <= max(2, cpu.hit.size // 50)  # grazing cases: rounding decides a few
+        np.testing.assert_array_equal(blocked, cpu.hit)
         assert not exhausted.any()
         rays += origins.shape[0]
     assert rays > 1000
     assert _context().error == "GL_NO_ERROR"
 
 
-def _shade_inputs(scene, result):
-    """shade_hits' arguments for a render's pixel-centre hits, as rendering/pipeline.py passes them."""
-    from bsrt.scene.camera import pixel_rays
-
-    options = result.options
-    h, w = result.pixels.shape[:2]
+def _look(scene, options):
+    """shade_hits' (materials, lights, background), as rendering/pipeline.py passes them."""
     materials = (
         np.array([m.color for m in scene.materials], dtype=np.float64).reshape(-1, 3),
         np.array([m.specular for m in scene.materials], dtype=np.float64),
         np.array([m.shininess for m in scene.materials], dtype=np.float64),
     )
     background = np.array(options.background, dtype=np.float64).reshape(3)
-    directions = np.ascontiguousarray(pixel_rays(options.camera, w, h))
-    return directions, materials, light_arrays(scene.lights), background
+    return materials, light_arrays(scene.lights), background
 
 
 LIGHTING_CASES = [(p, 64) for p in SOURCES + [ROOT / "scenes" / "bench-64.toml"]] + [
@@ -170,7 +165,8 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
     scene = bsrt.load(path)
     result = bsrt.render(scene, width=size, height=size, spp=1, adaptive_spp=0, device="cpu")
     geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
-    directions, materials, lights, background = _shade_inputs(scene, result)
+    directions = np.ascontiguousarray(pixel_rays(result.options.camera, size, size))
+    materials, lights, background = _look(scene, result.options)
     tolerance, eps, n = result.options.tolerance * geometry.diagonal, 1e-6 * geometry.diagonal, len(hits)
 
     def outputs():
@@ -212,3 +208,75 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     assert on_gpu.stats["reflection_rays"] == cpu.stats["reflection_rays"] > 0
     np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
     assert np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max() <= 1
+
+
+def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu():
+    """Water-lily at 256 x 256, pixel (row 123, column 66), sub-sample (0.75, 0.25) of
+    --adaptive-spp 4: its shadow ray toward the first light is blocked by surface 5 at
+    t = 0.673 (|cos| 0.94 there, residual 8e-12, inside the surface), found after 703
+    Newton iterations; on llvmpipe the walk's loops ran into Mesa's loop limiter
+    (anyhit.glsl's head) before that piece and the ray came out lit, 14/255 off. Left
+    unsettled, it is traced on the CPU: blocked, and its hit shaded as the kernel does."""
+    from bsrt.kernels.lighting import shade_hits
+    from bsrt.kernels.threads import run_chunks
+    from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
+    from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import Geometry
+    from bsrt.rendering.screen import film_rays
+
+    scene = bsrt.load(ROOT / "scenes" / "water-lily.toml")
+    options = RenderOptions.resolve(scene, width=256, height=256)
+    geometry = Geometry(scene)
+    tolerance = options.tolerance * geometry.diagonal
+    camera_rays = film_rays(options.camera, 256, 256, np.array([[66.75, 123.25]]))
+    hits = geometry.intersect(np.asarray(options.camera.eye)[None, :], camera_rays, tolerance=tolerance)
+    assert hits.hit.all()
+    origins, directions, t_max, exclusion = next(_shadow_rays(geometry, hits, camera_rays, scene.lights))
+    cpu = geometry.intersect(origins, directions, t_max=t_max, tolerance=tolerance, exclude=exclusion, any_hit=True)
+    blocked, _, iterations = gpu_shade.occluded_gpu(_context(), geometry.bvh, origins, directions, t_max, tolerance,
+                                                    exclusion)  # fmt: skip
+    assert cpu.hit.all() and blocked.all() and iterations[0] > 500
+    materials, lights, background = _look(scene, options)
+    n, bvh, eps = 1, geometry.bvh, 1e-6 * geometry.diagonal
+    want, got = (
+        tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + tuple(np.empty(n, dtype=np.int64) for _ in "ab")
+        for _ in "ab"
+    )
+    run_chunks(
+        shade_hits, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch, hits.surface,
+        hits.u, hits.v, camera_rays, geometry.material, *materials, *lights, background, eps, float(tolerance), 16,
+        DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), *want,
+    )  # fmt: skip
+    gpu_shade.shade_hits_gpu(
+        _context(), bvh, hits, camera_rays, geometry.material, materials, lights, background, eps, tolerance, 16, got
+    )
+    for a, b in zip(want, got):
+        np.testing.assert_array_equal(b, a)
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)
+def test_mirror_rays_find_the_cpus_nearest_hits(path):
+    """Every hit of a 64 x 64 render sends a mirror ray (reflected about its normal, its start
+    excluded, as rendering/pipeline.py's bounce): shaders/nearest.glsl's walk gives the CPU's
+    nearest hit (bvh.intersect): the same hit or miss, surface and patch, t within 1e-12 of the
+    diagonal, the same Newton iterations (the same walk and per-piece solve)."""
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
+    geometry = result.geometry
+    h, w = result.pixels.shape[:2]
+    camera_rays = pixel_rays(result.options.camera, w, h)
+    position, normal, exclusion = _starts(geometry, result.hits, camera_rays)
+    d = camera_rays[result.hits.hit]
+    mirror = d - 2.0 * np.einsum("ij,ij->i", d, normal)[:, None] * normal
+    mirror /= np.linalg.norm(mirror, axis=1)[:, None]
+    tolerance = result.options.tolerance * geometry.diagonal
+    cpu = geometry.intersect(position, mirror, t_min=0.0, tolerance=tolerance, exclude=exclusion)
+    got = gpu_shade.nearest_gpu(_context(), geometry.bvh, position, mirror, 0.0, np.inf, tolerance, exclusion)
+    assert _context().error == "GL_NO_ERROR"
+    assert cpu.hit.any() == (path.stem != "quad") and not cpu.hit.all()  # a plane never sees itself
+    for name in ("hit", "surface", "patch", "iterations"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(cpu, name), err_msg=name)
+    both = cpu.hit
+    assert (np.abs(got.t[both] - cpu.t[both]) <= 1e-12 * geometry.diagonal).all()
+    np.testing.assert_allclose(got.u[both], cpu.u[both], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got.v[both], cpu.v[both], rtol=0, atol=1e-9)

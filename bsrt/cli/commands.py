@@ -327,13 +327,15 @@ def _cmd_bench(args) -> int:
     if args.json:
         _check_output(args.json, ".json")
     embree = _embree_segments(args.embree)
+    devices = bench.bench_devices(args.devices)
     if args.preview:
         bench.check_preview_display()  # before the long part
     log = lambda text: print(text, flush=True)  # noqa: E731
     if args.models:
         results = bench.trim_cost(args.models, args.size, args.repeat, log=log)
     else:
-        results = bench.run(args.scenes or bench.DEFAULT_SCENES, named, args.size, args.repeat, log=log, embree=embree)
+        scenes = args.scenes or bench.DEFAULT_SCENES
+        results = bench.run(scenes, named, args.size, args.repeat, log=log, embree=embree, devices=devices)
         print()
         print(bench.format_tables(results))
         if args.full:

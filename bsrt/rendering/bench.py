@@ -6,7 +6,10 @@ same machine load; the median of each stage is reported, and Table 2 gives
 the median over rounds of each round's ratio. All methods run to the scene's tolerance (default 1e-9 of the scene
 diagonal), so they do the same job: the paper's eps is not given, and a
 looser one would favour gradient descent, which converges linearly.
-Disagreements are counted against ``newton`` at the same size.
+Disagreements are counted against ``newton`` at the same size (on the first
+device). ``devices``: each method is timed on each device (the ``device``
+setting's cpu and gpu), side by side in the same rounds: a GPU row is named
+``METHOD@gpu``; the results give the devices and the cores the CPU kernels use.
 """
 
 from __future__ import annotations
@@ -19,10 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from bsrt.errors import InputError
+from bsrt.kernels.threads import workers
 from bsrt.methods import MAP_METHODS, REFERENCE_METHOD
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import load_scene
+from bsrt.settings import DEVICES
 
 PAPER = {  # Sisojevs & Glazs, 512x512, 1 ray/pixel, 3.2 GHz Xeon: seconds
     "column": {"gradient": 74.9, "fast": 31.2, "martin": 60.8},
@@ -30,6 +35,27 @@ PAPER = {  # Sisojevs & Glazs, 512x512, 1 ray/pixel, 3.2 GHz Xeon: seconds
 }
 DEFAULT_SCENES = ("column", "water-lily")
 DEFAULT_METHODS = MAP_METHODS
+BENCH_DEVICES = tuple(d for d in DEVICES if d != "auto")
+
+
+def bench_devices(text: str | None) -> tuple[str, ...]:
+    """``--devices``: a comma-separated list of BENCH_DEVICES; None: cpu, and gpu where the
+    device setting's auto takes it (a hardware context with OpenGL 4.5, compute and float64)."""
+    if text is None:
+        from bsrt.rendering import gpu
+
+        return ("cpu", "gpu") if gpu.choose_device("auto")[0] == "gpu" else ("cpu",)
+    named = tuple(dict.fromkeys(d.strip() for d in text.split(",") if d.strip()))
+    unknown = [d for d in named if d not in BENCH_DEVICES]
+    if unknown or not named:
+        what = f"unknown device {unknown[0]!r}" if unknown else "names no device"
+        raise InputError(f"--devices: {what} (expected a comma-separated list of {', '.join(BENCH_DEVICES)})")
+    return named
+
+
+def row_name(method: str, device: str) -> str:
+    """The results' name of a method timed on a device: the method's on the CPU, METHOD@DEVICE otherwise."""
+    return method if device == "cpu" else f"{method}@{device}"
 
 
 def scene_path(name: str) -> Path:
@@ -45,11 +71,14 @@ def scene_path(name: str) -> Path:
     return bundled
 
 
-def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=print, embree=()) -> dict:
+def run(
+    scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=print, embree=(), devices=("cpu",)
+) -> dict:
     """Benchmark; returns a JSON-serialisable dict (see format_tables). ``embree``: segment counts
     for the Embree comparison (bench_embree.compare, against the reference method's hits; needs it
-    among ``methods``), none by default."""
-    results = {"size": size, "repeat": repeat, "scenes": {}}
+    among ``methods``), none by default. ``devices``: of BENCH_DEVICES, each method timed on each."""
+    results = {"size": size, "repeat": repeat, "devices": list(devices), "cores": workers(), "scenes": {}}
+    reference = row_name(REFERENCE_METHOD, devices[0])
     for name in scenes:
         path = scene_path(name)
         scene = load_scene(path)
@@ -67,9 +96,13 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
             "setup_seconds": setup,
             "methods": {},
         }
-        order = sorted(methods, key=lambda m: m != REFERENCE_METHOD)
+        rows = {  # name: (method, device), the reference first
+            row_name(m, d): (m, d) for d in devices for m in sorted(methods, key=lambda m: m != REFERENCE_METHOD)
+        }
+        order = list(rows)
         options = {  # the tracers compared: one sample per pixel, no adaptive anti-aliasing
-            m: RenderOptions.resolve(scene, method=m, width=size, height=size, adaptive_spp=0) for m in order
+            name: RenderOptions.resolve(scene, method=m, device=d, width=size, height=size, adaptive_spp=0)
+            for name, (m, d) in rows.items()
         }
         for method in order:
             render(scene, options[method], geometry=geometry)  # warm-up
@@ -82,25 +115,27 @@ def run(scenes=DEFAULT_SCENES, methods=DEFAULT_METHODS, size=512, repeat=3, log=
                 runs[method].append((last[method].stats["seconds"], time.perf_counter() - clock))
         for method in order:
             entry["methods"][method] = _row(
-                method, runs[method], last[method], last.get(REFERENCE_METHOD), scene, geometry
+                method, runs[method], last[method], last.get(reference), scene, geometry, reference
             )
+            entry["methods"][method]["device"] = rows[method][1]
             med = entry["methods"][method]["seconds"]
             log(f"{label:12s} {method:9s} map+solve {med['map+solve']:7.3f} s  total {med['total']:7.3f} s")
-        if embree and REFERENCE_METHOD in last:
+        if embree and reference in last:
             from bsrt.rendering import bench_embree
 
-            exact = entry["methods"][REFERENCE_METHOD]["seconds"]["map+solve"]
+            exact = entry["methods"][reference]["seconds"]["map+solve"]
             entry["embree"] = bench_embree.compare(
-                geometry, options[REFERENCE_METHOD].camera, size, last[REFERENCE_METHOD].hits, exact, embree, repeat
+                geometry, options[reference].camera, size, last[reference].hits, exact, embree, repeat
             )
         results["scenes"][label] = entry
     results["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     return results
 
 
-def _row(method, runs, res, reference, scene, geometry) -> dict:
-    """One method's medians over its runs [(stats seconds, wall seconds)] and its last render's counters;
-    disagreements with the reference (newton's last render) where it was run."""
+def _row(method, runs, res, reference, scene, geometry, reference_name=REFERENCE_METHOD) -> dict:
+    """One method's medians over its runs [(stats seconds, wall seconds)] and its last render's counters
+    (``stages``: the device that ran each stage); disagreements with the reference (the last render of
+    reference_name, newton on the first device) where it was run."""
     med = {k: statistics.median(r[0][k] for r in runs) for k in runs[0][0]}
     med["map+solve"] = statistics.median(r[0]["map"] + r[0]["solve"] for r in runs)
     med["total"] = statistics.median(r[1] for r in runs)
@@ -118,8 +153,9 @@ def _row(method, runs, res, reference, scene, geometry) -> dict:
         "repaired": res.stats.get("repaired"),
         "shadow_rays": res.stats.get("shadow_rays", 0),
         "reflection_rays": res.stats.get("reflection_rays", 0),
+        "stages": res.stats.get("devices"),
     }
-    if reference is not None and method != REFERENCE_METHOD:
+    if reference is not None and method != reference_name:
         reference = reference.hits
         tol = 1e3 * scene.render.tolerance * geometry.patches.scene_diagonal()
         both = hits.hit & reference.hit
@@ -137,7 +173,8 @@ def format_tables(results: dict) -> str:
     methods = list(dict.fromkeys(m for e in scenes.values() for m in e["methods"]))
     base = "martin" if "martin" in methods else REFERENCE_METHOD  # the paper's Table 2 is in percent of martin
     lines = [
-        f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets)"
+        f"Table 1: seconds (median of {results['repeat']}), {results['size']}x{results['size']}, map + solve (total render in brackets); "
+        f"devices {', '.join(results['devices'])} (METHOD@gpu: on the GPU), {results['cores']} cores"
     ]
     lines.append(f"{'scene':12s}" + "".join(f"{m:>20s}" for m in methods) + f"{'paper (grad/fast/martin)':>30s}")
     for name, e in scenes.items():

@@ -13,6 +13,8 @@ hard_pixels.py).
 
 from __future__ import annotations
 
+import dataclasses
+
 import moderngl
 import numpy as np
 
@@ -296,16 +298,30 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
         for binding, buffer in enumerate(buffers, start=2):
             buffer.bind_to_storage_buffer(binding)
         run(ctx, shader, n)
-        reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(n, 4)
-        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(n, 4)
+        roots = decode_roots(buffers[2].read(), buffers[3].read(), n)
     finally:
         for buffer in buffers:
             buffer.release()
-    out.u[part], out.v[part], out.t[part], out.residual[part] = reals.T
-    out.converged[part] = ints[:, 0] != 0
-    out.patch[part] = ints[:, 1]
-    out.iterations[part] = ints[:, 2]
-    out.trimmed[part] = ints[:, 3] != 0
+    for field in dataclasses.fields(RootResult):
+        getattr(out, field.name)[part] = getattr(roots, field.name)
+
+
+def decode_roots(reals: bytes, ints: bytes, n: int, items=slice(None)) -> RootResult:
+    """The RootResult of items (an index into n, all by default) from solve_core.glsl's
+    root buffers (solve_into): reals, 4 float64 per item (u, v, t, residual); ints, 4 int32
+    per item (converged, patch, iterations, trimmed), n items each."""
+    r = np.frombuffer(reals, dtype=np.float64, count=4 * n).reshape(n, 4)[items]
+    i = np.frombuffer(ints, dtype=np.int32, count=4 * n).reshape(n, 4)[items]
+    return RootResult(
+        converged=i[:, 0] != 0,
+        trimmed=i[:, 3] != 0,
+        u=r[:, 0].copy(),
+        v=r[:, 1].copy(),
+        patch=i[:, 1].astype(np.int64),
+        t=r[:, 2].copy(),
+        residual=r[:, 3].copy(),
+        iterations=i[:, 2].copy(),
+    )
 
 
 def set_uniform(shader, name: str, value) -> None:

@@ -94,24 +94,13 @@ def map_roots_gpu(
                     interrupts.safe_point()
                 ctx.memory_barrier()  # the textures are drawn again for the next tile; the buffers are read
             record = np.frombuffer(buffers[1].read(size=n * 16), dtype=np.float32).reshape(n, 4)
-            reals = np.frombuffer(buffers[2].read(size=n * 32), dtype=np.float64).reshape(n, 4)
-            ints = np.frombuffer(buffers[3].read(size=n * 16), dtype=np.int32).reshape(n, 4)
+            reals, ints = buffers[2].read(size=n * 32), buffers[3].read(size=n * 16)
         finally:
             for buffer in buffers:
                 buffer.release()
     prelim = decode_record(record, mode, patches.domain, (stop - first, width))
     covered = np.flatnonzero(prelim.surface.ravel() >= 0)
-    roots = RootResult(
-        converged=ints[covered, 0] != 0,
-        trimmed=ints[covered, 3] != 0,
-        u=reals[covered, 0],
-        v=reals[covered, 1],
-        patch=ints[covered, 1].astype(np.int64),
-        t=reals[covered, 2],
-        residual=reals[covered, 3],
-        iterations=ints[covered, 2].copy(),
-    )
-    return prelim, covered, roots
+    return prelim, covered, gpu.decode_roots(reals, ints, n, covered)
 
 
 def decode_record(record: np.ndarray, mode: str, domain: np.ndarray, shape: tuple[int, int]) -> PrelimMap:

@@ -2,26 +2,36 @@
 
 ``occluded_gpu`` answers, for shadow rays given as arrays, what the CPU's
 any-hit walk (kernels/lighting.py's occluded; bvh.intersect with any_hit)
-answers: blocked or not, and which rays spent their budget (taken as lit).
+answers: blocked or not, which rays spent their budget (taken as lit), and
+the Newton iterations each took.
 ``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
-per hierarchy beside the patch table (gpu.uploaded).
+per hierarchy beside the patch table (gpu.uploaded). ``shade_hits_gpu`` is
+kernels/lighting.py's shade_hits by ``shaders/shade.glsl``; ``nearest_gpu``
+the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``. The rays a
+software renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's
+head) are traced, and their hits shaded, by those CPU kernels instead.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import moderngl
 import numpy as np
 
 from bsrt import interrupts
+from bsrt.kernels.crossings import ROUNDING
 from bsrt.kernels.hierarchy import BVHArrays
+from bsrt.kernels.lighting import shade_hits
 from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
+from bsrt.kernels.threads import run_chunks
 from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
 from bsrt.rendering import gl, gpu
-from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, ray_budget
+from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, intersect, ray_budget
 from bsrt.rendering.gpu import Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
+from bsrt.rendering.hits import Hits
 
 
 def hierarchy_arrays(arrays: BVHArrays) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -58,6 +68,7 @@ def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = D
         f"STACK {STACK}",
         f"GRAZING_COSINE {GRAZING_COSINE!r}LF",
         f"RECT_SLACK {RECT_SLACK!r}LF",
+        f"ROUNDING {ROUNDING!r}LF",
         f"LIGHT_AMBIENT {LIGHT_KINDS['ambient']}",
         f"LIGHT_POINT {LIGHT_KINDS['point']}",
         "POLE_STEPS double[](" + ", ".join(f"{s!r}LF" for s in POLE_STEPS) + ")",
@@ -69,6 +80,7 @@ def hierarchy_shader(ctx: moderngl.Context, name: str, bvh, retry_depth: int = D
         set_uniform(shader, f"off_{key}", offset)
     table.reals.bind_to_storage_buffer(6)
     table.ints.bind_to_storage_buffer(7)
+    set_uniform(shader, "canary_turns", 2)
     return shader
 
 
@@ -90,7 +102,7 @@ def occluded_gpu(
     tolerance: float,
     exclude=None,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Any-hit shadow rays on ctx (OpenGL 4.5 with float64: gpu.choose_device).
 
     origins, directions: (N, 3) float64 (directions of unit length); t_max:
@@ -98,7 +110,9 @@ def occluded_gpu(
     exclude: (surface, u, v, radius_u, radius_v), each (N,), the root each ray
     starts from (bvh.intersect's). Returns (blocked (N,) bool, exhausted (N,)
     bool: not blocked within the budget, taken as lit), what bvh.intersect
-    with any_hit and max_iterations (Newton's per piece) answers on the CPU."""
+    with any_hit and max_iterations (Newton's per piece) answers on the CPU,
+    and iterations (N,) int64: each ray's Newton iterations. The rays the
+    shader leaves unsettled (anyhit.glsl's -3) are traced by bvh.intersect."""
     d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
     n = d.shape[0]
     rays = np.zeros((n, 12))
@@ -109,10 +123,9 @@ def occluded_gpu(
     if exclude is not None:
         for c, a in enumerate(exclude, start=7):
             rays[:, c] = a
-    answer = np.empty(n, dtype=np.int32)
+    answer = np.zeros((n, 2), dtype=np.int32)  # occluded's answer, iterations
     if n == 0 or bvh.leaf_total == 0:
-        answer[:] = 0
-        return answer == 1, answer == -2
+        return answer[:, 0] == 1, answer[:, 0] == -2, answer[:, 1].astype(np.int64)
     with ctx:
         shader = hierarchy_shader(ctx, "shadow", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
@@ -122,18 +135,109 @@ def occluded_gpu(
             buffers = []
             try:
                 buffers.append(ctx.buffer(rays[first : first + count].tobytes()))
-                buffers.append(ctx.buffer(reserve=4 * count))
+                buffers.append(ctx.buffer(reserve=8 * count))
                 buffers[0].bind_to_storage_buffer(2)
                 buffers[1].bind_to_storage_buffer(3)
                 set_uniform(shader, "ray_count", count)
                 gpu.run(ctx, shader, count)
                 ctx.memory_barrier()
-                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32)
+                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32).reshape(count, 2)
             finally:
                 for buffer in buffers:
                     buffer.release()
             interrupts.safe_point()
-    return answer == 1, answer == -2
+    redo = np.flatnonzero(answer[:, 0] == -3)
+    if redo.size:
+        cpu = intersect(
+            bvh,
+            rays[redo, 0:3],
+            d[redo],
+            t_max=rays[redo, 6],
+            tolerance=tolerance,
+            max_iterations=max_iterations,
+            any_hit=True,
+            exclude=(rays[redo, 7].astype(np.int64),) + tuple(rays[redo, c] for c in range(8, 12)),
+        )
+        answer[redo, 0] = np.where(cpu.hit, 1, np.where(cpu.iterations >= ray_budget(max_iterations), -2, 0))
+        answer[redo, 1] = cpu.iterations
+    return answer[:, 0] == 1, answer[:, 0] == -2, answer[:, 1].astype(np.int64)
+
+
+def nearest_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    origins,
+    directions,
+    t_min,
+    t_max,
+    tolerance: float,
+    exclude=None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+) -> Hits:
+    """Nearest hits (mirror rays) on ctx (OpenGL 4.5 with float64) by shaders/nearest.glsl: what
+    bvh.intersect answers without any_hit. origins, directions: (N, 3) float64 (unit directions);
+    t_min, t_max: (N,) or scalars, a hit needs t_min < t < t_max; tolerance: scene units; exclude:
+    (surface, u, v, radius_u, radius_v), each (N,), the root each ray starts from. Returns Hits
+    (N,). The rays the shader leaves unsettled (llvmpipe's loop limiter) are traced by bvh.intersect."""
+    d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    n = d.shape[0]
+    rays = np.zeros((n, 13))
+    rays[:, 0:3] = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), (n, 3))
+    rays[:, 3:6] = d
+    rays[:, 6] = np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,))
+    rays[:, 7] = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
+    rays[:, 8] = -1.0
+    if exclude is not None:
+        for c, a in enumerate(exclude, start=8):
+            rays[:, c] = a
+    hits = Hits.empty(n)
+    if n == 0 or bvh.leaf_total == 0:
+        return hits
+    reals, ints = np.empty((n, 4)), np.empty((n, 3), dtype=np.int32)
+    with ctx:
+        shader = hierarchy_shader(ctx, "nearest", bvh)
+        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
+        step = gpu.dispatch_size(ctx)
+        for first in range(0, n, step):
+            part = slice(first, min(n, first + step))
+            count = part.stop - part.start
+            buffers = []
+            try:
+                buffers.append(ctx.buffer(rays[part].tobytes()))
+                buffers.append(ctx.buffer(reserve=32 * count))
+                buffers.append(ctx.buffer(reserve=12 * count))
+                for binding, buffer in enumerate(buffers, start=2):
+                    buffer.bind_to_storage_buffer(binding)
+                set_uniform(shader, "ray_count", count)
+                gpu.run(ctx, shader, count)
+                ctx.memory_barrier()
+                reals[part] = np.frombuffer(buffers[1].read(), dtype=np.float64).reshape(count, 4)
+                ints[part] = np.frombuffer(buffers[2].read(), dtype=np.int32).reshape(count, 3)
+            finally:
+                for buffer in buffers:
+                    buffer.release()
+            interrupts.safe_point()
+    hit = np.flatnonzero(ints[:, 0] == 1)
+    hits.hit[hit] = True
+    hits.u[hit], hits.v[hit], hits.t[hit], hits.residual[hit] = reals[hit].T
+    hits.patch[hit] = ints[hit, 1]
+    hits.surface[hit] = bvh.patches.surface[ints[hit, 1]]
+    hits.iterations[:] = ints[:, 2]
+    redo = np.flatnonzero(ints[:, 0] == -3)
+    if redo.size:
+        cpu = intersect(
+            bvh,
+            rays[redo, 0:3],
+            d[redo],
+            t_min=rays[redo, 6],
+            t_max=rays[redo, 7],
+            tolerance=tolerance,
+            max_iterations=max_iterations,
+            exclude=(rays[redo, 8].astype(np.int64),) + tuple(rays[redo, c] for c in range(9, 13)),
+        )
+        for field in dataclasses.fields(Hits):
+            getattr(hits, field.name)[redo] = getattr(cpu, field.name)
+    return hits
 
 
 LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
@@ -163,7 +267,9 @@ def shade_hits_gpu(
     light_arrays; background: (3,); eps: the exclusion half-width (scene
     units); tolerance, max_iterations: the shadow rays' solve (bvh.intersect's).
     out: (colour (K, 3), position (K, 3), normal (K, 3), radius (K, 2),
-    shadow_rays (K,) int64, exhausted (K,) int64), written here."""
+    shadow_rays (K,) int64, exhausted (K,) int64), written here. The hits
+    with a shadow ray the shader leaves unsettled (anyhit.glsl's -3) are
+    shaded again by the CPU kernel."""
     colour, position, normal, radius, shadow_rays, exhausted = out
     n = len(hits)
     if n == 0:
@@ -183,6 +289,7 @@ def shade_hits_gpu(
     look_reals, look_ints, look_offsets = pack_tables([(look, "", LOOK_REAL, LOOK_INT)], {})
     hit_reals = np.column_stack([hits.u, hits.v, np.asarray(directions, dtype=np.float64).reshape(-1, 3)])
     hit_ints = np.column_stack([hits.hit, hits.patch, hits.surface]).astype(np.int32)
+    unsettled = np.zeros(n, dtype=bool)
     with ctx:
         shader = hierarchy_shader(ctx, "shade", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
@@ -206,21 +313,33 @@ def shade_hits_gpu(
                     reals[:, 6:9],
                     reals[:, 9:11],
                 )
-                shadow_rays[part], exhausted[part] = ints[:, 0], ints[:, 1]
+                shadow_rays[part], exhausted[part], unsettled[part] = ints[:, 0], ints[:, 1], ints[:, 2] != 0
                 interrupts.safe_point()
         finally:
             for buffer in tables:
                 buffer.release()
+    redo = np.flatnonzero(unsettled)
+    if redo.size:
+        again = tuple(np.empty((redo.size,) + a.shape[1:], dtype=a.dtype) for a in out)
+        P, rays = bvh.patches, np.ascontiguousarray(directions, dtype=np.float64)
+        run_chunks(
+            shade_hits, redo.size, P.arrays, P.trims, bvh.arrays, hits.hit[redo], hits.patch[redo],
+            hits.surface[redo], hits.u[redo], hits.v[redo], rays[redo], material_of, *materials, *lights,
+            background, eps, float(tolerance), max_iterations, DEFAULT_RETRY_DEPTH,
+            bvh.padding + float(tolerance), ray_budget(max_iterations), *again,
+        )  # fmt: skip
+        for whole, part in zip(out, again):
+            whole[redo] = part
 
 
 def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
-    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 2))."""
+    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 3))."""
     buffers = []
     try:
         buffers.append(ctx.buffer(np.ascontiguousarray(hit_reals).tobytes()))
         buffers.append(ctx.buffer(np.ascontiguousarray(hit_ints).tobytes()))
         buffers.append(ctx.buffer(reserve=count * 11 * 8))
-        buffers.append(ctx.buffer(reserve=count * 2 * 4))
+        buffers.append(ctx.buffer(reserve=count * 3 * 4))
         for buffer, binding in zip(buffers, (2, 3, 8, 9)):
             buffer.bind_to_storage_buffer(binding)
         set_uniform(shader, "hit_count", count)
@@ -229,7 +348,7 @@ def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
             gpu.run(ctx, shader, count)
             ctx.memory_barrier()
         reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(count, 11)
-        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 2)
+        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 3)
         return reals, ints
     finally:
         for buffer in buffers:
