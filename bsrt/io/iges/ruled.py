@@ -28,9 +28,9 @@ of equal relative arc length, the same pairing on a curve of constant speed in i
 The u map (the IGES u in [0, 1] to the B-spline's) is the master's pairing (affine, or the
 rational arc's closed form), or the identity.
 
-OpenCASCADE pairs differently: an arc's (or any non-line curve's) B-spline parameter of its
-``Convert_RationalC1`` form, not the angle or the arc length; its surfaces differ from these
-where an arc is ruled to a line (up to 1.1e-5 of the part's size on pyIGES nentity.igs).
+OpenCASCADE pairs differently: a conic by the B-spline parameter of its ``Convert_RationalC1``
+form, not its angle, and form 0 like form 1; its surfaces differ from these where an arc is
+ruled to a line (up to 1.1e-5 of the part's size on pyIGES nentity.igs).
 """
 
 from __future__ import annotations
