@@ -229,3 +229,31 @@ def test_a_scaled_angular_map_is_the_same_map():
     assert np.abs(f.inverse(f(a)) - a).max() < 1e-14
     assert np.abs(f.derivative(a) - 3.5 * m.derivative(0.4 + 3.5 * a)).max() < 1e-12
     assert isinstance(f, ParamMap) and f.unit == 3.5
+
+
+def test_a_trimmed_118_is_cut_where_its_iges_u_v_say(tmp_path):
+    """A 144 on the quarter arc to line surface, trimmed to [0.25, 0.75]^2 in the 118's (u, v): rays
+    aimed 0.005 inside the square hit (at T0), 0.005 outside miss (the u map is the angle fraction's,
+    not the rational arc's parameter: that one puts u = 0.25 at the angle fraction 0.24)."""
+    corners = [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)]
+    entities = arc_line_file(1, 0)
+    entities[-1].status = "00010000"  # the 118: drawn through the 144 only
+    entities += [
+        *gen.polygon("B", corners),
+        E(142, [0, R("S"), R("B"), 0, 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T"),
+    ]
+    (s,) = load_model(write(tmp_path, entities), cache=False).surfaces
+    assert s.is_trimmed
+    near = [0.245, 0.255, 0.5, 0.745, 0.755]
+    a, v = (x.ravel() for x in np.meshgrid(near, near))
+    inside = (np.abs(a - 0.5) < 0.25) & (np.abs(v - 0.5) < 0.25)
+    x = quarter_arc_line(a, v)
+    d = 1e-6
+    nrm = np.cross(
+        quarter_arc_line(a + d, v) - quarter_arc_line(a - d, v), quarter_arc_line(a, v + d) - quarter_arc_line(a, v - d)
+    )
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    hits = intersect([s], x + T0 * nrm, -nrm, tolerance=1e-12)
+    assert np.array_equal(hits.hit, inside)
+    assert np.abs(hits.t[inside] - T0).max() <= 1e-9 * 10
