@@ -257,3 +257,24 @@ def test_a_trimmed_118_is_cut_where_its_iges_u_v_say(tmp_path):
     hits = intersect([s], x + T0 * nrm, -nrm, tolerance=1e-12)
     assert np.array_equal(hits.hit, inside)
     assert np.abs(hits.t[inside] - T0).max() <= 1e-9 * 10
+
+
+def test_a_trimmed_122_on_an_arc_is_cut_where_its_u_says(tmp_path):
+    """The same unit fix on a 122 (its u in [0, 1] runs over the arc's angle): a quarter arc of
+    radius 2 swept up by 3, trimmed to [0.25, 0.75]^2: the point at angle fraction 0.255 is drawn,
+    0.245 is not (rays from the axis outwards hit the cylinder at t = 2)."""
+    corners = [(0.25, 0.25), (0.75, 0.25), (0.75, 0.75), (0.25, 0.75)]
+    entities = [
+        gen.arc("A", 0.0, (0.0, 0.0), (RADIUS, 0.0), (0.0, RADIUS)),
+        E(122, [R("A"), RADIUS, 0.0, HEIGHT], name="S", status="00010000"),
+        *gen.polygon("B", corners),
+        E(142, [0, R("S"), R("B"), 0, 1], name="C"),
+        E(144, [R("S"), 1, 0, R("C")], name="T"),
+    ]
+    (s,) = load_model(write(tmp_path, entities), cache=False).surfaces
+    near = np.array([0.245, 0.255, 0.5, 0.745, 0.755])
+    a, v = (x.ravel() for x in np.meshgrid(near, near))
+    th = 0.5 * math.pi * a
+    hits = intersect([s], np.stack([0 * a, 0 * a, HEIGHT * v], 1), np.stack([np.cos(th), np.sin(th), 0 * a], 1))
+    assert np.array_equal(hits.hit, (np.abs(a - 0.5) < 0.25) & (np.abs(v - 0.5) < 0.25))
+    assert np.abs(hits.t[hits.hit] - RADIUS).max() <= 1e-9 * 10
