@@ -18,12 +18,12 @@ of equal relative arc length, the same pairing on a curve of constant speed in i
   (or both, without a master) is fitted on the master's knots and weights: Bezier pieces of
   degree ``FIT_DEGREE`` (the master raised to it) interpolating the exactly paired points at
   Chebyshev-Lobatto nodes, each piece halved until the fitted curve is within
-  ``RULED_TOLERANCE`` x the surface's size (its control points' box diagonal) of the paired
-  points at ``CHECKS`` points per piece besides the nodes. So every point S(u, v) is within
+  ``RULED_TOLERANCE`` x the surface's size (the box diagonal of the two curves' control points)
+  of the paired points at ``CHECKS`` points per piece besides the nodes. So every point S(u, v) is within
   that bound of the exact ruled surface's point at the same (u, v), a ruling's ends on the
   curves' exact points. A line or polyline fitted this way stays on its line (its control
   points are affine combinations of the line's points); the surface is C0 at the fitted pieces'
-  ends (tangents continuous to the same bound).
+  ends (its tangents continuous there only as nearly as the fit allows).
 
 The u map (the IGES u in [0, 1] to the B-spline's) is the master's pairing (affine, or the
 rational arc's closed form), or the identity.
@@ -34,6 +34,8 @@ ruled to a line (up to 1.1e-5 of the part's size on pyIGES nentity.igs).
 """
 
 from __future__ import annotations
+
+from math import comb
 
 import numpy as np
 
@@ -231,8 +233,6 @@ def _piece(c: TrimCurve, a: float, b: float, n: int) -> np.ndarray:
 
 def _bernstein(n: int, t: np.ndarray) -> np.ndarray:
     """(N, n + 1): the degree-n Bernstein polynomials at t (N,)."""
-    from math import comb
-
     k = np.arange(n + 1)
     return np.array([comb(n, int(i)) for i in k]) * t[:, None] ** k * (1.0 - t[:, None]) ** (n - k)
 
