@@ -55,7 +55,7 @@ from bsrt.io.iges.bspline import (
 from bsrt.io.param_map import ParamMap, chebyshev_lobatto
 
 RULED_TOLERANCE = 1e-10  # fitted rulings: the largest deviation, as a fraction of the surface's size
-FIT_DEGREE = 5  # the degree of a fitted surface along u
+FIT_DEGREE = 8  # the degree of a fitted surface along u: few pieces (the ray hierarchy is slow on many thin ones)
 CHECKS = 24  # points per fitted piece where the deviation is measured, besides the interpolated nodes
 MAX_PIECES = 4096  # fitted Bezier pieces at most
 _SAMPLES = 65  # u values where pairings are compared (proportional? constant speed?)
