@@ -2,8 +2,9 @@
 
 Pure geometry, no file format: planes, surfaces of revolution (cylinder,
 cone, sphere, torus and the general one), extrusions and piecewise bicubic
-patches (ruled surfaces: ``bsrt.io.iges.ruled``). Each constructor returns the surface and, per
-parameter direction, a :class:`~bsrt.io.param_map.ParamMap` from the
+patches (ruled surfaces: ``bsrt.io.iges.ruled``). Each constructor returns
+the surface and, per parameter direction, a
+:class:`~bsrt.io.param_map.ParamMap` from the
 analytic parameter (an angle, a height, a curve's own parameter) to the
 B-spline's. The maps are affine except along circles, where the B-spline
 parameter equals the angle at every knot (every <= 90 degrees) and follows
