@@ -278,3 +278,12 @@ def test_a_trimmed_122_on_an_arc_is_cut_where_its_u_says(tmp_path):
     hits = intersect([s], np.stack([0 * a, 0 * a, HEIGHT * v], 1), np.stack([np.cos(th), np.sin(th), 0 * a], 1))
     assert np.array_equal(hits.hit, (np.abs(a - 0.5) < 0.25) & (np.abs(v - 0.5) < 0.25))
     assert np.abs(hits.t[hits.hit] - RADIUS).max() <= 1e-9 * 10
+
+
+def test_a_118_of_another_form_is_left_out_with_one_warning(tmp_path):
+    entities = arc_line_file(1, 0)
+    entities[-1].form = 2
+    entities += [gen.line("X", (0.0, 0.0, 0.0), (1.0, 0.0, 0.0)), E(118, [R("A"), R("X"), 0, 0], name="S2")]
+    model = load_model(write(tmp_path, entities), cache=False)
+    assert len(model.surfaces) == 1
+    assert model.warnings == ["entity 118 (DE 5) form 2 (forms 0 and 1 are ruled surfaces); the surface is left out"]
