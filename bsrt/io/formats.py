@@ -57,8 +57,8 @@ READERS: dict[str, Reader] = {
             "iges",
             (".igs", ".iges"),
             "IGES 5.3 (bsrt's own reader): NURBS 128, analytic 108/114/118/120/122 "
-            "and 190-198 as exact NURBS, offsets 140, trimmed 144/142, bounded 143/141, B-rep solids 186, "
-            "subfigures 308/408",
+            "and 190-198 as exact NURBS (118s whose rulings are no NURBS within 1e-10), offsets 140, "
+            "trimmed 144/142, bounded 143/141, B-rep solids 186, subfigures 308/408",
             "iges",
             cached=True,
         ),

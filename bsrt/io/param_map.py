@@ -11,7 +11,8 @@ B-spline's parameter). Each piece has a kind:
   rational quadratic (weights 1, cos(d/2), 1): s = s_i + (s_{i+1} - s_i)
   (1 + tan((x - m) / 2) / tan(d / 4)) / 2 about the middle m, and for an
   OpenCASCADE surface (where x = s at the knots) the same formula;
-- "tanh": a hyperbolic arc, the same with tanh;
+- "tanh": a hyperbolic arc, the same with tanh (angular pieces take x in radians, or
+  hyperbolic units, times ``unit``: x may be a fraction of the arc, an IGES 118's or 122's u);
 - "table": no closed form (an OpenCASCADE surface of revolution, say): the
   B-spline's parameter at Chebyshev-Lobatto points of x, interpolated
   (barycentric formula; :data:`TABLE_NODES` per piece).
@@ -46,7 +47,7 @@ class ParamMap:
     Chebyshev-Lobatto points of each piece's x range; else None. period: 0
     when the map is not periodic. shift: added to x before the pieces are
     looked up. extend: angular end pieces are extended beyond x[0] and
-    x[-1] by their formula, not clipped.
+    x[-1] by their formula, not clipped. unit: radians per unit of x in angular pieces.
     """
 
     x: np.ndarray
@@ -56,6 +57,7 @@ class ParamMap:
     period: float = 0.0
     shift: float = 0.0
     extend: bool = False
+    unit: float = 1.0
 
     @staticmethod
     def identity(a: float, b: float) -> ParamMap:
@@ -75,7 +77,7 @@ class ParamMap:
         return self.kinds[0]
 
     def with_shift(self, shift: float) -> ParamMap:
-        return ParamMap(self.x, self.s, self.kinds, self.table, self.period, shift, self.extend)
+        return ParamMap(self.x, self.s, self.kinds, self.table, self.period, shift, self.extend, self.unit)
 
     def _wrapped(self, v: np.ndarray, breaks: np.ndarray):
         """(v within one period from breaks[0], the whole periods taken off (or None), each v's piece)."""
@@ -120,7 +122,7 @@ class ParamMap:
         out = {"x0": x0, "s0": s0, "slope": (s1 - s0) / d, "m": 0.5 * (x0 + x1), "hd": 0.5 * d, "rise": 0.5 * (s1 - s0)}
         for kind, (f, _) in _ANGULAR.items():
             if kind in self.kinds:
-                out[kind] = f(0.25 * d)
+                out[kind] = f(0.25 * d * self.unit)
         return out
 
     def _local(self, kind: str, i: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -134,7 +136,7 @@ class ParamMap:
         if not self.extend:
             hd = c["hd"][i]
             y = np.clip(y, -hd, hd)
-        return c["s0"][i] + c["rise"][i] * (1.0 + f(0.5 * y) / c[kind][i])
+        return c["s0"][i] + c["rise"][i] * (1.0 + f(0.5 * y * self.unit) / c[kind][i])
 
     def inverse(self, s) -> np.ndarray:
         """x at s (the inverse map): (N,) -> (N,)."""
@@ -157,7 +159,7 @@ class ParamMap:
                 f, f_inv = _ANGULAR[k]
                 d = x1 - x0
                 t = t if self.extend else np.clip(t, 0.0, 1.0)
-                out[sel] = 0.5 * (x0 + x1) + 2.0 * f_inv((2.0 * t - 1.0) * f(0.25 * d))
+                out[sel] = 0.5 * (x0 + x1) + 2.0 * f_inv((2.0 * t - 1.0) * f(0.25 * d * self.unit)) / self.unit
         if wraps is not None:
             out = out + wraps * self.period
         return out - self.shift
@@ -177,8 +179,8 @@ class ParamMap:
             sel = self._of_kind(k)[i]
             if sel.any():
                 y = x[sel] - m[sel] if self.extend else np.clip(x[sel] - m[sel], -0.5 * d[sel], 0.5 * d[sel])
-                c = (np.cos if k == "tan" else np.cosh)(0.5 * y)
-                out[sel] = (s1 - s0)[sel] / (4 * f(0.25 * d[sel]) * c * c)
+                c = (np.cos if k == "tan" else np.cosh)(0.5 * y * self.unit)
+                out[sel] = (s1 - s0)[sel] * self.unit / (4 * f(0.25 * d[sel] * self.unit) * c * c)
         return out
 
     def affine_on(self, lo: float, hi: float, tol: float = 0.0):
@@ -197,18 +199,18 @@ class ParamMap:
 
     def shifted(self, dx: float, ds: float) -> ParamMap:
         """The map moved by dx in x and ds in s."""
-        return ParamMap(self.x + dx, self.s + ds, self.kinds)
+        return ParamMap(self.x + dx, self.s + ds, self.kinds, unit=self.unit)
 
     def scaled_x(self, a: float, b: float) -> ParamMap:
         """The map of x' where x = a x' + b (a > 0)."""
-        return ParamMap((self.x - b) / a, self.s, self.kinds)
+        return ParamMap((self.x - b) / a, self.s, self.kinds, unit=self.unit * a)
 
 
 def concat_maps(maps: list[ParamMap]) -> ParamMap:
-    """Maps of consecutive x and s ranges (each starting where the previous ends) as one."""
+    """Maps of consecutive x and s ranges (each starting where the previous ends, all of one unit) as one."""
     x = [maps[0].x[:1]] + [m.x[1:] for m in maps]
     s = [maps[0].s[:1]] + [m.s[1:] for m in maps]
-    return ParamMap(np.concatenate(x), np.concatenate(s), sum((m.kinds for m in maps), ()))
+    return ParamMap(np.concatenate(x), np.concatenate(s), sum((m.kinds for m in maps), ()), unit=maps[0].unit)
 
 
 def chebyshev_lobatto(a, b, n: int) -> np.ndarray:

@@ -1,9 +1,10 @@
 """Analytic and procedural surfaces as exact (rational) B-spline surfaces.
 
 Pure geometry, no file format: planes, surfaces of revolution (cylinder,
-cone, sphere, torus and the general one), extrusions, ruled surfaces and
-piecewise bicubic patches. Each constructor returns the surface and, per
-parameter direction, a :class:`~bsrt.io.param_map.ParamMap` from the
+cone, sphere, torus and the general one), extrusions and piecewise bicubic
+patches (ruled surfaces: ``bsrt.io.iges.ruled``). Each constructor returns
+the surface and, per parameter direction, a
+:class:`~bsrt.io.param_map.ParamMap` from the
 analytic parameter (an angle, a height, a curve's own parameter) to the
 B-spline's. The maps are affine except along circles, where the B-spline
 parameter equals the angle at every knot (every <= 90 degrees) and follows
@@ -23,7 +24,7 @@ import numpy as np
 
 from bsrt.geometry.bspline import BSplineSurface, make_surface
 from bsrt.geometry.trim import TrimCurve
-from bsrt.io.iges.bspline import clamp, common_breaks, elevate, param_map, product_segments, reparametrised, unit_arc
+from bsrt.io.iges.bspline import clamp, param_map, unit_arc
 from bsrt.io.param_map import ParamMap
 
 
@@ -133,36 +134,6 @@ def extrusion(directrix: TrimCurve, vector, dmap: ParamMap):
     hs = np.stack([h, top], axis=1)
     s = _surface(c.degree, 1, c.knots, [0, 0, 1, 1], hs)
     return s, dmap, ParamMap.identity(0.0, 1.0)
-
-
-def ruled(c1: TrimCurve, c2: TrimCurve):
-    """S(u, v) = (1 - v) C1(u) + v C2(u), both curves taken on u in [0, 1] (their
-    parameters scaled), v in [0, 1]. Rational curves are brought onto a common
-    denominator (W1 W2) so that the rulings are straight and v is linear: exact."""
-    a, b = reparametrised(clamp(c1), 0.0, 1.0), reparametrised(clamp(c2), 0.0, 1.0)
-    if a.weights is None and b.weights is None:
-        p = max(a.degree, b.degree)
-        breaks, (sa, sb) = common_breaks([elevate(a, p), elevate(b, p)])
-        rows = [sa, sb]
-    else:
-        breaks, (sa, sb) = common_breaks([a, b])
-        rows = []
-        for own, other in ((sa, sb), (sb, sa)):
-            segs = [product_segments(own[k], other[k][:, -1]) for k in range(len(breaks) - 1)]
-            rows.append(np.stack(segs))
-        p = rows[0].shape[1] - 1
-    curves = [_from_segments(breaks, r) for r in rows]
-    h = np.stack([c.homogeneous() for c in curves], axis=1)
-    s = _surface(p, 1, curves[0].knots, [0, 0, 1, 1], h)
-    return s, ParamMap.identity(0.0, 1.0), ParamMap.identity(0.0, 1.0)
-
-
-def _from_segments(breaks, segs) -> TrimCurve:
-    q = segs.shape[1] - 1
-    ctrl = np.concatenate([segs[0]] + [s[1:] for s in segs[1:]])
-    knots = np.concatenate([[breaks[0]] * (q + 1)] + [[x] * q for x in breaks[1:-1]] + [[breaks[-1]] * (q + 1)])
-    w = ctrl[:, -1]
-    return TrimCurve(q, knots, ctrl[:, :-1] / w[:, None], w)
 
 
 def bicubic(tu, tv, coef) -> BSplineSurface:

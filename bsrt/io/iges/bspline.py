@@ -49,7 +49,7 @@ def reverse(c: TrimCurve) -> TrimCurve:
     pmap = None
     if c.pmap is not None:  # x -> -x on the IGES side as well
         m = c.pmap
-        pmap = ParamMap(-m.x[::-1], (a + b) - m.s[::-1], m.kinds[::-1])
+        pmap = ParamMap(-m.x[::-1], (a + b) - m.s[::-1], m.kinds[::-1], unit=m.unit)
     return TrimCurve(c.degree, knots, c.points[::-1].copy(), w, pmap)
 
 
@@ -204,7 +204,7 @@ def reparametrised(c: TrimCurve, a: float, b: float) -> TrimCurve:
     scale = (b - a) / (hi - lo)
     knots = a + (c.knots - lo) * scale
     m = param_map(c)
-    pmap = ParamMap(m.x, a + (m.s - lo) * scale, m.kinds)
+    pmap = ParamMap(m.x, a + (m.s - lo) * scale, m.kinds, unit=m.unit)
     return TrimCurve(c.degree, knots, c.points, c.weights, pmap)
 
 

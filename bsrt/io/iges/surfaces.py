@@ -16,11 +16,11 @@ perpendicular to it, or any perpendicular one for the unparametrised form 0):
   per patch (u index outer) 16 X, 16 Y and 16 Z coefficients of
   sum a_ij s^i t^j (s fastest), and 48 arbitrary values after each u row:
   bicubic Bezier patches on the same (u, v), exactly.
-* 118 ruled surface (forms 0 and 1): C1 C2 DIRFLG DEVFLG; u in [0, 1] runs
-  along both curves' parameters (scaled), v in [0, 1] from C1 to C2; DIRFLG 1
-  joins C1's start to C2's end. Form 0 (equal relative arc length) is built
-  like form 1, which is the same surface when both curves have a constant
-  speed (lines, arcs, and pairs of arcs of equal span).
+* 118 ruled surface (forms 0 and 1): C1 C2 DIRFLG DEVFLG; u in [0, 1] pairs
+  points of equal relative arc length (form 0) or parameter (form 1: an arc's
+  angle, a line's [0, 1]), v in [0, 1] from C1 to C2; DIRFLG 1 joins C1's start
+  to C2's end. Exact where the pairing is a NURBS, else within a stated bound:
+  see ``bsrt.io.iges.ruled``.
 * 120 surface of revolution: L (a line: the axis, from its start to its end
   point) C (generatrix) SA TA (radians): u is the generatrix's parameter, v the
   angle turned from the generatrix, right-handed about the axis.
@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bsrt.io.iges import analytic, offset
+from bsrt.io.iges import analytic, offset, ruled
 from bsrt.io.iges.bspline import affine, clamp, param_map, reverse
 from bsrt.io.iges.curves import CURVE_TYPES, Unsupported, curve, direction, point
 from bsrt.io.invert import RevolutionInverse
@@ -274,7 +274,12 @@ def _ruled(f, entity, params, m) -> SurfaceDef:
     c2 = _child_curve(f, params, "second curve pointer", m)
     if params.int("the direction flag DIRFLG") == 1:
         c2 = reverse(c2)
-    s, mu, mv = analytic.ruled(c1, c2)
+    if entity.form not in (0, 1):
+        raise Unsupported(entity, f"form {entity.form} (forms 0 and 1 are ruled surfaces)")
+    try:
+        s, mu, mv = ruled.ruled(c1, c2, entity.form)
+    except ruled.RuledError as e:
+        raise Unsupported(entity, str(e)) from None
     return _fixed(entity, s, mu, mv)
 
 
