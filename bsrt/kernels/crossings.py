@@ -22,6 +22,9 @@ Shadow and mirror rays start on a surface: a piece that holds the start's
 parameters and passes this test meets the ray only at its start (the root
 every secondary ray excludes), so it cannot block or reflect it, whatever the
 angle it leaves at.
+
+Both tests allocate nothing and count no references (``_nrt=False``): the
+retries call them for every quarter.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from bsrt.kernels.jit import njit
 ROUNDING = float(np.finfo(np.float64).eps)
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def crosses_once(net, p, q, ox, oy, oz, e, g):
     """Does the ray from (ox, oy, oz) with frame e (6,) (ray_frame's) meet the piece with
     homogeneous net ([:p+1, :q+1, 4]) at most once along its whole line? (module doc).
@@ -66,7 +69,7 @@ def crosses_once(net, p, q, ox, oy, oz, e, g):
     return sign != 0.0
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def holds_once(net, p, q, rect, u, v, ox, oy, oz, e, g):
     """Does the piece with parameter rectangle rect (4,) (u0, u1, v0, v1) hold (u, v), and does the
     ray's line cross it at most once (crosses_once)? Then a root at (u, v) is the piece's only one."""

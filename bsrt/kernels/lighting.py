@@ -18,8 +18,8 @@ exact bound): that one crossing is the start, the root every shadow ray
 excludes. Whether a ray is blocked is otherwise the same answer trace_rays
 gives: a piece that yields a valid root would yield it inside the walk too.
 (numba's cache keys a kernel on its own file only: after editing
-traverse.py's per-piece solve or crossings.py, edit this file too, or
-shade_hits keeps the old code.)
+traverse.py's per-piece solve, crossings.py or nets.py, edit this file too,
+or shade_hits keeps the old code.)
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ from bsrt.kernels.nets import leaf_net
 from bsrt.kernels.patches import locate
 from bsrt.kernels.roots import ray_frame
 from bsrt.kernels.shading import radiance, surface_frame
-from bsrt.kernels.traverse import STACK, _grazing, _obb_slab, _slab, _solve_piece, _straddles
+from bsrt.kernels.traverse import STACK, _leaves_grazing, _normal, _obb_slab, _slab, _solve_piece, _straddles
 
 
-@njit(cache=True, nogil=True, no_cpython_wrapper=True)
+@njit(cache=True, nogil=True, no_cpython_wrapper=True, _nrt=False)
 def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_iterations, retry_depth, cull_tol, ex, s):
     """(blocked, iterations): does piece ``leaf`` hold a valid root in (0, t_max)? (trace_rays's tests:
     oriented box, hull straddle, the piece's solve with its retries). ex: (surface, u, v, ru, rv) of
@@ -79,7 +79,7 @@ def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_itera
     return found, its
 
 
-@njit(cache=True, nogil=True, no_cpython_wrapper=True)
+@njit(cache=True, nogil=True, no_cpython_wrapper=True, _nrt=False)
 def _crosses_once(B, leaf, ox, oy, oz, e, g):
     """crossings.crosses_once for piece ``leaf``: does the ray meet it at most once? g: a scratch net
     (the retries never use the last: traverse._solve_piece)."""
@@ -87,18 +87,39 @@ def _crosses_once(B, leaf, ox, oy, oz, e, g):
     return crosses_once(net, B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1], ox, oy, oz, e, g)
 
 
-@njit(cache=True, nogil=True, no_cpython_wrapper=True)
+@njit(cache=True, nogil=True, no_cpython_wrapper=True, _nrt=False)
 def occluded(
-    P, T, B, ox, oy, oz, dx, dy, dz, t_max, tol, max_iterations, retry_depth, cull_tol, budget, ex, hint, stack, s
+    P,
+    T,
+    B,
+    ox,
+    oy,
+    oz,
+    dx,
+    dy,
+    dz,
+    t_max,
+    tol,
+    max_iterations,
+    retry_depth,
+    cull_tol,
+    budget,
+    ex,
+    start,
+    hint,
+    stack,
+    s,
 ):
     """Any-hit shadow ray from (ox, oy, oz) along the unit (dx, dy, dz) with 0 < t < t_max:
     (blocked, the leaf that blocked it or -1, iterations). hint: a leaf to try first (-1: none);
-    ex, s: as _leaf_blocks; stack: (STACK,) int64 scratch. budget: the ray's Newton iterations
-    (bvh.py, "Budget"): a ray that spends them without finding a blocker is lit, and the leaf
-    returned is -2 (counted as out of budget)."""
+    ex, s: as _leaf_blocks; start: traverse._normal at the start root (ex's surface, u, v);
+    stack: (STACK,) int64 scratch. budget: the ray's Newton iterations (bvh.py, "Budget"): a ray
+    that spends them without finding a blocker is lit, and the leaf returned is -2 (counted as
+    out of budget). No reference counting (``_nrt=False``, as traverse.py's per-piece helpers):
+    it would cost a third of a shadow ray's time."""
     e = ray_frame(dx, dy, dz)
     ex_m, ex_u, ex_v = ex[0], ex[1], ex[2]
-    skip_start = ex_m >= 0 and not _grazing(P, locate(P, ex_m, ex_u, ex_v), ex_u, ex_v, dx, dy, dz)
+    skip_start = ex_m >= 0 and not _leaves_grazing(start, dx, dy, dz)
     iterations = 0
     if hint >= 0:
         r = B.leaf_rect[hint]
@@ -233,6 +254,7 @@ def shade_hits(
         normal[i, 0], normal[i, 1], normal[i, 2] = nx, ny, nz
         radius[i, 0], radius[i, 1] = ru, rv
         ex = (surface[i], u[i], v[i], ru, rv)
+        start_normal = _normal(P, locate(P, surface[i], u[i], v[i]), u[i], v[i])  # the start's, for every light
         for j in range(n_lights):
             visibility[j] = 1.0
             if kind[j] == 0:
@@ -268,6 +290,7 @@ def shade_hits(
                 cull_tol,
                 budget,
                 ex,
+                start_normal,
                 hints[j],
                 stack,
                 s,

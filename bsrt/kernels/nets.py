@@ -1,7 +1,9 @@
 """Control nets of Bezier pieces, compiled: halving, copying, and a leaf's net in the hierarchy.
 
 Shared by the hierarchy's build (flatten.py) and the rays' retries
-(traverse.py, lighting.py), which need none of the build's kernels.
+(traverse.py, lighting.py), which need none of the build's kernels. They
+allocate nothing and count no references (``_nrt=False``): the retries call
+them for every quarter (traverse.py's module doc).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from bsrt.kernels.jit import njit, njit_typed
     "void(float64[:, :, ::1], float64[:, :, ::1], float64[:, :, ::1], int64, int64, int64, float64[::1])",
     cache=True,
     no_cpython_wrapper=True,
+    _nrt=False,
 )
 def split_half(src, lo, hi, p, q, axis, tmp):
     """de Casteljau at the midpoint of net src ([:p+1, :q+1, 4]) along axis 0 (u) or 1 (v)
@@ -36,7 +39,7 @@ def split_half(src, lo, hi, p, q, axis, tmp):
                     hi[j, n - r, c] = tmp[n - r]
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def copy_net(src, dst, p, q):
     for i in range(p + 1):
         for j in range(q + 1):

@@ -187,7 +187,7 @@ def solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, method, tol2, max_iterations, 
             k = locate(P, m, u, v)
     t = dx * (x - ox) + dy * (y - oy) + dz * (z - oz)
     cosine = np.nan
-    if method == NEWTON:  # the same arithmetic as evaluating the frame again (traverse._cosine)
+    if method == NEWTON:  # the same arithmetic as evaluating the frame again (traverse._normal)
         nx = yu * zv - zu * yv
         ny = zu * xv - xu * zv
         nz = xu * yv - yu * xv

@@ -8,7 +8,11 @@ slices run at once because the kernel releases the GIL.
 Slices are short, so a signal is acted on within a second at any moment
 (issue #28): each thread takes the next slice from a shared cursor, and a
 slice's length follows the measured cost of the items before it (aiming at
-SLICE_SECONDS; the first slices are FIRST_SLICE items). The calling thread
+SLICE_SECONDS; the first slices are FIRST_SLICE items). Toward the end the
+slices shrink with what is left (at most a 1/(2 x threads) share of it, not
+below FIRST_SLICE items), so the threads finish together: one thread
+finishing a long last slice while the others wait cost up to half a slice
+of every core but one per call, and a render makes a dozen such calls. The calling thread
 waits in steps of POLL_SECONDS and takes a waiting signal between them
 (``interrupts.safe_point``); then no further slice starts, and a kernel run
 with ``stoppable=True`` (its last argument is a (1,) uint8 stop flag, read
@@ -38,10 +42,13 @@ def workers() -> int:
 
 
 class _Cursor:
-    """The next slice of [0, n) to take, its length adapted to the measured cost per item."""
+    """The next slice of [0, n) to take, its length adapted to the measured cost per item and
+    shrinking with what is left of n among ``threads`` threads."""
 
-    def __init__(self, n: int, first: int, largest: int):
+    def __init__(self, n: int, first: int, largest: int, threads: int = 1):
         self.n, self.next, self.size, self.largest = n, 0, max(1, first), max(1, largest)
+        self.share = 2 * max(1, threads)  # a slice takes at most 1 / share of what is left
+        self.smallest = max(1, first)
         self.stopped = False
         self.lock = threading.Lock()
 
@@ -50,7 +57,8 @@ class _Cursor:
             if self.stopped:
                 return self.n, self.n
             a = self.next
-            self.next = min(self.n, a + self.size)
+            size = min(self.size, max(self.smallest, (self.n - a) // self.share))
+            self.next = min(self.n, a + size)
             return a, self.next
 
     def measured(self, items: int, seconds: float) -> None:
@@ -88,8 +96,9 @@ def run_chunks(kernel, n: int, *args, min_chunk: int = MIN_CHUNK, per_worker: in
         return
     if _POOL is None:
         _POOL = ThreadPoolExecutor(max_workers=workers(), thread_name_prefix="bsrt-kernel")
-    cursor = _Cursor(n, min(FIRST_SLICE, min_chunk), -(-n // count))
-    threads = min(workers(), max(1, -(-n // cursor.size)))
+    first = max(1, min(FIRST_SLICE, min_chunk))
+    threads = min(workers(), max(1, -(-n // first)))
+    cursor = _Cursor(n, first, -(-n // count), threads)
     futures = [_POOL.submit(_drain, kernel, cursor, args + extra) for _ in range(threads)]
     try:
         pending = futures

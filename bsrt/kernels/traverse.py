@@ -21,6 +21,9 @@ its centre start finds nothing.
 The per-piece helpers allocate nothing and are compiled without numba's reference counting
 (``_nrt=False``, as kernels/patches.py): a call that passes the tables (tuples of 13-14 arrays)
 would otherwise count a reference to every array on entry and exit, a third of a random ray's time.
+So are the retries' net helpers (nets.py) and crossing bounds (crossings.py). numba's cache keys
+a kernel on its own file only: after editing those, edit this file too, or trace_rays keeps the
+old code.
 """
 
 from __future__ import annotations
@@ -85,18 +88,24 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
-def _cosine(P, k, u, v, dx, dy, dz):
-    """|cos| of the angle between the unit ray direction and the surface normal at (u, v)."""
+def _normal(P, k, u, v):
+    """S_u x S_v of patch k at (u, v), not normalised, and its length: (nx, ny, nz, length)."""
     f = frame(P, k, u, v)
     nx = f[4] * f[8] - f[5] * f[7]
     ny = f[5] * f[6] - f[3] * f[8]
     nz = f[3] * f[7] - f[4] * f[6]
-    return abs(nx * dx + ny * dy + nz * dz) / max(np.sqrt(nx * nx + ny * ny + nz * nz), 1e-300)
+    return nx, ny, nz, np.sqrt(nx * nx + ny * ny + nz * nz)
+
+
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
+def _leaves_grazing(n, dx, dy, dz):
+    """Is |cos| of the angle between the unit ray direction and the normal n (_normal's) below GRAZING_COSINE?"""
+    return abs(n[0] * dx + n[1] * dy + n[2] * dz) / max(n[3], 1e-300) < GRAZING_COSINE
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _grazing(P, k, u, v, dx, dy, dz):
-    return _cosine(P, k, u, v, dx, dy, dz) < GRAZING_COSINE
+    return _leaves_grazing(_normal(P, k, u, v), dx, dy, dz)
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
