@@ -195,8 +195,8 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
 @pytest.mark.parametrize("extra", [{}, {"ao": True, "ground": True}], ids=["mirrors", "ao-ground"])
 def test_a_gpu_render_shades_as_the_cpu(extra):
     """The column (a mirror among its materials) rendered with device = "gpu": the
-    direct lighting on the GPU, mirrors, ambient occlusion and the ground's contact
-    shadow on the CPU from its positions, normals and exclusion boxes: the same
+    direct lighting and the mirror rays on the GPU, ambient occlusion and the ground's
+    contact shadow on the CPU from its positions, normals and exclusion boxes: the same
     image within 1/255 (the same hits everywhere away from silhouettes:
     test_gpu.py)."""
     size = dict(width=48, height=48, spp=1, adaptive_spp=0, **extra)
@@ -204,6 +204,7 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     cpu = bsrt.render(path, device="cpu", **size)
     on_gpu = bsrt.render(path, device="gpu", **size)
     assert on_gpu.stats["devices"]["shade"] == "gpu" and cpu.stats["devices"]["shade"] == "cpu"
+    assert on_gpu.stats["devices"]["secondary"] == "gpu (mirrors), cpu" and cpu.stats["devices"]["secondary"] == "cpu"
     assert on_gpu.stats["shadow_rays"] == cpu.stats["shadow_rays"] > 1000
     assert on_gpu.stats["reflection_rays"] == cpu.stats["reflection_rays"] > 0
     np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)

@@ -29,7 +29,7 @@ from bsrt.rendering.bvh import (
     ray_budget,
 )
 from bsrt.rendering.film import Film
-from bsrt.rendering.gpu_shade import shade_hits_gpu
+from bsrt.rendering.gpu_shade import nearest_gpu, shade_hits_gpu
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap
@@ -343,8 +343,10 @@ class _Shader:
 
     def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius, gpu_ctx):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
-        self.gpu = gpu_ctx  # a context: the direct lighting runs there (gpu_shade.py); mirrors and AO on the CPU
-        stats.fields.setdefault("devices", {}).update(shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu")
+        self.gpu = gpu_ctx  # a context: the direct lighting and mirror rays run there (gpu_shade.py); AO on the CPU
+        stats.fields.setdefault("devices", {}).update(
+            shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu" if gpu_ctx is None else "gpu (mirrors), cpu"
+        )
         grounded = options.ground and scene.surfaces and scene.surfaces[-1].name == "ground" and radius is not None
         self.ground = len(scene.surfaces) - 1 if grounded else -1  # the ground plane's surface index
         self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
@@ -472,16 +474,31 @@ class _Shader:
         with self.stats.timer("secondary"):
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
-                parts.append(
-                    self.geometry.intersect(
-                        origins[part],
-                        directions[part],
-                        t_min=0.0,
-                        t_max=t_max[part],
-                        tolerance=self.tolerance,
-                        exclude=tuple(x[part] for x in exclude),
-                        any_hit=any_hit,
+                ex = tuple(x[part] for x in exclude)
+                if self.gpu is not None and not any_hit:  # mirror rays: the nearest-hit walk on the GPU
+                    parts.append(
+                        nearest_gpu(
+                            self.gpu,
+                            self.geometry.bvh,
+                            origins[part],
+                            directions[part],
+                            0.0,
+                            t_max[part],
+                            float(self.tolerance),
+                            ex,
+                        )  # fmt: skip
                     )
-                )
+                else:
+                    parts.append(
+                        self.geometry.intersect(
+                            origins[part],
+                            directions[part],
+                            t_min=0.0,
+                            t_max=t_max[part],
+                            tolerance=self.tolerance,
+                            exclude=ex,
+                            any_hit=any_hit,
+                        )
+                    )
                 self._advance(part.stop - part.start)
         return Hits.concatenate(parts) if parts else Hits.empty(0)
