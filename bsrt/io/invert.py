@@ -296,7 +296,8 @@ class _Arc:
 class _Pieces:
     """A B-spline surface as its (rational) Bezier pieces in power form over each piece's local
     (s, t) in [0, 1]^2, evaluated at many points with a fixed, small number of NumPy calls (no
-    per-degree Python loops): the evaluator of :class:`CurveInverse`'s Newton steps."""
+    per-degree Python loops; two stacked matrix products, several times faster than the same
+    sums by einsum): the evaluator of :class:`CurveInverse`'s Newton steps."""
 
     def __init__(self, s: BSplineSurface):
         ctrl, bounds = bezier_patches(s)  # (K, p + 1, q + 1, 4), u-major
@@ -306,7 +307,11 @@ class _Pieces:
         self.nv = b.shape[1]
         coef = np.einsum("ka,lb,nklc->nabc", _power_from_bernstein(p), _power_from_bernstein(q), ctrl)
         self.rational = s.is_rational
-        self.coef = np.ascontiguousarray(coef if self.rational else coef[..., :3])  # (K, p + 1, q + 1, 4 or 3)
+        coef = coef if self.rational else coef[..., :3]  # (K, p + 1, q + 1, c), c = 4 or 3
+        self.coef = np.ascontiguousarray(
+            coef.transpose(0, 1, 3, 2).reshape(len(coef), -1, q + 1)
+        )  # (K, (p + 1) c, q + 1)
+        self.p1 = p + 1
         # per direction: the pieces' inner starts (searched), starts and 1 / lengths (each piece's)
         self.u = (b[1:, 0, 0].copy(), b[:, 0, 0].copy(), 1.0 / (b[:, 0, 1] - b[:, 0, 0]), np.arange(p + 1))
         self.v = (b[0, 1:, 2].copy(), b[0, :, 2].copy(), 1.0 / (b[0, :, 3] - b[0, :, 2]), np.arange(q + 1))
@@ -326,11 +331,11 @@ class _Pieces:
         """S, S_u, S_v (each (N, 3)) at u, v (N,) (outside the domain: the end pieces extended)."""
         iu, pu, du = self._powers(u, self.u)
         iv, pv, dv = self._powers(v, self.v)
-        c = self.coef[iu * self.nv + iv]  # (N, p + 1, q + 1, 4 or 3)
-        rows = np.einsum("nb,nabk->nak", pv, c)
-        h = np.einsum("na,nak->nk", pu, rows)
-        hu = np.einsum("na,nak->nk", du, rows)
-        hv = np.einsum("na,nb,nabk->nk", pu, dv, c)
+        n = len(iu)
+        c = self.coef[iu * self.nv + iv]  # (N, (p + 1) c, q + 1)
+        rows = np.matmul(c, np.stack([pv, dv], 2)).reshape(n, self.p1, -1)  # (N, p + 1, 2 c): at v, d/dv
+        r = np.matmul(np.stack([pu, du], 1), rows).reshape(n, 2, -1, 2)  # (N, 2 (at u, d/du), c, 2)
+        h, hu, hv = r[:, 0, :, 0], r[:, 1, :, 0], r[:, 0, :, 1]
         return rational_quotient(h, hu, hv) if self.rational else (h, hu, hv)
 
 

@@ -41,10 +41,12 @@ SEAM_NEAR = 1e-6  # samples this close to a seam (x the period) across it are pu
 
 
 def _start_samples(c: TrimCurve) -> np.ndarray:
+    """(8 k + 1,): 8 equal steps over each of the curve's k knot spans (as np.linspace takes them)."""
     lo, hi = c.domain
     breaks = np.unique(np.clip(c.knots, lo, hi))
-    t = [np.linspace(a, b, 9)[:-1] for a, b in zip(breaks[:-1], breaks[1:])]
-    return np.concatenate(t + [[hi]])
+    a = breaks[:-1, None]
+    t = np.arange(8.0) * ((breaks[1:, None] - a) / 8) + a
+    return np.append(t.ravel(), hi)
 
 
 def _near(values, reference, angular):
@@ -131,8 +133,9 @@ class _Refinement:
         self.curve = np.repeat(np.arange(len(started)), sizes)
         self.tol = np.array([x for _, _, _, x in started], dtype=float)
         self.floor = np.array([1e-12 * (abs(t[-1]) + abs(t[0]) + 1) for _, t, _, _ in started])
-        last = np.cumsum(sizes) - 1
-        a = np.setdiff1d(np.arange(len(self.t)), last)  # every vertex but each curve's last
+        first = np.ones(len(self.t), bool)
+        first[np.cumsum(sizes) - 1] = False
+        a = np.flatnonzero(first)  # every vertex but each curve's last
         self._want(
             np.empty(0),
             np.empty((0, 2)),

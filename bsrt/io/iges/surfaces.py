@@ -332,14 +332,10 @@ def _tabulated(f, entity, params, m) -> SurfaceDef:
     start = c.ends()[0]
     s, mu, mv = analytic.extrusion(c, end - start, pmap.scaled_x(t1 - t0, t0))
     sd = _fixed(entity, s, mu, mv, natural=(0.0, 1.0, 0.0, 1.0))
-    flat = clamp(c)
-    x, y = flat.points[-1] - start, end - start
-    if (
-        flat.n == 2  # a segment on an affine parameter: a parallelogram, S = start + u x + v y
-        and flat.weights is None
-        and mu.affine_on(0.0, 1.0) is not None
-        and np.linalg.norm(np.cross(x, y)) > 1e-9 * np.linalg.norm(x) * np.linalg.norm(y)
-    ):
+    flat, y = clamp(c), end - start
+    x = flat.points[-1] - start  # over a segment on an affine parameter: S = start + u x + v y
+    segment = flat.n == 2 and flat.weights is None and mu.affine_on(0.0, 1.0) is not None
+    if segment and np.linalg.norm(np.cross(x, y)) > 1e-9 * np.linalg.norm(x) * np.linalg.norm(y):
         sd.plane, sd.invert = (start, x, y), _affine_inverse(start, x, y)
     return sd
 
