@@ -136,78 +136,168 @@ class SurfaceInverse:
 
 
 class RevolutionInverse:
-    """Closest points on a surface of revolution whose generatrix is a segment in a half-plane
-    bounded by the axis (a cylinder, a cone, a flat ring), in closed form: points (N, 3) ->
-    the B-spline's (x, y) (N, 2), x along the segment, y = ``to_y(angle)``.
+    """Closest points on a surface of revolution whose generatrix, in a half-plane bounded by
+    the axis, is a segment (a cylinder, a cone, a flat ring) or an arc of a circle (a sphere, a
+    torus), in closed form: points (N, 3) -> the B-spline's (x, y) (N, 2), x the generatrix's
+    parameter, y = ``to_y(angle)``.
 
     The closest point lies in the point's own meridian half-plane (at its angle about the
     axis, taken nearest the hint's and clamped to the turn's range) at the point of the
-    segment nearest it there. NaN in y where that point is on the axis (an apex: any angle).
-    ``seams`` as :class:`SurfaceInverse`'s. Returns None from :meth:`of` for other generatrices.
+    generatrix nearest it there (:class:`_Segment`, :class:`_Arc`). NaN in y where that point
+    is on the axis (an apex, a pole: any angle). ``seams`` as :class:`SurfaceInverse`'s.
+    Returns None from :meth:`of` for other generatrices.
     """
 
-    def __init__(self, ends, x_range, origin, axis, angles, to_y, to_angle):
-        self.o, self.a = np.asarray(origin, float), np.asarray(axis, float)
-        g = np.asarray(ends, float) - self.o  # (2, 3)
-        self.z = g @ self.a  # (2,) heights along the axis
-        radial = g - self.z[:, None] * self.a
-        self.rho = np.linalg.norm(radial, axis=1)  # (2,) distances from the axis
-        self.e1 = radial[int(np.argmax(self.rho))] / self.rho.max()  # angle 0: the generatrix's half-plane
-        self.e2 = np.cross(self.a, self.e1)
-        self.x_range, self.angles, self.to_y, self.to_angle = x_range, angles, to_y, to_angle
-        self.size = float(np.linalg.norm(np.ptp(np.asarray(ends, float), axis=0))) + float(self.rho.max())
-        self.closed = (False, angles[1] - angles[0] >= 2 * np.pi * (1 - 1e-12))
+    def __init__(self, profile, origin, axis, e1, angles, to_y, to_angle, size: float):
+        self.profile, self.o, self.a, self.e1, self.size = profile, origin, axis, e1, size
+        self.e2 = np.cross(axis, e1)
+        self.angles, self.to_y, self.to_angle = angles, to_y, to_angle
+        self.closed = (profile.closed, angles[1] - angles[0] >= 2 * np.pi * (1 - 1e-12))
 
     @classmethod
-    def of(cls, degree, knots, points, weights, origin, axis, angles, to_y, to_angle):
-        """The inverse for a generatrix (degree, knots, points (n, 3), weights), or None unless it is
-        one segment (degree 1, two points, even weights) in a half-plane bounded by the axis."""
+    def of(cls, degree, knots, points, weights, origin, axis, angles, to_y, to_angle, pmap=None):
+        """The inverse for a clamped generatrix (degree, knots, points (n, 3), weights, and the map
+        ``pmap`` from its file's parameter, a ParamMap or None), or None unless it lies in a
+        half-plane bounded by the axis and is one segment (degree 1, two points, even weights) or
+        a circular arc (``pmap`` of "tan" pieces: the curve is c + A cos t + B sin t in the file's
+        parameter t, as ``iges.bspline.arc_curve`` builds it)."""
+        o, a = np.asarray(origin, float), np.asarray(axis, float)
         points = np.asarray(points, float)
-        if degree != 1 or points.shape[0] != 2 or (weights is not None and np.ptp(weights) != 0):
+        g = points - o
+        z = g @ a
+        radial = g - z[:, None] * a
+        rho = np.linalg.norm(radial, axis=1)
+        size = float(np.linalg.norm(np.ptp(points, axis=0))) + float(rho.max())
+        if not rho.max() > 0:
             return None
-        inv = cls(points, (float(knots[1]), float(knots[2])), origin, axis, angles, to_y, to_angle)
-        g = points - inv.o
-        radial = g - inv.z[:, None] * inv.a
-        off_plane = np.abs(radial @ inv.e2).max()
-        if not inv.rho.max() > 0 or off_plane > 1e-12 * inv.size or (radial @ inv.e1).min() < -1e-12 * inv.size:
+        e1 = radial[int(np.argmax(rho))] / rho.max()  # angle 0: the generatrix's half-plane
+        e2 = np.cross(a, e1)
+        if np.abs(radial @ e2).max() > 1e-12 * size or (radial @ e1).min() < -1e-12 * size:
             return None
-        return inv
+        plane = np.stack([radial @ e1, z], 1)  # (n, 2): (distance from the axis, height)
+        even = weights is None or np.ptp(weights) == 0
+        if degree == 1 and len(points) == 2 and even:
+            profile = _Segment(plane, (float(knots[1]), float(knots[2])))
+        elif degree == 2 and pmap is not None and set(pmap.kinds) == {"tan"}:
+            profile = _Arc.of(degree, knots, plane, weights, pmap, size)
+            if profile is None:
+                return None
+        else:
+            return None
+        return cls(profile, o, a, e1, angles, to_y, to_angle, size)
 
     @property
     def seams(self):
-        """((x0, x1, False), (y0, y1, closed in y)) for ``iges.pcurves.invert_curves``."""
+        """((x0, x1, closed in x), (y0, y1, closed in y)) for ``iges.pcurves.invert_curves``."""
         y0, y1 = (float(v) for v in self.to_y(np.array(self.angles)))
-        return ((*self.x_range, False), (y0, y1, self.closed[1]))
+        return ((*self.profile.x_range, self.closed[0]), (y0, y1, self.closed[1]))
 
     def __call__(self, pts, hint=None):
         p = np.asarray(pts, float) - self.o
         z = p @ self.a
         d = p - z[:, None] * self.a
-        angle = np.arctan2(d @ self.e2, d @ self.e1)
+        c, s = d @ self.e1, d @ self.e2
+        angle = np.arctan2(s, c)
         a0, a1 = self.angles
         if hint is not None:  # the turn nearest the hint's angle
-            near = self.to_angle(np.asarray(hint, float)[:, 1])
+            hint = np.asarray(hint, float)
+            near = self.to_angle(hint[:, 1])
             angle = angle + 2 * np.pi * np.round((near - angle) / (2 * np.pi))
         else:
-            angle = a0 + np.mod(angle - a0, 2 * np.pi)
-            past = angle > a1  # outside a partial turn: the nearer end
-            angle[past] = np.where(angle[past] - a1 <= a0 + 2 * np.pi - angle[past], a1, a0)
+            angle = _into(angle, a0, a1)
         angle = np.clip(angle, a0, a1)
-        rho = np.hypot(*np.stack([d @ self.e1, d @ self.e2]))
-        (r0, r1), (z0, z1) = self.rho, self.z
+        x, rho = self.profile.closest(np.hypot(c, s), z, None if hint is None else hint[:, 0])
+        uv = np.stack([x, self.to_y(angle)], axis=1)
+        uv[rho * (a1 - a0) <= 1e-9 * self.size, 1] = np.nan  # on the axis
+        return uv
+
+
+def _into(angle, a0, a1):
+    """Angles (N,) moved by whole turns into [a0, a0 + 2 pi); those past a1 onto the nearer end."""
+    angle = a0 + np.mod(angle - a0, 2 * np.pi)
+    past = angle > a1
+    angle[past] = np.where(angle[past] - a1 <= a0 + 2 * np.pi - angle[past], a1, a0)
+    return angle
+
+
+class _Segment:
+    """A generatrix that is a segment in its meridian half-plane: ends (2, 2) (distance from the
+    axis, height), on the parameter range x_range."""
+
+    closed = False
+
+    def __init__(self, ends, x_range):
+        self.ends, self.x_range = ends, x_range
+
+    def closest(self, rho, z, hint):
+        """(x, distance of the nearest point from the axis), each (N,), for points at rho, z (N,)."""
+        (r0, z0), (r1, z1) = self.ends
         dr, dz = r1 - r0, z1 - z0
         f = np.clip(((rho - r0) * dr + (z - z0) * dz) / (dr * dr + dz * dz), 0.0, 1.0)
         x0, x1 = self.x_range
-        uv = np.stack([x0 + f * (x1 - x0), self.to_y(angle)], axis=1)
-        on_axis = (r0 + f * dr) * (a1 - a0) <= 1e-9 * self.size
-        uv[on_axis, 1] = np.nan
-        return uv
+        return x0 + f * (x1 - x0), r0 + f * dr
+
+
+class _Arc:
+    """A generatrix that is an arc of a circle in its meridian half-plane: c + A cos t + B sin t
+    for t in [t0, t1] (c, A, B (2,): distance from the axis, height; A, B orthogonal and as long
+    as the radius), at the B-spline parameter x = pmap(t)."""
+
+    def __init__(self, c, ab, pmap):
+        self.c, self.ab, self.pmap = c, ab, pmap
+        self.t = (float(pmap.x[0]), float(pmap.x[-1]))
+        self.x_range = (float(pmap.s[0]), float(pmap.s[-1]))
+        self.closed = self.t[1] - self.t[0] >= 2 * np.pi * (1 - 1e-12)
+
+    @classmethod
+    def of(cls, degree, knots, plane, weights, pmap, size):
+        """The arc through the curve (degree, knots, points ``plane`` (n, 2), weights) at five
+        values of t, or None unless the curve is that arc (to 1e-12 of ``size``) and it spans
+        at least 1e-3 radians (a shorter one fixes c poorly)."""
+        from bsrt.geometry.trim import TrimCurve
+
+        t0, t1 = float(pmap.x[0]), float(pmap.x[-1])
+        if not t1 - t0 >= 1e-3:
+            return None
+        t = t0 + (t1 - t0) * np.array([0.0, 1 / 3, 2 / 3, 1.0, 1 / 6])  # (the first three: apart on a whole turn)
+        at = TrimCurve(degree, np.asarray(knots, float), plane, weights).evaluate(pmap(t))  # (5, 2)
+        m = np.stack([np.ones(5), np.cos(t), np.sin(t)], 1)
+        try:
+            cab = np.linalg.solve(m[:3], at[:3])  # (3, 2): c, A, B
+        except np.linalg.LinAlgError:
+            return None
+        c, ab = cab[0], cab[1:]
+        r = np.linalg.norm(ab, axis=1)
+        if (
+            np.abs(m[3:] @ cab - at[3:]).max() > 1e-12 * size
+            or abs(r[0] - r[1]) > 1e-12 * size
+            or abs(ab[0] @ ab[1]) > 1e-12 * size * size
+        ):
+            return None
+        return cls(c, ab, pmap)
+
+    def closest(self, rho, z, hint):
+        """(x, distance of the nearest point from the axis), each (N,), for points at rho, z (N,),
+        the full circle's turn nearest the hint's x (N,) if given."""
+        q = np.stack([rho, z], 1) - self.c
+        (a, b), (t0, t1) = self.ab, self.t
+        t = np.arctan2(q @ b, q @ a)
+        if hint is not None:
+            near = self.pmap.inverse(hint)
+            t = t + 2 * np.pi * np.round((near - t) / (2 * np.pi))
+        else:
+            t = _into(t, t0, t1)
+            if self.closed:  # on the seam (to rounding): its start, as the nearest grid point would give
+                t[t - t0 >= 2 * np.pi * (1 - 1e-12)] = t0
+        t = np.clip(t, t0, t1)
+        return self.pmap(t), self.c[0] + a[0] * np.cos(t) + b[0] * np.sin(t)
 
 
 class _Pieces:
     """A B-spline surface as its (rational) Bezier pieces in power form over each piece's local
     (s, t) in [0, 1]^2, evaluated at many points with a fixed, small number of NumPy calls (no
-    per-degree Python loops): the evaluator of :class:`CurveInverse`'s Newton steps."""
+    per-degree Python loops; two stacked matrix products, several times faster than the same
+    sums by einsum): the evaluator of :class:`CurveInverse`'s Newton steps."""
 
     def __init__(self, s: BSplineSurface):
         ctrl, bounds = bezier_patches(s)  # (K, p + 1, q + 1, 4), u-major
@@ -217,7 +307,11 @@ class _Pieces:
         self.nv = b.shape[1]
         coef = np.einsum("ka,lb,nklc->nabc", _power_from_bernstein(p), _power_from_bernstein(q), ctrl)
         self.rational = s.is_rational
-        self.coef = np.ascontiguousarray(coef if self.rational else coef[..., :3])  # (K, p + 1, q + 1, 4 or 3)
+        coef = coef if self.rational else coef[..., :3]  # (K, p + 1, q + 1, c), c = 4 or 3
+        self.coef = np.ascontiguousarray(
+            coef.transpose(0, 1, 3, 2).reshape(len(coef), -1, q + 1)
+        )  # (K, (p + 1) c, q + 1)
+        self.p1 = p + 1
         # per direction: the pieces' inner starts (searched), starts and 1 / lengths (each piece's)
         self.u = (b[1:, 0, 0].copy(), b[:, 0, 0].copy(), 1.0 / (b[:, 0, 1] - b[:, 0, 0]), np.arange(p + 1))
         self.v = (b[0, 1:, 2].copy(), b[0, :, 2].copy(), 1.0 / (b[0, :, 3] - b[0, :, 2]), np.arange(q + 1))
@@ -237,11 +331,11 @@ class _Pieces:
         """S, S_u, S_v (each (N, 3)) at u, v (N,) (outside the domain: the end pieces extended)."""
         iu, pu, du = self._powers(u, self.u)
         iv, pv, dv = self._powers(v, self.v)
-        c = self.coef[iu * self.nv + iv]  # (N, p + 1, q + 1, 4 or 3)
-        rows = np.einsum("nb,nabk->nak", pv, c)
-        h = np.einsum("na,nak->nk", pu, rows)
-        hu = np.einsum("na,nak->nk", du, rows)
-        hv = np.einsum("na,nb,nabk->nk", pu, dv, c)
+        n = len(iu)
+        c = self.coef[iu * self.nv + iv]  # (N, (p + 1) c, q + 1)
+        rows = np.matmul(c, np.stack([pv, dv], 2)).reshape(n, self.p1, -1)  # (N, p + 1, 2 c): at v, d/dv
+        r = np.matmul(np.stack([pu, du], 1), rows).reshape(n, 2, -1, 2)  # (N, 2 (at u, d/du), c, 2)
+        h, hu, hv = r[:, 0, :, 0], r[:, 1, :, 0], r[:, 0, :, 1]
         return rational_quotient(h, hu, hv) if self.rational else (h, hu, hv)
 
 

@@ -4,7 +4,7 @@ Loops, in this order:
 
 1. Parameter-space curves are taken as written (a composite's members one by
    one); model-space ones are carried into (u, v) (``pcurves``, ``bsrt.io.invert``: exactly for
-   planes, polylines within ``INVERSION_TOL`` otherwise, one warning per file).
+   planes and parallelograms (a 122 over a segment), polylines within ``INVERSION_TOL`` otherwise, one warning per file).
    On a B-spline closed in a direction (its two edges across it coincide), a
    carried curve's samples on the seam take the side of their neighbours, and a
    carried curve lying wholly on the seam the side where the previous curve of

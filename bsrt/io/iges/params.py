@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
-import operator
 import re
 from dataclasses import dataclass
 
@@ -14,9 +12,8 @@ from bsrt.io import fail
 
 _HOLLERITH = re.compile(r"\s*([0-9]+)H")
 _REAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?")
-_REALS = re.compile(r"(?:[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[EeDd][+-]?[0-9]+)?\n)*")  # newline-terminated
+_NUMBER_CHARACTERS = re.compile(r"[0-9+\-.EeDd\n]*")  # tokens joined by newlines
 _INT = re.compile(r"[+-]?[0-9]+")
-_TEXT = operator.itemgetter(0)  # a token's text
 
 
 @dataclass
@@ -36,10 +33,11 @@ class _Entity:
 
 
 class _Params:
-    """The parameters of one entity: tokens with their file lines, read in order."""
+    """The parameters of one entity: tokens (stripped text) read in order, and ``where``: the
+    file line of token i at ``where[i]``."""
 
-    def __init__(self, path: str, entity: _Entity, tokens: list[tuple[str, int]]):
-        self.path, self.entity, self.tokens, self.pos = path, entity, tokens, 1
+    def __init__(self, path: str, entity: _Entity, texts: list[str], where):
+        self.path, self.entity, self.texts, self.where, self.pos = path, entity, texts, where, 1
 
     def fail(self, message: str, line: int | None = None):
         """InputError 'path:line: entity T (DE n): message' at the parameter read last."""
@@ -49,14 +47,14 @@ class _Params:
             f"entity {self.entity.type} (DE {self.entity.de}): {message}",
         )
 
-    def _next(self, what: str) -> tuple[str, int]:
-        if self.pos >= len(self.tokens):
-            raise self.fail(f"its {len(self.tokens) - 1} parameters end before {what}")
+    def _next(self, what: str) -> str:
+        if self.pos >= len(self.texts):
+            raise self.fail(f"its {len(self.texts) - 1} parameters end before {what}")
         self.pos += 1
-        return self.tokens[self.pos - 1]
+        return self.texts[self.pos - 1]
 
     def real(self, what: str) -> float:
-        token, line = self._next(what)
+        token = self._next(what)
         if token == "":
             return 0.0
         if _REAL.fullmatch(token) is None:
@@ -69,20 +67,27 @@ class _Params:
         return value
 
     def reals(self, count: int, what: str) -> np.ndarray:
-        """(count,) float64; one by one (with the first bad one reported) only if the fast path fails."""
-        chunk = self.tokens[self.pos : self.pos + count]
-        text = "\n".join(map(_TEXT, chunk)) + "\n" if chunk else ""
-        if len(chunk) == count and _REALS.fullmatch(text):  # every token a number (none empty)
+        """(count,) float64; one by one (with the first bad one reported) only if the fast path fails.
+
+        The fast path: the tokens' characters are digits, signs, points and exponent letters
+        (``_NUMBER_CHARACTERS``), and Python's float (NumPy's conversion of text) reads every
+        one: of such strings it reads exactly those ``_REAL`` matches."""
+        chunk = self.texts[self.pos : self.pos + count]
+        text = "\n".join(chunk)
+        if len(chunk) == count and _NUMBER_CHARACTERS.fullmatch(text):
             if "D" in text or "d" in text:
-                text = text.replace("D", "E").replace("d", "e")
-            values = np.array(text.split(), dtype=np.float64)
-            if np.all(np.abs(values) <= validate.MAX_COORDINATE):
+                chunk = text.replace("D", "E").replace("d", "e").split("\n")
+            try:
+                values = np.array(chunk, dtype=np.float64)
+            except ValueError:  # an empty token, or one like "1.2.3"
+                values = None
+            if values is not None and np.all(np.abs(values) <= validate.MAX_COORDINATE):
                 self.pos += count
                 return values
         return np.array([self.real(what) for _ in range(count)], dtype=np.float64)
 
     def int(self, what: str, minimum: int | None = None) -> int:
-        token, line = self._next(what)
+        token = self._next(what)
         if token.isdigit() and token.isascii():
             value = int(token)
         elif token == "":
@@ -106,7 +111,7 @@ class _Params:
     @property
     def line(self) -> int:
         """File line of the parameter read last (of the first one before any is read)."""
-        return self.tokens[max(1, min(self.pos - 1, len(self.tokens) - 1))][1]
+        return self.where[max(1, min(self.pos - 1, len(self.texts) - 1))]
 
 
 def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims: tuple[str, str]) -> _Params:
@@ -129,23 +134,35 @@ def _parameters(path: str, entity: _Entity, precs: list[tuple[int, str]], delims
     end = text.find(rdelim)
     if end >= 0 and "H" not in text[:end] and "h" not in text[:end]:  # no Hollerith string: split at once
         parts = text[:end].split(pdelim)
-        if len(lines) == 1:
-            where = itertools.repeat(lines[0])
-        else:  # each token's first column in the joined records, in records: its file line
-            sizes = np.fromiter(map(len, parts), dtype=np.int64, count=len(parts)) + 1
-            starts = np.cumsum(sizes) - sizes
-            where = np.asarray(lines)[starts // 64].tolist()
-        tokens = list(zip(map(str.strip, parts), where))  # (no Python code per token: a B-spline has thousands)
+        texts = list(map(str.strip, parts))  # (no Python code per token: a B-spline has thousands)
+        where = _Lines(lines, parts)
     else:
         tokens = _hollerith_tokens(path, entity, text, [x for x in lines for _ in range(64)], delims)
-    if tokens[0][0] != str(entity.type):
+        texts, where = [t for t, _ in tokens], [line for _, line in tokens]
+    if texts[0] != str(entity.type):
         raise fail(
             path,
-            tokens[0][1],
-            f"the parameters of DE {entity.de} start with "
-            f"{tokens[0][0]!r}, but the directory says entity {entity.type}",
+            where[0],
+            f"the parameters of DE {entity.de} start with {texts[0]!r}, but the directory says entity {entity.type}",
         )
-    return _Params(path, entity, tokens)
+    return _Params(path, entity, texts, where)
+
+
+class _Lines:
+    """The file line of each token of records ``lines`` (their file lines) joined and split into
+    ``parts``: where[i], worked out at the first question (only errors ask)."""
+
+    def __init__(self, lines: list[int], parts: list[str]):
+        self.lines, self.parts, self.at = lines, parts, None
+
+    def __getitem__(self, i: int) -> int:
+        if self.at is None:
+            if len(self.lines) == 1:
+                self.at = [self.lines[0]] * len(self.parts)
+            else:  # each token's first column in the joined records, in records: its file line
+                sizes = np.fromiter(map(len, self.parts), dtype=np.int64, count=len(self.parts)) + 1
+                self.at = np.asarray(self.lines)[(np.cumsum(sizes) - sizes) // 64].tolist()
+        return self.at[i]
 
 
 def _hollerith_tokens(path, entity, text, where, delims) -> list[tuple[str, int]]:

@@ -41,10 +41,12 @@ SEAM_NEAR = 1e-6  # samples this close to a seam (x the period) across it are pu
 
 
 def _start_samples(c: TrimCurve) -> np.ndarray:
+    """(8 k + 1,): 8 equal steps over each of the curve's k knot spans (as np.linspace takes them)."""
     lo, hi = c.domain
     breaks = np.unique(np.clip(c.knots, lo, hi))
-    t = [np.linspace(a, b, 9)[:-1] for a, b in zip(breaks[:-1], breaks[1:])]
-    return np.concatenate(t + [[hi]])
+    a = breaks[:-1, None]
+    t = np.arange(8.0) * ((breaks[1:, None] - a) / 8) + a
+    return np.append(t.ravel(), hi)
 
 
 def _near(values, reference, angular):
@@ -71,8 +73,7 @@ def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -
     cuts = np.cumsum([0] + [len(t) for t in ts])
     uv_all = to_uv(np.concatenate([c.evaluate(t) for c, t in zip(curves, ts)]), None)
     seams = [(k, lo, hi) for k, (lo, hi, closed) in enumerate(getattr(to_uv, "seams", ())) if closed]
-    out: list[TrimCurve | None] = [None] * len(curves)
-    todo = []
+    started = []
     for i, t in enumerate(ts):
         uv = uv_all[cuts[i] : cuts[i + 1]]
         for k in range(2):  # NaN: any value (a pole, an apex): the neighbours' one
@@ -87,76 +88,120 @@ def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -
         else:
             for k, lo, hi in seams:
                 _snap(uv[:, k], lo, hi)
-            todo.append(_Refinement(i, t, uv, tol(uv) if callable(tol) else tol))
-    while todo:
-        pts = np.concatenate([curves[r.index].evaluate(r.want_t) for r in todo])
-        hint = np.concatenate([r.want_hint for r in todo])
+            started.append((i, t, uv, tol(uv) if callable(tol) else tol))
+    out: list[TrimCurve | None] = [None] * len(curves)
+    if not started:
+        return out
+    r = _Refinement(started)
+    while len(r.want_t):
+        pts = np.concatenate([curves[i].evaluate(r.want_t[sel]) for i, sel in r.groups()])
+        hint = r.want_hint
         new = to_uv(pts, hint)
         new = _near(np.where(np.isnan(new), hint, new), hint, angular)
         for k, lo, hi in seams:  # the hint's turn; on the seam: the side of the hint
             new[:, k] += (hi - lo) * np.round((hint[:, k] - new[:, k]) / (hi - lo))
             _onto_seam(new[:, k], lo, hi)
-        first = 0
-        for r in todo:
-            first, mine = first + len(r.want_t), new[first : first + len(r.want_t)]
-            r.take(mine)
-            if not len(r.want_t) or len(r.t) >= _MAX_POINTS:
-                out[r.index] = polyline_curve(r.uv)
-        todo = [r for r in todo if out[r.index] is None]
+        r.take(new)
+    for i, uv in r.polylines():
+        out[i] = polyline_curve(uv)
     return out
 
 
 class _Refinement:
-    """One curve's polyline being refined: vertices t (M,) and uv (M, 2), vertices to add
-    (parameters ``new_t`` (V,)) and intervals to test (ends ``test_a``, ``test_b`` (T,), both
-    vertices once the new ones are in); ``want_t`` (V + T,) and ``want_hint`` (V + T, 2): the
-    points to carry into (u, v) next, the new vertices and then the tested intervals' midpoints.
+    """The polylines of many curves being refined together, one round per call of ``take``.
 
-    An interval whose midpoint is further than tol from its chord is cut into m = 2, 4, 6 or
-    8 equal pieces, m from the miss (on a smooth curve it falls as the square of the piece's
-    length): the midpoint becomes a vertex at once, the other new vertices and the pieces'
-    midpoints are carried in the next round, from hints on the parabola through the interval's
-    ends and midpoint (so that a curve that needs many points takes few rounds)."""
+    Vertices (kept in the order found, in ``t``, ``uv`` and ``curve``: (M,), (M, 2), (M,);
+    ``polylines`` sorts them along each curve); points to carry into (u, v) next, in
+    ``want_t`` and ``want_hint`` ((W,), (W, 2), of the curves ``want_curve`` (W,)): first the
+    new vertices (which become vertices ``fresh`` (V,)), then the midpoints of the tested
+    intervals, whose ends are vertices ``ends`` (T, 2).
 
-    def __init__(self, index: int, t, uv, tol: float):
-        self.index, self.t, self.uv, self.tol = index, t, uv, tol
-        self.new_t = np.empty(0)
-        self.test_a, self.test_b = t[:-1], t[1:]
-        self.want_t = 0.5 * (t[:-1] + t[1:])
-        self.want_hint = 0.5 * (uv[:-1] + uv[1:])
-        self.floor = 1e-12 * (abs(t[-1]) + abs(t[0]) + 1)  # intervals no shorter are cut
+    A tested interval whose midpoint is further than its curve's tol from its chord is cut
+    into m = 2, 4, 6 or 8 equal pieces, m from the miss (on a smooth curve it falls as the square
+    of the piece's length): the midpoint becomes a vertex at once, the other new vertices and
+    the pieces' midpoints are carried in the next round, from hints on the parabola through the
+    interval's ends and midpoint (so that a curve that needs many points takes few rounds).
+    Intervals no longer than 1e-12 of the curve's parameter range (plus one) are not cut, nor
+    those of a curve with ``_MAX_POINTS`` vertices."""
 
-    def _insert(self, t, uv) -> None:
-        at = np.searchsorted(self.t, t)
-        self.t = np.insert(self.t, at, t)
-        self.uv = np.insert(self.uv, at, uv, axis=0)
+    def __init__(self, started):
+        """started: (index, t (n,), uv (n, 2), tol) per curve (its first samples carried)."""
+        sizes = [len(t) for _, t, _, _ in started]
+        self.index = [i for i, _, _, _ in started]
+        self.t = np.concatenate([t for _, t, _, _ in started])
+        self.uv = np.concatenate([uv for _, _, uv, _ in started])
+        self.curve = np.repeat(np.arange(len(started)), sizes)
+        self.tol = np.array([x for _, _, _, x in started], dtype=float)
+        self.floor = np.array([1e-12 * (abs(t[-1]) + abs(t[0]) + 1) for _, t, _, _ in started])
+        first = np.ones(len(self.t), bool)
+        first[np.cumsum(sizes) - 1] = False
+        a = np.flatnonzero(first)  # every vertex but each curve's last
+        self._want(
+            np.empty(0),
+            np.empty((0, 2)),
+            np.empty(0, np.int64),
+            np.stack([a, a + 1], 1),
+            0.5 * (self.uv[a] + self.uv[a + 1]),
+        )
+
+    def _want(self, t, hint, curve, ends, mid_hint) -> None:
+        """Carry new vertices (t (V,), hint (V, 2), curve (V,)) and the midpoints of the intervals
+        between vertices ends (T, 2) (hints mid_hint (T, 2))."""
+        self.fresh = len(self.t) + np.arange(len(t))
+        self.t = np.concatenate([self.t, t])
+        self.uv = np.concatenate([self.uv, hint])  # (a placeholder until carried)
+        self.curve = np.concatenate([self.curve, curve])
+        self.ends = ends
+        ta, tb = self.t[ends[:, 0]], self.t[ends[:, 1]]
+        self.want_t = np.concatenate([t, 0.5 * (ta + tb)])
+        self.want_curve = np.concatenate([curve, self.curve[ends[:, 0]]])
+        self.want_hint = np.concatenate([hint, mid_hint])
+
+    def groups(self):
+        """(curve index, selection of the wanted points) per curve with any, in the order of the
+        wanted points (each curve's together: new vertices and midpoints apart)."""
+        c = self.want_curve
+        starts = np.flatnonzero(np.concatenate([[True], c[1:] != c[:-1]]))
+        ends = np.append(starts[1:], len(c))
+        return [(self.index[c[a]], slice(a, b)) for a, b in zip(starts, ends)]
 
     def take(self, new: np.ndarray) -> None:
-        """The carried points' (u, v) (len(want_t), 2): the next round's points chosen."""
-        v = len(self.new_t)
-        if v:
-            self._insert(self.new_t, new[:v])
-        mid = new[v:]
-        ia = np.searchsorted(self.t, self.test_a)
-        a, b = self.uv[ia], self.uv[ia + 1]
+        """The carried points' (u, v) (W, 2): the next round's points chosen."""
+        v = len(self.fresh)
+        self.uv[self.fresh] = new[:v]
+        mid, ends = new[v:], self.ends
+        ea, eb = ends[:, 0], ends[:, 1]
+        ta, tb, a, b, cid = self.t[ea], self.t[eb], self.uv[ea], self.uv[eb], self.curve[ea]
+        tol = self.tol[cid]
         miss = _off_segment(mid, a, b)
-        bad = (miss > self.tol) & (self.test_b - self.test_a > self.floor)
-        ta, tb, a, b, mid = self.test_a[bad], self.test_b[bad], a[bad], b[bad], mid[bad]
-        m = 2 * np.ceil(np.clip(np.ceil(1.2 * np.sqrt(miss[bad] / self.tol)), 2, 8) / 2).astype(np.int64)
-        self._insert(0.5 * (ta + tb), mid)
+        bad = (miss > tol) & (tb - ta > self.floor[cid])
+        bad &= np.bincount(self.curve, minlength=len(self.tol))[cid] < _MAX_POINTS
+        ta, tb, a, b, mid, ea, eb, cid = ta[bad], tb[bad], a[bad], b[bad], mid[bad], ea[bad], eb[bad], cid[bad]
+        m = 2 * np.ceil(np.clip(np.ceil(1.2 * np.sqrt(miss[bad] / tol[bad])), 2, 8) / 2).astype(np.int64)
+        centre = len(self.t) + np.arange(len(m))  # the midpoints: vertices now
+        self.t = np.concatenate([self.t, 0.5 * (ta + tb)])
+        self.uv = np.concatenate([self.uv, mid])
+        self.curve = np.concatenate([self.curve, cid])
         k = np.repeat(np.arange(len(m)), m + 1)  # the pieces' ends j / m, j = 0..m, of every cut interval
         j = np.arange(len(k)) - np.repeat(np.cumsum(m + 1) - (m + 1), m + 1)
         f = j / m[k]
-        ends = ta[k] * (1 - f) + tb[k] * f  # exactly ta, tb and the midpoint at j = 0, m and m / 2
+        at = ta[k] * (1 - f) + tb[k] * f  # exactly ta, tb and the midpoint at j = 0, m and m / 2
         hint = _parabola(a[k], mid[k], b[k], f)
         vertex = (j > 0) & (j < m[k]) & (2 * j != m[k])
-        piece = j < m[k]  # a piece starts here
-        self.new_t = ends[vertex]
-        self.test_a, self.test_b = ends[piece], ends[np.flatnonzero(piece) + 1]
-        fm = (f[piece] + f[np.flatnonzero(piece) + 1]) / 2
+        # each piece end's vertex: the interval's ends, its midpoint, or a new one (numbered next)
+        ref = np.where(j == 0, ea[k], np.where(j == m[k], eb[k], centre[k]))
+        ref[vertex] = len(self.t) + np.arange(np.count_nonzero(vertex))
+        piece = np.flatnonzero(j < m[k])  # a piece starts here
+        fm = (f[piece] + f[piece + 1]) / 2
         kp = k[piece]
-        self.want_t = np.concatenate([self.new_t, 0.5 * (self.test_a + self.test_b)])
-        self.want_hint = np.concatenate([hint[vertex], _parabola(a[kp], mid[kp], b[kp], fm)])
+        ends = np.stack([ref[piece], ref[piece + 1]], 1)
+        self._want(at[vertex], hint[vertex], cid[k[vertex]], ends, _parabola(a[kp], mid[kp], b[kp], fm))
+
+    def polylines(self):
+        """(curve index, vertices' (u, v) (n, 2) in order along it) per curve."""
+        order = np.lexsort((self.t, self.curve))
+        cuts = np.searchsorted(self.curve[order], np.arange(1, len(self.tol)))
+        return zip(self.index, np.split(self.uv[order], cuts))
 
 
 def _parabola(a, m, b, f):

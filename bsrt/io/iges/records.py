@@ -273,7 +273,7 @@ class IgesFile:
         self.resolution = _resolution(sections["G"], self.delims)
         self.precs = sections["P"]
         self.entities = _directory(path, sections["D"], len(self.precs))
-        self._tokens: dict[int, list] = {}
+        self._tokens: dict[int, tuple] = {}  # DE -> (texts, where) of _Params
         self._matrices: dict[int, np.ndarray] = {}
         self.used: set[int] = set()
         self.cache: dict = {}
@@ -283,9 +283,9 @@ class IgesFile:
         """A fresh reader of the entity's parameters (tokenised once)."""
         tokens = self._tokens.get(entity.de)
         if tokens is None:
-            tokens = _parameters(self.path, entity, self.precs, self.delims).tokens
-            self._tokens[entity.de] = tokens
-        return _Params(self.path, entity, tokens)
+            p = _parameters(self.path, entity, self.precs, self.delims)
+            tokens = self._tokens[entity.de] = (p.texts, p.where)
+        return _Params(self.path, entity, *tokens)
 
     def get(self, ref: _Params, de: int, what: str, types=None) -> _Entity:
         """The entity at DE ``de``, which ``ref`` (just read) names as ``what``.

@@ -25,7 +25,8 @@ perpendicular to it, or any perpendicular one for the unparametrised form 0):
   point) C (generatrix) SA TA (radians): u is the generatrix's parameter, v the
   angle turned from the generatrix, right-handed about the axis.
 * 122 tabulated cylinder: DE of the directrix C, LX LY LZ: S(u, v) =
-  C(t) + v (L - C(t0)), t = t0 + u (t1 - t0), u and v in [0, 1].
+  C(t) + v (L - C(t0)), t = t0 + u (t1 - t0), u and v in [0, 1]; over a segment
+  (on an affine parameter) a parallelogram, inverted affinely like a plane.
 * 140 offset surface: NX NY NZ D and the base surface: see ``bsrt.io.iges.offset``.
 * 108 plane: A B C D (A x + B y + C z = D) PTR X Y Z SIZE: origin the point of
   the plane nearest the definition-space origin, u and v lengths along X, Y.
@@ -83,7 +84,7 @@ class SurfaceDef:
     fixed: the B-spline does not depend on the box (its trims are checked against
       ``place(None)``'s domain, or the whole knot domain of a 128).
     closed_inverse: model points (N, 3) -> ``inverse_target``'s (x, y) (N, 2) in closed
-      form (a 120 turning a segment: :class:`bsrt.io.invert.RevolutionInverse`), else None
+      form (a 120 turning a segment or a circular arc: :class:`bsrt.io.invert.RevolutionInverse`), else None
       (:class:`bsrt.io.invert.SurfaceInverse` inverts).
     """
 
@@ -302,7 +303,9 @@ def _revolution(f, entity, params, m) -> SurfaceDef:
     axis_dir = direction_ / np.linalg.norm(direction_)
     s, mu, mv = analytic.revolve(gen, ends[0], axis_dir, sa, ta, angle_first=False)
     g = clamp(gen)
-    closed = RevolutionInverse.of(g.degree, g.knots, g.points, g.weights, ends[0], axis_dir, (sa, ta), mv, mv.inverse)
+    closed = RevolutionInverse.of(
+        g.degree, g.knots, g.points, g.weights, ends[0], axis_dir, (sa, ta), mv, mv.inverse, g.pmap
+    )
     sd = _fixed(entity, s, mu, mv)
     sd.closed_inverse = closed
     if ta - sa < TWO_PI * (1 - 1e-12):
@@ -333,7 +336,13 @@ def _tabulated(f, entity, params, m) -> SurfaceDef:
     t0, t1 = pmap.x[0], pmap.x[-1]
     start = c.ends()[0]
     s, mu, mv = analytic.extrusion(c, end - start, pmap.scaled_x(t1 - t0, t0))
-    return _fixed(entity, s, mu, mv, natural=(0.0, 1.0, 0.0, 1.0))
+    sd = _fixed(entity, s, mu, mv, natural=(0.0, 1.0, 0.0, 1.0))
+    flat, y = clamp(c), end - start
+    x = flat.points[-1] - start  # over a segment on an affine parameter: S = start + u x + v y
+    segment = flat.n == 2 and flat.weights is None and mu.affine_on(0.0, 1.0) is not None
+    if segment and np.linalg.norm(np.cross(x, y)) > 1e-9 * np.linalg.norm(x) * np.linalg.norm(y):
+        sd.plane, sd.invert = (start, x, y), _affine_inverse(start, x, y)
+    return sd
 
 
 def _similarity(f, entity, m) -> float:
@@ -347,19 +356,24 @@ def _similarity(f, entity, m) -> float:
     return k
 
 
-def _planar(entity, origin, x, y) -> SurfaceDef:
+def _affine_inverse(origin, x, y) -> Callable:
+    """Points (N, 3) -> (u, v) (N, 2) of their projections origin + u x + v y onto the plane."""
     g = np.linalg.inv(np.array([[x @ x, x @ y], [x @ y, y @ y]]))
 
     def invert(pts):
         d = pts - origin
         return (g @ np.stack([d @ x, d @ y])).T
 
+    return invert
+
+
+def _planar(entity, origin, x, y) -> SurfaceDef:
     return SurfaceDef(
         entity,
         lambda box: analytic.plane(origin, x, y, box),
         (None, None, None, None),
         plane=(origin, x, y),
-        invert=invert,
+        invert=_affine_inverse(origin, x, y),
         fixed=False,
     )
 

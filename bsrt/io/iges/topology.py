@@ -322,9 +322,9 @@ def _instance(f, entity):
     p = f.params(entity)
     definition = f.get(p, p.pointer("the subfigure definition pointer DE"), "subfigure definition pointer", {308})
     place = np.eye(4)
-    given = len(p.tokens) - 1
+    given = len(p.texts) - 1
     place[:3, 3] = [p.real("a translation") if k < given else 0.0 for k in range(1, 4)]
-    scale = p.real("the scale S") if given >= 5 and p.tokens[5][0] != "" else 1.0
+    scale = p.real("the scale S") if given >= 5 and p.texts[5] != "" else 1.0
     if not scale > 0:
         raise p.fail(f"the scale S must be positive, got {scale:g}")
     place[:3, :3] *= scale
