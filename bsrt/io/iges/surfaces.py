@@ -16,11 +16,9 @@ perpendicular to it, or any perpendicular one for the unparametrised form 0):
   per patch (u index outer) 16 X, 16 Y and 16 Z coefficients of
   sum a_ij s^i t^j (s fastest), and 48 arbitrary values after each u row:
   bicubic Bezier patches on the same (u, v), exactly.
-* 118 ruled surface (forms 0 and 1): C1 C2 DIRFLG DEVFLG; u in [0, 1] pairs
-  points of equal relative arc length (form 0) or parameter (form 1: an arc's
-  angle, a line's [0, 1]), v in [0, 1] from C1 to C2; DIRFLG 1 joins C1's start
-  to C2's end. Exact where the pairing is a NURBS, else within a stated bound:
-  see ``bsrt.io.iges.ruled``.
+* 118 ruled surface (forms 0 and 1): C1 C2 DIRFLG DEVFLG; u in [0, 1] pairs points of equal
+  relative arc length (form 0) or parameter (form 1: an arc's angle, a line's [0, 1]), v in
+  [0, 1] from C1 to C2; DIRFLG 1 joins C1's start to C2's end: see ``bsrt.io.iges.ruled``.
 * 120 surface of revolution: L (a line: the axis, from its start to its end
   point) C (generatrix) SA TA (radians): u is the generatrix's parameter, v the
   angle turned from the generatrix, right-handed about the axis.
