@@ -23,10 +23,13 @@ OpenCASCADE's intersector is itself wrong on a few pixels (measured
   within its tolerance; the first point on the shape is bsrt's. (Judged
   with the old bound of 1e-6 of the diagonal, these two looked like nearer
   hits bsrt missed, and the test was held at the camera of before issue 26.)
-* marsCapsule.igs, pixel (112, 37): both hits on face 7, on the shape
-  (bsrt 2.4e-11 of the diagonal, OpenCASCADE 1e-16), but bsrt's is nearer
-  by 0.23 (t): OpenCASCADE's intersector misses that first crossing and
-  reports the next.
+* marsCapsule.igs, 4 pixels, all at face edges: (112, 37) on face 7 and
+  (93, 86), (100, 73), (107, 60) on face 4. Both hits lie on the shape (bsrt
+  1.2e-10 of the diagonal or less, OpenCASCADE 1e-16), but bsrt's is nearer
+  by 0.21 to 0.45 (t): OpenCASCADE's intersector misses that first crossing
+  and reports the next. (Before the automatic camera took its trim-loop points
+  from the trim table, 2026-11-25, the camera stood 8e-4 away and only
+  (112, 37) showed.)
 """
 
 from __future__ import annotations
@@ -57,7 +60,7 @@ FILES = {"bearing": MODELS / "occt" / "bearing.iges", "marsCapsule": MODELS / "o
 SIZE = 128
 ON_SHAPE = 1e-8  # of the diagonal: ten times the roots' tolerance (the render's default, 1e-9)
 SAME_T = 1e-7  # of the diagonal
-DIFFER = {"bearing": 12, "marsCapsule": 1}  # pixels where the two disagree, measured at the default camera
+DIFFER = {"bearing": 12, "marsCapsule": 4}  # pixels where the two disagree, measured at the default camera
 
 
 def _trimmed_shape(path: Path):

@@ -474,31 +474,11 @@ class _Shader:
         with self.stats.timer("secondary"):
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
-                ex = tuple(x[part] for x in exclude)
+                o, d, far, ex = origins[part], directions[part], t_max[part], tuple(x[part] for x in exclude)
                 if self.gpu is not None and not any_hit:  # mirror rays: the nearest-hit walk on the GPU
-                    parts.append(
-                        nearest_gpu(
-                            self.gpu,
-                            self.geometry.bvh,
-                            origins[part],
-                            directions[part],
-                            0.0,
-                            t_max[part],
-                            float(self.tolerance),
-                            ex,
-                        )  # fmt: skip
-                    )
+                    parts.append(nearest_gpu(self.gpu, self.geometry.bvh, o, d, 0.0, far, float(self.tolerance), ex))
                 else:
-                    parts.append(
-                        self.geometry.intersect(
-                            origins[part],
-                            directions[part],
-                            t_min=0.0,
-                            t_max=t_max[part],
-                            tolerance=self.tolerance,
-                            exclude=ex,
-                            any_hit=any_hit,
-                        )
-                    )
+                    kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit)
+                    parts.append(self.geometry.intersect(o, d, **kw))
                 self._advance(part.stop - part.start)
         return Hits.concatenate(parts) if parts else Hits.empty(0)
