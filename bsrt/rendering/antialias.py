@@ -6,51 +6,43 @@ along a row or a column within CONTRAST levels in some channel (the second
 difference p[j - 1] - 2 p[j] + p[j + 1]; at the film's border, the first
 difference): a step between two pixels marks both of them (silhouettes, face
 borders, shadow borders, a thin line), a smooth gradient of shading marks
-none. Each marked pixel is traced again with the samples of ``--spp n``
-(``adaptive_spp``, default 4: the same stratified columns x rows grid,
-pipeline.sample_grid), through the hierarchy, shaded as every camera ray is,
-in two rounds: first the grid's four corner samples; a pixel whose corner
-samples and centre all agree within CONTRAST levels takes the corners' mean
-and stops, the others get the rest of the grid and take the mean of all n
-(the box filter of ``--spp n``). Every other sample of the grid lies on a
-segment between two of those five points, so a straight edge (a half-plane)
-that leaves the five on one side leaves all n there too: such a pixel's
-value is exactly ``--spp n``'s where the picture is flat on each side, and a
-pixel an edge separates gets exactly the samples of ``--spp n``. The 2 x 2
-grid of n = 4 is all corners: one round, every marked pixel gets ``--spp
-4``'s value. An odd grid (3 x 3 for n = 9) has the pixel centre as its
-middle sample: that one is the centre ray already shaded, not traced again
-(a streamed film, which keeps no linear colour, traces it), and a pixel
-whose five first samples agree takes their mean. An unmarked pixel keeps its
-centre sample.
+none. The threshold is in sRGB, where the eye sees the step.
 
-The cost is the marked pixels' samples, and those are the dear ones: at
-silhouettes and borders the hierarchy finds their hits, and their shadow
-rays (nearly all of the shading time) cost up to 3 times an average
-pixel's (measured on water-lily and column). Seeding the samples with
-Newton from the pixel's own hit, accepted where the pixel-centre hits pass
-the hard-pixel tests (hard_pixels.suspect_pixels), is not exact: a sliver
-of another surface between the centres of a 3 x 3 neighbourhood that all
-hit one surface is missed (water-lily at 256 x 256, n = 16: 5 pixels off by
-up to 6 levels), and proving a seeded root the nearest with a hierarchy
-query bounded by its distance costs 0.7 to 1.2 times the plain query
-(measured). So every sample goes through the hierarchy, and the default n
-is the one whose cost is a small part of ``--spp 4``'s (docs/design.md,
-"Adaptive anti-aliasing").
+A marked pixel takes the mean of n = ``adaptive_spp`` samples (default 4) at
+the positions of rotated_grid: one in each cell of the columns x rows grid
+of ``--spp n`` (pipeline.sample_grid), and in n distinct columns and n
+distinct rows of the n x n grid (for n = 4 the rotated grid of 4 of the 16
+samples of ``--spp 16``), so a nearly vertical or horizontal edge is
+resolved in n steps, not sqrt(n). A sample is traced (through the
+hierarchy, shaded as every camera ray is) only where it may lie across an
+edge: it lies in the triangle of its pixel's centre and the two neighbouring
+centres on its side (along the row and along the column), and where those
+three agree within CONTRAST levels any straight edge leaves them, and so the
+sample, on one side. Such a sample is interpolated from the three centres
+(linearly, in linear RGB), and hits where the pixel's centre does. So a
+straight edge between two pixel centres costs the samples of the two pixels
+on the edge's side of each, about half of them. An odd grid's middle sample
+is the pixel centre, never traced. An unmarked pixel keeps its centre
+sample.
 
-``--stats`` reports ``adaptive_pixels`` (marked), ``adaptive_full`` (given
-all n samples) and ``adaptive_samples`` (the camera samples added); the
-render's camera samples in all are ``pixels + adaptive_samples``.
+The cost is the samples traced, and those are the dear ones: at silhouettes
+and borders the hierarchy finds their hits, and their shadow rays cost up to
+3 times an average pixel's (docs/design.md, "Adaptive anti-aliasing").
+
+``--stats`` reports ``adaptive_pixels`` (marked), ``adaptive_full`` (those
+that traced all n samples) and ``adaptive_samples`` (the camera samples
+traced); the render's camera samples in all are ``pixels +
+adaptive_samples``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from bsrt.rendering.image import srgb_encode
+from bsrt.rendering.image import srgb_decode, srgb_encode
 from bsrt.rendering.screen import film_rays
 
-CONTRAST = 6  # 8-bit sRGB levels
+CONTRAST = 10  # 8-bit sRGB levels
 BAND_ROWS = 256  # pixel rows whose differences are worked out at once
 
 
@@ -83,66 +75,94 @@ def _disagreeing(pixels: np.ndarray) -> np.ndarray:
     return marked
 
 
+def rotated_grid(columns: int, rows: int) -> np.ndarray:
+    """The n = columns * rows sample positions of a marked pixel: (n, 2) fractions of a pixel from
+    its top-left corner, (x, y). Sample (i, j) lies in cell (column i, row j) of the columns x rows
+    grid, at x = (i + (j + 1/2) / rows) / columns, y = (j + (columns - i - 1/2) / columns) / rows:
+    one in each cell, and in n distinct columns and n distinct rows of an n x n grid (2 x 2: the
+    rotated grid (1/8, 3/8), (3/8, 7/8), (5/8, 1/8), (7/8, 5/8))."""
+    i, j = np.meshgrid(np.arange(columns), np.arange(rows), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    return np.stack([(i + (j + 0.5) / rows) / columns, (j + (columns - i - 0.5) / columns) / rows], axis=1)
+
+
 def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_samples: int) -> None:
-    """Re-render the marked pixels with the samples of ``--spp columns * rows``, in place.
+    """Re-render the marked pixels with the n = columns * rows samples of rotated_grid(*grid), in
+    place: a sample is traced unless the three pixel centres around it agree (then it is
+    interpolated from them).
 
     linear: (H, W, 3) float64 (or None: a streamed film) and pixels: (H, W, 3) uint8, the one-sample
-    render, updated where marked; coverage: (H, W) float64 (or None), the fraction of each pixel's samples that hit, updated
-    alike. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
+    render, updated where marked; coverage: (H, W) float64 (or None), the fraction of each pixel's
+    samples that hit, updated alike. grid: (columns, rows). trace(directions (K, 3)) -> Hits: the
     camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
-    most samples traced at once."""
-    cols, rows = grid
-    a, b = np.meshgrid(np.arange(cols), np.arange(rows))  # sample (b, a) of a pixel: row b, column a
-    a, b = a.ravel(), b.ravel()
-    offset = np.stack([(a + 0.5) / cols, (b + 0.5) / rows], axis=1)  # (n, 2)
-    n = offset.shape[0]
-    first = ((a == 0) | (a == cols - 1)) & ((b == 0) | (b == rows - 1))  # the grid's corners
-    # an odd grid's middle sample is the pixel-centre ray, already shaded: reused where the film keeps it
-    kept = linear is not None and coverage is not None
-    middle = (cols % 2 == 1) & (rows % 2 == 1) & (2 * a + 1 == cols) & (2 * b + 1 == rows) & kept
+    most samples traced at once (and the marked pixels are taken chunk_samples / n at a time)."""
+    offset = rotated_grid(*grid)  # (n, 2)
     marked = np.flatnonzero(disagreeing(pixels).ravel())
-    centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
-    early, early_hit = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
-    if middle.any():  # (K, f + 1, 3): the centre sample joins the corners
-        early = np.concatenate([early, linear.reshape(-1, 3)[marked][:, None, :]], axis=1)
-        early_hit = np.concatenate([early_hit, coverage.reshape(-1)[marked][:, None] > 0], axis=1)
-    levels = srgb_encode(early).astype(np.int32)
-    spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
-    full = spread.max(axis=1) > CONTRAST
-    value = early.mean(axis=1)  # (K, 3): the marked pixels' new linear RGB
-    hit_fraction = early_hit.mean(axis=1)  # (K,)
-    rest = ~first & ~middle
-    full |= not rest.any()  # a grid of corners (2 x 2; 1 x 3 with its middle): every pixel has them all
-    if rest.any():
-        more, more_hit = _samples(marked[full], offset[rest], shade, trace, options, stats, chunk_samples)
-        value[full] = (early[full].sum(axis=1) + more.sum(axis=1)) / n
-        hit_fraction[full] = (early_hit[full].sum(axis=1) + more_hit.sum(axis=1)) / n
+    step = max(1, chunk_samples // offset.shape[0])
+    value, hit = np.empty((marked.size, 3)), np.empty(marked.size)  # written once all are decided
+    traced = full = 0
+    for start in range(0, marked.size, step):
+        part = slice(start, start + step)
+        done = _refine(marked[part], offset, linear, pixels, coverage, shade, trace, options, stats)
+        value[part], hit[part] = done[:2]
+        traced, full = traced + done[2], full + done[3]
     stats.add("adaptive_pixels", marked.size)
-    stats.add("adaptive_full", int(full.sum()))
-    stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int(rest.sum()))
-    if marked.size:
-        if coverage is not None:
-            coverage.reshape(-1)[marked] = hit_fraction
-        if linear is not None:
-            linear.reshape(-1, 3)[marked] = value
-        pixels.reshape(-1, 3)[marked] = srgb_encode(value)
+    stats.add("adaptive_full", full)
+    stats.add("adaptive_samples", traced)
+    if coverage is not None:
+        coverage.reshape(-1)[marked] = hit
+    if linear is not None:
+        linear.reshape(-1, 3)[marked] = value
+    pixels.reshape(-1, 3)[marked] = srgb_encode(value)
 
 
-def _samples(which, offset, shade, trace, options, stats, chunk_samples: int) -> np.ndarray:
-    """The samples at offset (n, 2) (fractions of a pixel from its top-left corner) in each pixel
-    which (K,) (flat indices, row-major): (colour (K, n, 3) linear RGB, hit (K, n) bool)."""
+def _refine(marked, offset, linear, pixels, coverage, shade, trace, options, stats):
+    """refine for the marked pixels (K,) (flat indices, row-major) with the samples at offset (n, 2):
+    (colour (K, 3) linear RGB, hit fraction (K,) (0 where coverage is None), samples traced, pixels
+    that traced all n)."""
     width, height = options.width, options.height
     n = offset.shape[0]
-    out = np.empty((which.size, n, 3))
-    hit = np.zeros((which.size, n), dtype=bool)
-    step = max(1, chunk_samples // n)
-    for start in range(0, which.size, step):
-        part = which[start : start + step]
-        corner = np.stack([part % width, part // width], axis=1).astype(np.float64)
-        xy = (corner[:, None, :] + offset[None, :, :]).reshape(-1, 2)
-        directions = film_rays(options.camera, width, height, xy)
+    y, x = np.divmod(marked, width)
+    levels = pixels.reshape(-1, 3)
+
+    def colour(index):  # (K,) flat pixel indices -> (K, 3) linear RGB of their centre samples
+        return linear.reshape(-1, 3)[index] if linear is not None else srgb_decode(levels[index])
+
+    def apart(p, q):  # (K,) flat indices -> (K,) bool: their 8-bit colours differ by more than CONTRAST
+        return np.abs(levels[p].astype(np.int32) - levels[q]).max(axis=1) > CONTRAST
+
+    centre = colour(marked)
+    sums = np.zeros((marked.size, 3))  # the samples' colours, summed
+    hits = np.zeros(marked.size)  # the samples that hit, counted
+    if coverage is not None:  # an interpolated sample hits as the centre does
+        centre_hit = coverage.reshape(-1)[marked] > 0
+    need = np.zeros((marked.size, n), dtype=bool)  # traced
+    neighbour = {}  # (axis, side) -> (flat index, clamped to the film; inside the film)
+    for axis, coordinate, size, stride in ((0, x, width, 1), (1, y, height, width)):
+        for side in (-1, 1):
+            inside = (coordinate + side >= 0) & (coordinate + side < size)
+            neighbour[axis, side] = np.where(inside, marked + side * stride, marked), inside
+    colours = {key: colour(index) for key, (index, _) in neighbour.items()}
+    for s, (dx, dy) in enumerate(offset - 0.5):  # from the pixel centre, in pixels
+        # the sample lies in the triangle of the centre and its neighbours on its side along the
+        # row (h) and the column (v): where those agree, it is on their side of any straight edge
+        key_h, key_v = (0, 1 if dx > 0 else -1), (1, 1 if dy > 0 else -1)
+        (h, h_in), (v, v_in) = neighbour[key_h], neighbour[key_v]
+        if dx != 0:
+            need[:, s] |= ~h_in | apart(marked, h)
+        if dy != 0:
+            need[:, s] |= ~v_in | apart(marked, v)
+        if dx != 0 and dy != 0:
+            need[:, s] |= ~h_in | ~v_in | apart(h, v)
+        rest = ~need[:, s]
+        sums[rest] += (centre + abs(dx) * (colours[key_h] - centre) + abs(dy) * (colours[key_v] - centre))[rest]
+        if coverage is not None:
+            hits[rest] += centre_hit[rest]
+    which, sample = np.nonzero(need)
+    if which.size:
+        directions = film_rays(options.camera, width, height, np.stack([x[which], y[which]], axis=1) + offset[sample])
         with stats.timer("solve"):
-            hits = trace(directions)
-        out[start : start + part.size] = shade(hits, directions).reshape(-1, n, 3)
-        hit[start : start + part.size] = hits.hit.reshape(-1, n)
-    return out, hit
+            found = trace(directions)
+        np.add.at(sums, which, shade(found, directions))
+        np.add.at(hits, which, found.hit)
+    return sums / n, hits / n, int(which.size), int(need.all(axis=1).sum())
