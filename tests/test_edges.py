@@ -241,7 +241,7 @@ def test_adaptive_anti_aliasing_matches_spp16_at_a_fraction_of_its_samples():
     stats = adaptive.stats
     marked, samples = stats["adaptive_pixels"], stats["adaptive_samples"]
     assert 0 < samples < 3 * marked  # interpolated where the centres around a sample agree
-    assert stats["pixels"] + samples < 0.08 * 16 * size * size  # the camera samples: 0.076 of spp 16's
+    assert stats["pixels"] + samples < 0.08 * 16 * size * size  # the camera samples: 0.073 of spp 16's
     assert "adaptive_pixels" not in one.stats
 
 
@@ -266,7 +266,7 @@ def test_a_marked_pixel_is_the_mean_of_its_rotated_grid_traced_or_interpolated()
         # off: 6 (n = 4) and 9 (n = 9) of the 752 marked pixels, by 1/n
         assert np.mean(error < 1e-9) > 0.985 and error.max() <= 2 / n + 1e-9, n
         assert adaptive.stats["adaptive_pixels"] == marks.sum()
-        assert adaptive.stats["adaptive_samples"] < 0.7 * n * marks.sum(), n
+        assert adaptive.stats["adaptive_samples"] < 0.6 * n * marks.sum(), n  # 0.52 (n = 4), 0.45 (n = 9)
 
 
 def test_the_rotated_grid_has_one_sample_in_each_cell_row_and_column():
