@@ -18,7 +18,10 @@ hierarchy, shaded as every camera ray is) only where it may lie across an
 edge: where the corners of a triangle that holds it agree within CONTRAST
 levels, any straight edge leaves them, and so the sample, on one side, and
 it is interpolated from them (in linear RGB: linearly in the first pass,
-their mean in the second; it hits where the pixel centre does). The marked pixels are refined in two passes, those with
+their mean in the second; it hits where the pixel centre does). A streamed
+film keeps only 8-bit colours: it interpolates from those, and traces the
+samples next to a centre at 255 in some channel, which may stand for more
+than 1 (its picture is the kept film's within a level or two). The marked pixels are refined in two passes, those with
 x + y even first: in the first, the triangle is the pixel's centre and the
 two neighbouring centres on the sample's side (along the row and along the
 column); in the second, the four neighbours are pixels of the first pass,
@@ -144,6 +147,12 @@ class _Centres:
         """(K, 3) linear RGB (decoded from the 8-bit pixels where the film keeps no linear RGB)."""
         return self.linear.reshape(-1, 3)[index] if self.linear is not None else srgb_decode(self.levels[index])
 
+    def usable(self, index) -> np.ndarray:
+        """(K,) bool: the colour can be interpolated from. A streamed film's 8-bit colour at 255 in
+        some channel may stand for more than 1 (a highlight, a light seen directly): its samples
+        near such a centre are traced."""
+        return np.ones(len(index), bool) if self.linear is not None else self.levels[index].max(axis=1) < 255
+
     def hit(self, index) -> np.ndarray:
         """(K,) bool: the centre ray hit (True where the film counts no coverage)."""
         return self.coverage.reshape(-1)[index] > 0 if self.coverage is not None else np.ones(len(index), bool)
@@ -174,10 +183,11 @@ def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options
         # row (h) and the column (v): where those agree, it is on their side of any straight edge
         h, h_in = centres.neighbour(marked, 1 if dx > 0 else -1, 0)
         v, v_in = centres.neighbour(marked, 0, 1 if dy > 0 else -1)
+        need[:, s] = ~centres.usable(marked)
         if dx != 0:
-            need[:, s] |= ~h_in | _apart(levels, centres.levels[h])
+            need[:, s] |= ~h_in | ~centres.usable(h) | _apart(levels, centres.levels[h])
         if dy != 0:
-            need[:, s] |= ~v_in | _apart(levels, centres.levels[v])
+            need[:, s] |= ~v_in | ~centres.usable(v) | _apart(levels, centres.levels[v])
         if dx != 0 and dy != 0:
             need[:, s] |= ~h_in | ~v_in | _apart(centres.levels[h], centres.levels[v])
         colour[:, s] = centre + abs(dx) * (centres.colour(h) - centre) + abs(dy) * (centres.colour(v) - centre)
@@ -203,7 +213,7 @@ def _from_neighbours(marked, grid, known, centres: _Centres, colour, need, rows)
     neighbours' centres and their samples, of the first pass or, for a pixel not marked, its centre's
     value): the mean of the triangle's colours."""
     points, triangles = _triangles(*grid)
-    table = {}  # point -> (levels (J, 3), colour (J, 3), inside the film (J,))
+    table = {}  # point -> (levels (J, 3), colour (J, 3), inside the film and usable (J,))
 
     def point(p):
         if p not in table:
@@ -211,13 +221,14 @@ def _from_neighbours(marked, grid, known, centres: _Centres, colour, need, rows)
             index, inside = (
                 (marked, np.ones(marked.size, bool)) if side < 0 else centres.neighbour(marked, *SIDES[side])
             )
-            lv, col = centres.levels[index].astype(np.int32), centres.colour(index)
+            lv, col, usable = centres.levels[index].astype(np.int32), centres.colour(index), centres.usable(index)
             if sample >= 0:  # a neighbour's sample: the first pass's where it was marked
                 first, first_colour, first_levels = known
                 at = np.minimum(np.searchsorted(first, index), first.size - 1)
                 there = first[at] == index
                 lv[there], col[there] = first_levels[at[there], sample], first_colour[at[there], sample]
-            table[p] = lv, col, inside
+                usable[there] = True  # traced, or interpolated from usable colours
+            table[p] = lv, col, inside & usable
         return table[p]
 
     rows = np.flatnonzero(rows)
