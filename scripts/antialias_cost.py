@@ -1,6 +1,6 @@
 """Adaptive anti-aliasing against uniform supersampling: camera samples, CPU time and error.
 
-    python scripts/antialias_cost.py [--size 256] [INPUT ...]
+    python scripts/antialias_cost.py [--size 256] [--repeat 1] [INPUT ...]
 
 For each input (default: the bundled scenes water-lily and column, and the
 STEP screw of the tests), renders in one process, after a warm-up: one
@@ -8,7 +8,8 @@ sample per pixel (adaptive_spp 0), adaptive anti-aliasing with 4, 9 and
 16 samples (adaptive_spp 4, 9, 16), uniform --spp 4 and --spp 16; prints
 per render the camera samples (pixels x spp, plus adaptive_samples), their
 ratio to --spp 4 and --spp 16, the process CPU time (time.process_time: the
-machine may be shared), the CPU time above the one-sample render's as a
+machine may be shared; with --repeat N, each render N times in turn, the
+median), the CPU time above the one-sample render's as a
 fraction of --spp 4's above it (``extra/spp4``) and the error against
 --spp 16 (mean and max over pixels of the largest channel difference,
 linear RGB). Reports the load average at start and end.
@@ -46,19 +47,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("inputs", nargs="*", type=Path)
     parser.add_argument("--size", type=int, default=256)
+    parser.add_argument("--repeat", type=int, default=1, help="renders of each case, in turn; the median CPU time")
     args = parser.parse_args()
     print(f"load average at start: {Path('/proc/loadavg').read_text().split()[:3]}")
     for path in args.inputs or DEFAULT:
         scene = bsrt.load(path, width=args.size, height=args.size)
         geometry = Geometry(scene)
         render(scene, RenderOptions.resolve(scene, spp=1, adaptive_spp=0), geometry=geometry)  # warm-up
-        out = {}
-        for name, spp, adaptive in CASES:
-            clock = time.process_time()
-            res = render(scene, RenderOptions.resolve(scene, spp=spp, adaptive_spp=adaptive), geometry=geometry)
-            cpu = time.process_time() - clock
-            samples = res.stats["pixels"] * spp + res.stats.get("adaptive_samples", 0)
-            out[name] = (res.linear, samples, cpu)
+        out, cpus = {}, {name: [] for name, _, _ in CASES}
+        for _ in range(args.repeat):
+            for name, spp, adaptive in CASES:
+                clock = time.process_time()
+                res = render(scene, RenderOptions.resolve(scene, spp=spp, adaptive_spp=adaptive), geometry=geometry)
+                cpus[name].append(time.process_time() - clock)
+                samples = res.stats["pixels"] * spp + res.stats.get("adaptive_samples", 0)
+                out[name] = (res.linear, samples, float(np.median(cpus[name])))
         ref = out["spp16"][0]
         pixels = args.size * args.size
         print(f"\n{path.name} {args.size}x{args.size}")

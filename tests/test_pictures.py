@@ -112,13 +112,13 @@ def test_transparent_alpha_is_0_outside_255_inside_and_the_coverage_at_the_silho
 @pytest.mark.gl
 def test_transparent_alpha_follows_the_adaptive_samples_and_the_edges():
     # one sample a pixel plus adaptive anti-aliasing (default: 4 samples): the silhouette's alpha is
-    # the fraction of the adaptive samples that hit, as --spp 4 gives it
+    # the fraction of the adaptive samples that hit, k/4, within 1/4 of --spp 16's
     adaptive = bsrt.render(SPHERE, width=40, height=40, transparent=True, background=(1.0, 0.0, 0.0))
-    uniform = bsrt.render(SPHERE, width=40, height=40, spp=4, adaptive_spp=0, transparent=True)
+    uniform = bsrt.render(SPHERE, width=40, height=40, spp=16, adaptive_spp=0, transparent=True)
     a, b = adaptive.image[..., 3].astype(int), uniform.image[..., 3].astype(int)
-    partial = (b > 0) & (b < 255)
-    assert partial.sum() > 20 and np.mean(a[partial] == b[partial]) > 0.9
-    assert np.abs(a - b).max() <= 64  # a pixel left unmarked: an edge cutting a corner of it, at most
+    partial = (a > 0) & (a < 255)
+    assert partial.sum() > 20 and set(np.unique(a)) == {0, 64, 128, 191, 255}
+    assert np.abs(a - b).max() <= 64 and np.abs(a - b)[partial].mean() < 28  # 25.1 (--spp 4: 26.8)
     # an outline drawn over the background is opaque as far as it covers: alpha over the lines
     lined = bsrt.render(SPHERE, width=40, height=40, transparent=True, adaptive_spp=0, edges=True, edge_width=3.0).image
     outside = adaptive.image[..., 3] == 0

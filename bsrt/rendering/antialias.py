@@ -6,51 +6,56 @@ along a row or a column within CONTRAST levels in some channel (the second
 difference p[j - 1] - 2 p[j] + p[j + 1]; at the film's border, the first
 difference): a step between two pixels marks both of them (silhouettes, face
 borders, shadow borders, a thin line), a smooth gradient of shading marks
-none. Each marked pixel is traced again with the samples of ``--spp n``
-(``adaptive_spp``, default 4: the same stratified columns x rows grid,
-pipeline.sample_grid), through the hierarchy, shaded as every camera ray is,
-in two rounds: first the grid's four corner samples; a pixel whose corner
-samples and centre all agree within CONTRAST levels takes the corners' mean
-and stops, the others get the rest of the grid and take the mean of all n
-(the box filter of ``--spp n``). Every other sample of the grid lies on a
-segment between two of those five points, so a straight edge (a half-plane)
-that leaves the five on one side leaves all n there too: such a pixel's
-value is exactly ``--spp n``'s where the picture is flat on each side, and a
-pixel an edge separates gets exactly the samples of ``--spp n``. The 2 x 2
-grid of n = 4 is all corners: one round, every marked pixel gets ``--spp
-4``'s value. An odd grid (3 x 3 for n = 9) has the pixel centre as its
-middle sample: that one is the centre ray already shaded, not traced again
-(a streamed film, which keeps no linear colour, traces it), and a pixel
-whose five first samples agree takes their mean. An unmarked pixel keeps its
-centre sample.
+none. The threshold is in sRGB, where the eye sees the step.
 
-The cost is the marked pixels' samples, and those are the dear ones: at
-silhouettes and borders the hierarchy finds their hits, and their shadow
-rays (nearly all of the shading time) cost up to 3 times an average
-pixel's (measured on water-lily and column). Seeding the samples with
-Newton from the pixel's own hit, accepted where the pixel-centre hits pass
-the hard-pixel tests (hard_pixels.suspect_pixels), is not exact: a sliver
-of another surface between the centres of a 3 x 3 neighbourhood that all
-hit one surface is missed (water-lily at 256 x 256, n = 16: 5 pixels off by
-up to 6 levels), and proving a seeded root the nearest with a hierarchy
-query bounded by its distance costs 0.7 to 1.2 times the plain query
-(measured). So every sample goes through the hierarchy, and the default n
-is the one whose cost is a small part of ``--spp 4``'s (docs/design.md,
-"Adaptive anti-aliasing").
+A marked pixel takes the mean of n = ``adaptive_spp`` samples (default 4) at
+the positions of rotated_grid: one in each cell of the columns x rows grid
+of ``--spp n`` (pipeline.sample_grid), and in n distinct columns and n
+distinct rows of the n x n grid (for n = 4 the rotated grid of 4 of the 16
+samples of ``--spp 16``), so a nearly vertical or horizontal edge is
+resolved in n steps, not sqrt(n). A sample is traced (through the
+hierarchy, shaded as every camera ray is) only where it may lie across an
+edge: where the corners of a triangle that holds it agree within CONTRAST
+levels, any straight edge leaves them, and so the sample, on one side, and
+it is interpolated from them (in linear RGB: linearly in the first pass,
+their mean in the second; it hits where the pixel centre does). A streamed
+film keeps only 8-bit colours: it interpolates from those, and traces the
+samples next to a centre at 255 in some channel, which may stand for more
+than 1 (its picture is the kept film's within a level or two). The marked pixels are refined in two passes, those with
+x + y even first: in the first, the triangle is the pixel's centre and the
+two neighbouring centres on the sample's side (along the row and along the
+column); in the second, the four neighbours are pixels of the first pass,
+and a triangle may also take the neighbours' samples as corners (the
+pixel's centre one of them, no side longer than a pixel; not across a line
+one pixel thin, where the centre differs from both neighbours on a row or
+a column). So a straight edge between two pixel centres costs a quarter to
+a half of the two pixels' 2n samples: the first pixel's on the edge's side,
+and those of the second that the first's do not place. A corner of a shape
+inside such a triangle is missed (on the test checker, 6 of 752 marked
+pixels, by a quarter). An odd grid's middle sample is the pixel centre,
+never traced. An unmarked pixel keeps its centre sample.
 
-``--stats`` reports ``adaptive_pixels`` (marked), ``adaptive_full`` (given
-all n samples) and ``adaptive_samples`` (the camera samples added); the
-render's camera samples in all are ``pixels + adaptive_samples``.
+The cost is the samples traced, and those are the dear ones: at silhouettes
+and borders the hierarchy finds their hits, and their shadow rays cost up to
+3 times an average pixel's (docs/design.md, "Adaptive anti-aliasing").
+
+``--stats`` reports ``adaptive_pixels`` (marked), ``adaptive_full`` (those
+that traced all n samples) and ``adaptive_samples`` (the camera samples
+traced); the render's camera samples in all are ``pixels +
+adaptive_samples``.
 """
 
 from __future__ import annotations
 
+import functools
+import itertools
+
 import numpy as np
 
-from bsrt.rendering.image import srgb_encode
+from bsrt.rendering.image import srgb_decode, srgb_encode
 from bsrt.rendering.screen import film_rays
 
-CONTRAST = 6  # 8-bit sRGB levels
+CONTRAST = 16  # 8-bit sRGB levels
 BAND_ROWS = 256  # pixel rows whose differences are worked out at once
 
 
@@ -83,66 +88,185 @@ def _disagreeing(pixels: np.ndarray) -> np.ndarray:
     return marked
 
 
+def rotated_grid(columns: int, rows: int) -> np.ndarray:
+    """The n = columns * rows sample positions of a marked pixel: (n, 2) fractions of a pixel from
+    its top-left corner, (x, y). Sample (i, j) lies in cell (column i, row j) of the columns x rows
+    grid, at x = (i + (j + 1/2) / rows) / columns, y = (j + (columns - i - 1/2) / columns) / rows:
+    one in each cell, and in n distinct columns and n distinct rows of an n x n grid (2 x 2: the
+    rotated grid (1/8, 3/8), (3/8, 7/8), (5/8, 1/8), (7/8, 5/8))."""
+    i, j = np.meshgrid(np.arange(columns), np.arange(rows), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    return np.stack([(i + (j + 0.5) / rows) / columns, (j + (columns - i - 0.5) / columns) / rows], axis=1)
+
+
 def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_samples: int) -> None:
-    """Re-render the marked pixels with the samples of ``--spp columns * rows``, in place.
+    """Re-render the marked pixels with the n = columns * rows samples of rotated_grid(*grid), in
+    place, tracing only the samples that may lie across an edge (the others interpolated).
 
     linear: (H, W, 3) float64 (or None: a streamed film) and pixels: (H, W, 3) uint8, the one-sample
-    render, updated where marked; coverage: (H, W) float64 (or None), the fraction of each pixel's samples that hit, updated
-    alike. grid: (columns, rows) of the sub-pixel grid. trace(directions (K, 3)) -> Hits: the
+    render, updated where marked; coverage: (H, W) float64 (or None), the fraction of each pixel's
+    samples that hit, updated alike. grid: (columns, rows). trace(directions (K, 3)) -> Hits: the
     camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
-    most samples traced at once."""
-    cols, rows = grid
-    a, b = np.meshgrid(np.arange(cols), np.arange(rows))  # sample (b, a) of a pixel: row b, column a
-    a, b = a.ravel(), b.ravel()
-    offset = np.stack([(a + 0.5) / cols, (b + 0.5) / rows], axis=1)  # (n, 2)
-    n = offset.shape[0]
-    first = ((a == 0) | (a == cols - 1)) & ((b == 0) | (b == rows - 1))  # the grid's corners
-    # an odd grid's middle sample is the pixel-centre ray, already shaded: reused where the film keeps it
-    kept = linear is not None and coverage is not None
-    middle = (cols % 2 == 1) & (rows % 2 == 1) & (2 * a + 1 == cols) & (2 * b + 1 == rows) & kept
+    most samples traced at once (and the marked pixels are taken chunk_samples / n at a time)."""
+    offset = rotated_grid(*grid)  # (n, 2)
+    step = max(1, chunk_samples // offset.shape[0])
+    centres = _Centres(linear, pixels, coverage, options.width, options.height)
     marked = np.flatnonzero(disagreeing(pixels).ravel())
-    centre = pixels.reshape(-1, 3)[marked].astype(np.int32)
-    early, early_hit = _samples(marked, offset[first], shade, trace, options, stats, chunk_samples)  # (K, f, 3)
-    if middle.any():  # (K, f + 1, 3): the centre sample joins the corners
-        early = np.concatenate([early, linear.reshape(-1, 3)[marked][:, None, :]], axis=1)
-        early_hit = np.concatenate([early_hit, coverage.reshape(-1)[marked][:, None] > 0], axis=1)
-    levels = srgb_encode(early).astype(np.int32)
-    spread = np.maximum(levels.max(axis=1), centre) - np.minimum(levels.min(axis=1), centre)
-    full = spread.max(axis=1) > CONTRAST
-    value = early.mean(axis=1)  # (K, 3): the marked pixels' new linear RGB
-    hit_fraction = early_hit.mean(axis=1)  # (K,)
-    rest = ~first & ~middle
-    full |= not rest.any()  # a grid of corners (2 x 2; 1 x 3 with its middle): every pixel has them all
-    if rest.any():
-        more, more_hit = _samples(marked[full], offset[rest], shade, trace, options, stats, chunk_samples)
-        value[full] = (early[full].sum(axis=1) + more.sum(axis=1)) / n
-        hit_fraction[full] = (early_hit[full].sum(axis=1) + more_hit.sum(axis=1)) / n
+    odd = (marked % options.width + marked // options.width) % 2 == 1
+    known = None
+    for group in (marked[~odd], marked[odd]):  # the odd pixels' four neighbours are even
+        done = [
+            _block(group[a : a + step], offset, grid, known, centres, shade, trace, options, stats)
+            for a in range(0, group.size, step)
+        ]
+        colour, hit, traced = (np.concatenate([d[k] for d in done]) if done else None for k in range(3))
+        if known is None:  # the even pixels' samples, for the odd ones: (indices, colour, levels)
+            first = (group, colour, hit, traced)
+            known = (group, colour, srgb_encode(colour)) if group.size else ()
+    results = [r for r in (first, (group, colour, hit, traced)) if r[0].size]
     stats.add("adaptive_pixels", marked.size)
-    stats.add("adaptive_full", int(full.sum()))
-    stats.add("adaptive_samples", marked.size * int(first.sum()) + int(full.sum()) * int(rest.sum()))
-    if marked.size:
+    stats.add("adaptive_full", sum(int(r[3].all(axis=1).sum()) for r in results))
+    stats.add("adaptive_samples", sum(int(r[3].sum()) for r in results))
+    for group, colour, hit, _ in results:  # written once all are decided (the passes read the centres)
+        value = colour.mean(axis=1)
         if coverage is not None:
-            coverage.reshape(-1)[marked] = hit_fraction
+            coverage.reshape(-1)[group] = hit.mean(axis=1)
         if linear is not None:
-            linear.reshape(-1, 3)[marked] = value
-        pixels.reshape(-1, 3)[marked] = srgb_encode(value)
+            linear.reshape(-1, 3)[group] = value
+        pixels.reshape(-1, 3)[group] = srgb_encode(value)
 
 
-def _samples(which, offset, shade, trace, options, stats, chunk_samples: int) -> np.ndarray:
-    """The samples at offset (n, 2) (fractions of a pixel from its top-left corner) in each pixel
-    which (K,) (flat indices, row-major): (colour (K, n, 3) linear RGB, hit (K, n) bool)."""
-    width, height = options.width, options.height
+class _Centres:
+    """The one-sample render's pixel-centre samples, read by flat pixel index (K,) (row-major)."""
+
+    def __init__(self, linear, pixels, coverage, width: int, height: int):
+        self.linear, self.levels = linear, pixels.reshape(-1, 3)
+        self.coverage, self.width, self.height = coverage, width, height
+
+    def colour(self, index) -> np.ndarray:
+        """(K, 3) linear RGB (decoded from the 8-bit pixels where the film keeps no linear RGB)."""
+        return self.linear.reshape(-1, 3)[index] if self.linear is not None else srgb_decode(self.levels[index])
+
+    def usable(self, index) -> np.ndarray:
+        """(K,) bool: the colour can be interpolated from. A streamed film's 8-bit colour at 255 in
+        some channel may stand for more than 1 (a highlight, a light seen directly): its samples
+        near such a centre are traced."""
+        return np.ones(len(index), bool) if self.linear is not None else self.levels[index].max(axis=1) < 255
+
+    def hit(self, index) -> np.ndarray:
+        """(K,) bool: the centre ray hit (True where the film counts no coverage)."""
+        return self.coverage.reshape(-1)[index] > 0 if self.coverage is not None else np.ones(len(index), bool)
+
+    def neighbour(self, index, dx: int, dy: int):
+        """The pixels (dx, dy) from index: (flat index (K,), clamped to the film; inside (K,) bool)."""
+        y, x = np.divmod(index, self.width)
+        inside = (x + dx >= 0) & (x + dx < self.width) & (y + dy >= 0) & (y + dy < self.height)
+        return np.where(inside, index + dx + dy * self.width, index), inside
+
+
+def _apart(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """p, q: (K, 3) 8-bit colours -> (K,) bool, True where they differ by more than CONTRAST in some channel."""
+    return np.abs(p.astype(np.int32) - q).max(axis=1) > CONTRAST
+
+
+def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options, stats):
+    """The samples at offset (n, 2) of the marked pixels (K,) (flat indices): (colour (K, n, 3) linear
+    RGB, hit (K, n) bool, traced (K, n) bool). known: empty, or the samples of the pixels of the
+    first pass (indices (M,) sorted, colour (M, n, 3), 8-bit levels (M, n, 3)), which a
+    sample may also be interpolated from (the second pass: the marked pixels' neighbours are there)."""
     n = offset.shape[0]
-    out = np.empty((which.size, n, 3))
-    hit = np.zeros((which.size, n), dtype=bool)
-    step = max(1, chunk_samples // n)
-    for start in range(0, which.size, step):
-        part = which[start : start + step]
-        corner = np.stack([part % width, part // width], axis=1).astype(np.float64)
-        xy = (corner[:, None, :] + offset[None, :, :]).reshape(-1, 2)
-        directions = film_rays(options.camera, width, height, xy)
+    centre, levels = centres.colour(marked), centres.levels[marked]
+    colour, hit = np.empty((marked.size, n, 3)), np.repeat(centres.hit(marked)[:, None], n, axis=1)
+    need = np.zeros((marked.size, n), dtype=bool)
+    for s, (dx, dy) in enumerate(offset - 0.5):  # from the pixel centre, in pixels
+        # the sample lies in the triangle of the centre and its neighbours on its side along the
+        # row (h) and the column (v): where those agree, it is on their side of any straight edge
+        h, h_in = centres.neighbour(marked, 1 if dx > 0 else -1, 0)
+        v, v_in = centres.neighbour(marked, 0, 1 if dy > 0 else -1)
+        need[:, s] = ~centres.usable(marked)
+        if dx != 0:
+            need[:, s] |= ~h_in | ~centres.usable(h) | _apart(levels, centres.levels[h])
+        if dy != 0:
+            need[:, s] |= ~v_in | ~centres.usable(v) | _apart(levels, centres.levels[v])
+        if dx != 0 and dy != 0:
+            need[:, s] |= ~h_in | ~v_in | _apart(centres.levels[h], centres.levels[v])
+        colour[:, s] = centre + abs(dx) * (centres.colour(h) - centre) + abs(dy) * (centres.colour(v) - centre)
+    if known and need.any():  # not across a line one pixel thin (the centre apart from both neighbours)
+        apart = {side: _apart(levels, centres.levels[centres.neighbour(marked, *side)[0]]) for side in SIDES}
+        thin = (apart[SIDES[0]] & apart[SIDES[1]]) | (apart[SIDES[2]] & apart[SIDES[3]])
+        _from_neighbours(marked[~thin], grid, known, centres, colour, need, ~thin)
+    which, sample = np.nonzero(need)
+    if which.size:
+        xy = np.stack([marked[which] % options.width, marked[which] // options.width], axis=1) + offset[sample]
+        directions = film_rays(options.camera, options.width, options.height, xy)
         with stats.timer("solve"):
-            hits = trace(directions)
-        out[start : start + part.size] = shade(hits, directions).reshape(-1, n, 3)
-        hit[start : start + part.size] = hits.hit.reshape(-1, n)
-    return out, hit
+            found = trace(directions)
+        colour[which, sample] = shade(found, directions)
+        hit[which, sample] = found.hit
+    return colour, hit, need
+
+
+def _from_neighbours(marked, grid, known, centres: _Centres, colour, need, rows) -> None:
+    """Interpolate, in place, the samples still needed of the pixels marked (J,) (flat indices), rows
+    (a (K,) mask, J True) of colour (K, n, 3) and need (K, n) (cleared where done) that lie in
+    a triangle of points known around their pixel that agree within CONTRAST (the centre, the four
+    neighbours' centres and their samples, of the first pass or, for a pixel not marked, its centre's
+    value): the mean of the triangle's colours."""
+    points, triangles = _triangles(*grid)
+    table = {}  # point -> (levels (J, 3), colour (J, 3), inside the film and usable (J,))
+
+    def point(p):
+        if p not in table:
+            side, sample = int(points[p, 2]), int(points[p, 3])
+            index, inside = (
+                (marked, np.ones(marked.size, bool)) if side < 0 else centres.neighbour(marked, *SIDES[side])
+            )
+            lv, col, usable = centres.levels[index].astype(np.int32), centres.colour(index), centres.usable(index)
+            if sample >= 0:  # a neighbour's sample: the first pass's where it was marked
+                first, first_colour, first_levels = known
+                at = np.minimum(np.searchsorted(first, index), first.size - 1)
+                there = first[at] == index
+                lv[there], col[there] = first_levels[at[there], sample], first_colour[at[there], sample]
+                usable[there] = True  # traced, or interpolated from usable colours
+            table[p] = lv, col, inside & usable
+        return table[p]
+
+    rows = np.flatnonzero(rows)
+    for s in np.flatnonzero(need[rows].any(axis=0)):
+        for a, b, c in triangles[s]:  # smallest first
+            (la, ca, ia), (lb, cb, ib), (lc, cc, ic) = point(a), point(b), point(c)
+            agree = need[rows, s] & ia & ib & ic & ~_apart(la, lb) & ~_apart(lb, lc) & ~_apart(la, lc)
+            done = rows[agree]
+            colour[done, s] = ((ca + cb + cc) / 3.0)[agree]
+            need[done, s] = False
+
+
+SIDES = ((1, 0), (-1, 0), (0, 1), (0, -1))  # a pixel's four neighbours (dx, dy)
+NEAREST = 16  # the known points nearest a sample whose triangles may hold it
+
+
+@functools.lru_cache(maxsize=8)
+def _triangles(columns: int, rows: int):
+    """The points known around a pixel in the second pass, (P, 4): x, y from the pixel centre in
+    pixels, the neighbour (index into SIDES, -1: the pixel itself) and its sample (index into
+    rotated_grid, -1: the centre); and for each sample s of rotated_grid, the triangles (T_s, 3) of
+    those points (among the NEAREST to it) that hold it strictly, no side longer than a pixel,
+    smallest first."""
+    offset = rotated_grid(columns, rows) - 0.5
+    listed = [(0.0, 0.0, -1, -1)]
+    for k, (dx, dy) in enumerate(SIDES):
+        listed.append((dx, dy, k, -1))
+        listed.extend((dx + ox, dy + oy, k, j) for j, (ox, oy) in enumerate(offset))
+    points = np.array(listed)
+    triangles = []
+    for sx, sy in offset:
+        near = np.argsort(np.hypot(points[:, 0] - sx, points[:, 1] - sy), kind="stable")[:NEAREST]
+        t = np.array(list(itertools.combinations(near, 3)))
+        p = points[t][..., :2] - [sx, sy]  # (T, 3, 2) from the sample
+        cross = [p[:, i, 0] * p[:, (i + 1) % 3, 1] - p[:, i, 1] * p[:, (i + 1) % 3, 0] for i in range(3)]
+        holds = np.all(np.array(cross) > 1e-12, axis=0) | np.all(np.array(cross) < -1e-12, axis=0)
+        side = np.max([np.hypot(*(p[:, i] - p[:, (i + 1) % 3]).T) for i in range(3)], axis=0)
+        keep = holds & (side <= 1.0 + 1e-9) & (t == 0).any(axis=1)  # the pixel's own centre a corner
+        area = np.abs(np.sum(cross, axis=0))[keep]
+        triangles.append(t[keep][np.argsort(area, kind="stable")])
+    return points, triangles
