@@ -1,7 +1,8 @@
 """A cone that holds every normal of a (rational) Bezier piece, compiled.
 
-(Inlined into flatten._cut, whose numba cache does not see edits here: see
-flatten.py's module doc.)
+(Inlined into flatten._cut. ``corner_turns``, how far a piece's corner normals
+turn along u and along v, picks the direction flatten._cut cuts a piece whose
+normals are not within the cone.)
 
 For a piece with homogeneous net H (x w, y w, z w, w) of degree (p, q) and
 S = H_xyz / w, the surface normal is
@@ -154,3 +155,47 @@ def normal_cone_within(net, p, q, cos_gamma, h, hu, hv, uv, nrm, binom):
             if size2 > floor and x * ax + y * ay + z * az < cos_gamma * length * np.sqrt(size2):
                 return False
     return True
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def _corner_normal(net, i, j, di, dj, out):
+    """The unit normal of a net's corner (i, j) from its two edge vectors towards (i + di, j) and
+    (i, j + dj), signed as if di = dj = 1, into out (3,); zeros where an edge vanishes."""
+    w, wa, wb = net[i, j, 3], net[i + di, j, 3], net[i, j + dj, 3]
+    a0 = net[i + di, j, 0] / wa - net[i, j, 0] / w
+    a1 = net[i + di, j, 1] / wa - net[i, j, 1] / w
+    a2 = net[i + di, j, 2] / wa - net[i, j, 2] / w
+    b0 = net[i, j + dj, 0] / wb - net[i, j, 0] / w
+    b1 = net[i, j + dj, 1] / wb - net[i, j, 1] / w
+    b2 = net[i, j + dj, 2] / wb - net[i, j, 2] / w
+    sign = float(di * dj)
+    n0, n1, n2 = sign * (a1 * b2 - a2 * b1), sign * (a2 * b0 - a0 * b2), sign * (a0 * b1 - a1 * b0)
+    length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if length > 0.0:
+        out[0], out[1], out[2] = n0 / length, n1 / length, n2 / length
+    else:
+        out[0] = out[1] = out[2] = 0.0
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def corner_turns(net, p, q):
+    """(turn_u, turn_v): how far the corner normals of a net ([:p+1, :q+1, 4]) turn along u
+    (between (0, j) and (p, j), both rows) and along v, as sums of 1 - cos of their angles;
+    (0, 0) where a corner's normal vanishes (a pole: the corners do not tell)."""
+    n00, np0, n0q, npq = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    _corner_normal(net, 0, 0, 1, 1, n00)
+    _corner_normal(net, p, 0, -1, 1, np0)
+    _corner_normal(net, 0, q, 1, -1, n0q)
+    _corner_normal(net, p, q, -1, -1, npq)
+    for n in (n00, np0, n0q, npq):
+        if n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0:
+            return 0.0, 0.0
+    turn_u = _turn(n00, np0) + _turn(n0q, npq)
+    turn_v = _turn(n00, n0q) + _turn(np0, npq)
+    return turn_u, turn_v
+
+
+@njit(cache=True, no_cpython_wrapper=True)
+def _turn(a, b):
+    """1 - cos of the angle between unit vectors a and b (3,)."""
+    return 1.0 - (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])

@@ -17,9 +17,6 @@ also where the ray's line meets it only once (``crossings.crosses_once``, an
 exact bound): that one crossing is the start, the root every shadow ray
 excludes. Whether a ray is blocked is otherwise the same answer trace_rays
 gives: a piece that yields a valid root would yield it inside the walk too.
-(numba's cache keys a kernel on its own file only: after editing
-traverse.py's per-piece solve, crossings.py or nets.py, edit this file too,
-or shade_hits keeps the old code.)
 """
 
 from __future__ import annotations

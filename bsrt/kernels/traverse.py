@@ -21,9 +21,7 @@ its centre start finds nothing.
 The per-piece helpers allocate nothing and are compiled without numba's reference counting
 (``_nrt=False``, as kernels/patches.py): a call that passes the tables (tuples of 13-14 arrays)
 would otherwise count a reference to every array on entry and exit, a third of a random ray's time.
-So are the retries' net helpers (nets.py) and crossing bounds (crossings.py). numba's cache keys
-a kernel on its own file only: after editing those, edit this file too, or trace_rays keeps the
-old code.
+So are the retries' net helpers (nets.py) and crossing bounds (crossings.py).
 """
 
 from __future__ import annotations

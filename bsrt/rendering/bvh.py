@@ -45,7 +45,7 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    either crossing |cos(normal, ray)| <= sin 16 deg = 0.28, below the
    grazing retries' threshold (0.3): such a ray is always retried. A piece
    cut for its normals is cut across the direction its corner normals turn
-   along (``flatten.corner_turns``; the directional measures where a corner
+   along (``cones.corner_turns``; the directional measures where a corner
    normal vanishes or both turn alike): a twisted ruled piece's normals turn
    along its straight rulings, where the measures are 0, and cutting only
    across u made a 16-span band 57,348 leaves deep to the depth bound
