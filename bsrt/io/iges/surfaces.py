@@ -22,9 +22,8 @@ perpendicular to it, or any perpendicular one for the unparametrised form 0):
 * 120 surface of revolution: L (a line: the axis, from its start to its end
   point) C (generatrix) SA TA (radians): u is the generatrix's parameter, v the
   angle turned from the generatrix, right-handed about the axis.
-* 122 tabulated cylinder: DE of the directrix C, LX LY LZ: S(u, v) =
-  C(t) + v (L - C(t0)), t = t0 + u (t1 - t0), u and v in [0, 1]; over a segment
-  (on an affine parameter) a parallelogram, inverted affinely like a plane.
+* 122 tabulated cylinder: DE of the directrix C, LX LY LZ: S(u, v) = C(t) + v (L - C(t0)),
+  t = t0 + u (t1 - t0), u, v in [0, 1]; over a segment a parallelogram, inverted affinely.
 * 140 offset surface: NX NY NZ D and the base surface: see ``bsrt.io.iges.offset``.
 * 108 plane: A B C D (A x + B y + C z = D) PTR X Y Z SIZE: origin the point of
   the plane nearest the definition-space origin, u and v lengths along X, Y.
