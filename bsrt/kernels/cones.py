@@ -157,7 +157,7 @@ def normal_cone_within(net, p, q, cos_gamma, h, hu, hv, uv, nrm, binom):
     return True
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit_typed("void(float64[:, :, ::1], int64, int64, int64, int64, float64[::1])", cache=True, no_cpython_wrapper=True)
 def _corner_normal(net, i, j, di, dj, out):
     """The unit normal of a net's corner (i, j) from its two edge vectors towards (i + di, j) and
     (i, j + dj), signed as if di = dj = 1, into out (3,); zeros where an edge vanishes."""

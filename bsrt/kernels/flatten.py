@@ -31,7 +31,7 @@ COS_CONE = float(np.cos(np.radians(CONE_DEGREES)))
 CONE_MAX_DEGREE = 8
 
 
-@njit(cache=True, no_cpython_wrapper=True)
+@njit_typed("float64(float64[:, :, ::1], int64, int64, int64, int64)", cache=True, no_cpython_wrapper=True)
 def _extent(net, i0, i1, j0, j1):
     """The diagonal of the box of the projected points net[i0:i1+1, j0:j1+1] (a row or a column)."""
     lo0 = lo1 = lo2 = np.inf
