@@ -199,9 +199,11 @@ def evaluate(surface: BSplineSurface, u, v):
     ii = (su - p)[:, None, None] + np.arange(p + 1)[None, :, None]
     jj = (sv - q)[:, None, None] + np.arange(q + 1)[None, None, :]
     ctrl = surface.homogeneous()[ii, jj]  # (N, p+1, q+1, 4)
-    h = np.einsum("na,nb,nabk->nk", bu, bv, ctrl)
-    hu = np.einsum("na,nb,nabk->nk", dbu, bv, ctrl)
-    hv = np.einsum("na,nb,nabk->nk", bu, dbv, ctrl)
+    along_v = (bv[:, None, None, :] @ ctrl)[:, :, 0]  # (N, p+1, 4): batched products, not a 3-operand einsum
+    along_dv = (dbv[:, None, None, :] @ ctrl)[:, :, 0]
+    h = (bu[:, None, :] @ along_v)[:, 0]
+    hu = (dbu[:, None, :] @ along_v)[:, 0]
+    hv = (bu[:, None, :] @ along_dv)[:, 0]
     return rational_quotient(h, hu, hv)
 
 
