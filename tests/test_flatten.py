@@ -208,3 +208,25 @@ def test_a_twisted_ruled_band_is_cut_along_its_rulings_and_every_aimed_ray_hits(
     hits = intersect(tree, point + 2.0 * normal, -normal)
     assert hits.hit.all()
     np.testing.assert_allclose(hits.t, 2.0, atol=1e-8)
+
+
+def test_the_tree_stays_shallower_than_the_walks_stack():
+    """2,000 tiny boxes at x = 1.2^k: the surface-area heuristic splits one box off at a time
+    (depth 131 before, past the walks' 64-entry stacks, which numba does not bound-check);
+    below depth SAH_DEPTH nodes are split at the median, so the depth is at most SAH_DEPTH +
+    log2(2000 / 2) + 1, and every box is in exactly one leaf."""
+    from bsrt.kernels.flatten import SAH_DEPTH, build_tree
+    from bsrt.kernels.traverse import STACK
+
+    n = 2000
+    box_min = np.zeros((n, 3))
+    box_min[:, 0] = 1.2 ** np.arange(n)
+    order, _, _, left, right, first, count = build_tree(box_min, box_min + 1e-3, 2)
+    depth = np.zeros(left.size, dtype=np.int64)
+    for k in range(left.size):  # breadth first: parents before children
+        if left[k] >= 0:
+            depth[left[k]] = depth[right[k]] = depth[k] + 1
+    assert depth.max() <= SAH_DEPTH + math.ceil(math.log2(n / 2)) + 1 < STACK
+    leaves = left < 0
+    assert count[leaves].sum() == n and sorted(order.tolist()) == list(range(n))
+    assert np.all(count[leaves] <= 2)
