@@ -10,7 +10,7 @@ import numpy as np
 from bsrt.geometry.bspline import evaluate
 from bsrt.io.iges import analytic
 from bsrt.io.iges.bspline import arc_curve, reverse
-from bsrt.io.invert import RevolutionInverse, SurfaceInverse
+from bsrt.io.invert import CurveInverse, RevolutionInverse, SurfaceInverse
 
 TURN = (0.3, 0.3 + math.radians(300))
 
@@ -79,6 +79,26 @@ def test_full_circle_generatrix_is_closed_and_agrees_with_newton():
     normal = np.cross(su, sv)
     off = pts + 0.2 * normal / np.linalg.norm(normal, axis=1)[:, None]
     assert np.abs(inv(off) - SurfaceInverse(s)(off)).max() < 1e-9
+
+
+def test_curve_inverse_newton_lands_on_the_closed_form():
+    """CurveInverse's Newton (which takes its last small step unchecked) against the torus piece's
+    closed form: points on the surface and 0.2 off it along the normal (closest point: S(x, y)
+    itself, by hand), from the nearest grid point, from hints 1e-3 off and from hints 1e-9 off
+    (one step, not confirmed): within 1e-10 of the domain's size everywhere."""
+    _, s, closed = _torus_part(-1.0, -1.0 + math.radians(200))
+    newton = CurveInverse(s)
+    rng = np.random.default_rng(8)
+    x, y = rng.uniform(*s.domain_u, 400), rng.uniform(*s.domain_v, 400)
+    pts, su, sv = evaluate(s, x, y)
+    normal = np.cross(su, sv)
+    off = pts + 0.2 * normal / np.linalg.norm(normal, axis=1)[:, None]
+    size = math.hypot(np.ptp(s.domain_u), np.ptp(s.domain_v))
+    exact = np.stack([x, y], 1)
+    for p in (pts, off):
+        assert np.abs(closed(p) - exact).max() < 1e-12 * size
+        for hint in (None, exact + 1e-3 * size * rng.uniform(-1, 1, exact.shape), exact + 1e-9 * size):
+            assert np.abs(newton(p, hint) - exact).max() < 1e-10 * size
 
 
 def test_no_closed_form_for_an_ellipse_or_a_tilted_arc():

@@ -19,7 +19,7 @@ from numba import njit
 
 from bsrt.errors import InputError
 from bsrt.geometry.bspline import make_surface
-from bsrt.geometry.trim import TrimCurve, TrimLoop, check_loops, make_trim_curve
+from bsrt.geometry.trim import CurveSet, TrimCurve, TrimLoop, check_loops, make_trim_curve
 from bsrt.geometry.trim_table import build_trim_table, kept
 from bsrt.kernels import trim as K
 from bsrt.kernels import trim_pieces as P
@@ -659,3 +659,26 @@ def test_trim_curve_messages_name_the_key_and_scenes_add_surface_loop_and_curve(
     with pytest.raises(InputError) as err:
         parse_scene(doc, "part.toml")
     assert str(err.value) == "part.toml: surface[1].trim[1].curves[3].weights: every weight must be a finite number > 0"
+
+
+def test_curve_set_evaluates_as_each_curve_does():
+    """CurveSet (the IGES reader's many short curves at once) against TrimCurve.evaluate, bit for
+    bit: degrees 1 to 4, rational and not, repeated interior knots, parameters outside the domain
+    (the end spans extended) and curves with no points asked for."""
+    rng = np.random.default_rng(3)
+    curves = []
+    for k in range(12):
+        p = 1 + k % 4
+        n = p + 1 + k % 3
+        inner = np.sort(rng.uniform(0.2, 1.8, n - p - 1))
+        if k == 7:
+            inner[:] = inner[0]  # one knot repeated up to the degree
+        knots = np.concatenate([np.full(p + 1, -0.5 + k), inner + k, np.full(p + 1, 2.0 + k)])
+        weights = rng.uniform(0.5, 2.0, n) if k % 2 else None
+        curves.append(TrimCurve(p, knots, rng.normal(size=(n, 2)), weights))
+    which = rng.choice([c for c in range(12) if c != 5], 400)
+    lo, hi = np.array([c.domain for c in curves]).T
+    s = rng.uniform(lo[which] - 0.1, hi[which] + 0.1)
+    got = CurveSet(curves)(s, which)
+    for c in range(12):
+        assert np.array_equal(got[which == c], curves[c].evaluate(s[which == c]))

@@ -65,12 +65,14 @@ def insert_knot(knots: np.ndarray, ctrl: np.ndarray, p: int, x: float):
     return np.insert(knots, k + 1, x), new
 
 
-def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray):
+def basis_values(knots: np.ndarray, p: int, n: int, x: np.ndarray, span=None):
     """(span (N,), values (N, p + 1)): the non-zero basis functions at x, values only (Cox-de Boor's
     triangle, as :func:`bsrt.geometry.bspline.basis_functions`, without the derivatives); spans clamped to
-    [p, n - 1] as :func:`bsrt.geometry.bspline.find_span` does (outside the domain the end spans extend)."""
+    [p, n - 1] as :func:`bsrt.geometry.bspline.find_span` does (outside the domain the end spans extend),
+    or the given ``span`` (N,) (indices into ``knots``; n is not used then)."""
     x = np.asarray(x, dtype=np.float64)
-    span = np.minimum(np.maximum(np.searchsorted(knots, x, side="right") - 1, p), n - 1)
+    if span is None:
+        span = np.minimum(np.maximum(np.searchsorted(knots, x, side="right") - 1, p), n - 1)
     if p == 1:  # (planes, lines): the two hat functions
         a, b = knots[span], knots[span + 1]
         d = b - a

@@ -109,9 +109,11 @@ class SurfaceInverse:
 
     def _newton(self, pts, uv):
         """(uv (N, 2), S (N, 3), S_u, S_v there, distances (N,)) from starts uv."""
-        u, v = invert(self.s, pts, uv[:, 0], uv[:, 1], self.size)
-        s, su, sv = evaluate(self.s, u, v)
-        return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)
+        s, domain = self.s, (self.s.domain_u, self.s.domain_v)
+        u, v, dist, su, sv = _damped_newton(
+            lambda u, v: evaluate(s, u, v), domain, pts, uv[:, 0], uv[:, 1], self.size, evaluations=True
+        )
+        return np.stack([u, v], 1), su, sv, dist
 
     @property
     def seams(self):
@@ -346,13 +348,19 @@ def _power_from_bernstein(n: int) -> np.ndarray:
     return np.where(j >= k, comb(n, j) * comb(np.maximum(j, k), k) * (-1.0) ** (j - k), 0.0)
 
 
-def _damped_newton(at, domain, points, x, y, size: float, iterations: int = 60, step_tol=1e-14, stall_tol=0.0):
+def _damped_newton(
+    at, domain, points, x, y, size: float, iterations: int = 60, step_tol=1e-14, stall_tol=0.0, evaluations=False
+):
     """(x, y), each (N,) float64: :func:`invert`'s loop (its docstring says what it does) on the
     surface evaluator ``at`` ((u, v) (N,) -> S, S_u, S_v (N, 3)) over ``domain`` ((u0, u1), (v0, v1)).
-    A point stops where its step is ``step_tol`` of the domain or its residual 1e-14 of ``size``; a
-    step that made things worse after a step below ``stall_tol`` of the domain also stops it, at its
-    accepted parameters (points off the surface converge linearly: the last digits cost many
-    steps and move (x, y) by less than that)."""
+    A point stops where its step is ``step_tol`` of the domain, or where the step after it would
+    be, going by the last two (both undamped: a contraction ``rate`` below 1/2, the rest of the way
+    at most step x rate / (1 - rate); for Newton's quadratic convergence this overestimates), or
+    where its residual is 1e-14 of ``size``; a step that made things worse after a step below
+    ``stall_tol`` of the domain also stops it, at its accepted parameters (points off the surface
+    converge linearly: the last digits cost many steps and move (x, y) by less than that).
+    ``evaluations``: also the distances (N,), S_u and S_v (N, 3) at each point's last evaluated
+    parameters (its returned ones less the last step, when that one was predicted small)."""
     (a0, a1), (b0, b1) = domain
     x = np.clip(np.array(x, dtype=np.float64), a0, a1)
     y = np.clip(np.array(y, dtype=np.float64), b0, b1)
@@ -362,10 +370,11 @@ def _damped_newton(at, domain, points, x, y, size: float, iterations: int = 60, 
     scale = max(1.0, abs(a0), abs(a1), abs(b0), abs(b1))
     best = np.full(n, np.inf)  # |residual| at the accepted parameters acc
     acc = np.stack([x, y], 1)
+    acc_su, acc_sv = np.zeros((n, 3)), np.zeros((n, 3))
     cur = acc.copy()
     normal = np.zeros((n, 5))  # a, b, c, g0, g1 of the normal equations at acc
     mu = np.full(n, _DAMP)
-    last = np.full(n, np.inf)  # the size of each point's latest step
+    last = np.full(n, np.nan)  # the size of each point's latest step (NaN: none yet)
     idx = np.arange(n)
     for _ in range(iterations):
         if idx.size == 0:
@@ -377,6 +386,7 @@ def _damped_newton(at, domain, points, x, y, size: float, iterations: int = 60, 
         g = idx[good]  # accepted: new normal equations there; the others retry with 10x the damping
         best[g], acc[g] = dist[good], cur[g]
         su, sv, r = su[good], sv[good], r[good]
+        acc_su[g], acc_sv[g] = su, sv
         normal[g] = np.stack(
             [
                 np.einsum("ni,ni->n", su, su),
@@ -402,12 +412,16 @@ def _damped_newton(at, domain, points, x, y, size: float, iterations: int = 60, 
         moved = np.hypot(*(cur[idx] - start).T)
         # a step this small that made things worse: rounding, the accepted parameters stand
         done = (moved <= step_tol * scale) | (~good & (last[idx] <= stall_tol * scale))
+        rate = moved / last[idx]  # over the step just confirmed (NaN before the first)
+        done |= good & (mu[idx] <= _DAMP) & (rate < 0.5) & (moved * rate <= (1 - rate) * step_tol * scale)
         last[idx] = moved
         back = idx[done & ~good]
         cur[back] = acc[back]
         done[good] |= dist[good] <= 1e-14 * size
         mu[g] = np.maximum(mu[g] * 0.1, _DAMP)
         idx = idx[~done]
+    if evaluations:
+        return cur[:, 0].copy(), cur[:, 1].copy(), best, acc_su, acc_sv
     return cur[:, 0].copy(), cur[:, 1].copy()
 
 
@@ -422,6 +436,7 @@ class CurveInverse(SurfaceInverse):
 
     def _newton(self, pts, uv):
         domain = (self.s.domain_u, self.s.domain_v)
-        u, v = _damped_newton(self.pieces, domain, pts, uv[:, 0], uv[:, 1], self.size, step_tol=1e-12, stall_tol=1e-10)
-        s, su, sv = self.pieces(u, v)
-        return np.stack([u, v], 1), su, sv, np.linalg.norm(s - pts, axis=1)
+        u, v, dist, su, sv = _damped_newton(
+            self.pieces, domain, pts, uv[:, 0], uv[:, 1], self.size, step_tol=1e-12, stall_tol=1e-10, evaluations=True
+        )
+        return np.stack([u, v], 1), su, sv, dist

@@ -405,7 +405,7 @@ def _closed(s, k: int) -> bool:
     pts = s.points
     a, b = (pts[0], pts[-1]) if k == 0 else (pts[:, 0], pts[:, -1])
     w = s.weights
-    same_w = w is None or np.allclose(w[0] if k == 0 else w[:, 0], w[-1] if k == 0 else w[:, -1], rtol=0, atol=0)
+    same_w = w is None or np.array_equal(w[0] if k == 0 else w[:, 0], w[-1] if k == 0 else w[:, -1])
     size = float(np.linalg.norm(np.ptp(pts.reshape(-1, 3), axis=0)))
     return bool(same_w and np.abs(a - b).max() <= 1e-9 * size)
 

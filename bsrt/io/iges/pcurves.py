@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bsrt.geometry.trim import TrimCurve
+from bsrt.geometry.trim import CurveSet, TrimCurve
 from bsrt.io.iges.bspline import clamp, from_bezier, line_curve, polyline_curve
 from bsrt.io.param_map import ParamMap
 
@@ -71,7 +71,8 @@ def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -
     """
     ts = [_start_samples(c) for c in curves]
     cuts = np.cumsum([0] + [len(t) for t in ts])
-    uv_all = to_uv(np.concatenate([c.evaluate(t) for c, t in zip(curves, ts)]), None)
+    at = CurveSet(curves)
+    uv_all = to_uv(at(np.concatenate(ts), np.repeat(np.arange(len(curves)), np.diff(cuts))), None)
     seams = [(k, lo, hi) for k, (lo, hi, closed) in enumerate(getattr(to_uv, "seams", ())) if closed]
     started = []
     for i, t in enumerate(ts):
@@ -94,7 +95,7 @@ def invert_curves(curves: list[TrimCurve], to_uv, tol, angular=(False, False)) -
         return out
     r = _Refinement(started)
     while len(r.want_t):
-        pts = np.concatenate([curves[i].evaluate(r.want_t[sel]) for i, sel in r.groups()])
+        pts = at(r.want_t, r.index[r.want_curve])
         hint = r.want_hint
         new = to_uv(pts, hint)
         new = _near(np.where(np.isnan(new), hint, new), hint, angular)
@@ -127,7 +128,7 @@ class _Refinement:
     def __init__(self, started):
         """started: (index, t (n,), uv (n, 2), tol) per curve (its first samples carried)."""
         sizes = [len(t) for _, t, _, _ in started]
-        self.index = [i for i, _, _, _ in started]
+        self.index = np.array([i for i, _, _, _ in started])
         self.t = np.concatenate([t for _, t, _, _ in started])
         self.uv = np.concatenate([uv for _, _, uv, _ in started])
         self.curve = np.repeat(np.arange(len(started)), sizes)
@@ -217,7 +218,8 @@ def _snap(x: np.ndarray, lo: float, hi: float) -> None:
     sample on the seam, or just across it, given the far side's value) set on the bound (a curve
     wholly on the seam keeps its side: its loop decides)."""
     period = hi - lo
-    x[:] = np.unwrap(x, period=period)
+    if x.size > 1 and np.abs(np.diff(x)).max() >= period / 2:  # (np.unwrap leaves smaller jumps alone)
+        x[:] = np.unwrap(x, period=period)
     centre = 0.5 * (x.min() + x.max())
     if not lo <= centre <= hi:
         x -= period * np.floor((centre - lo) / period)
