@@ -99,7 +99,7 @@ def rotated_grid(columns: int, rows: int) -> np.ndarray:
     return np.stack([(i + (j + 0.5) / rows) / columns, (j + (columns - i - 0.5) / columns) / rows], axis=1)
 
 
-def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_samples: int) -> None:
+def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_samples: int, centre_hits=None) -> None:
     """Re-render the marked pixels with the n = columns * rows samples of rotated_grid(*grid), in
     place, tracing only the samples that may lie across an edge (the others interpolated).
 
@@ -107,10 +107,12 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     render, updated where marked; coverage: (H, W) float64 (or None), the fraction of each pixel's
     samples that hit, updated alike. grid: (columns, rows). trace(directions (K, 3)) -> Hits: the
     camera rays' nearest hits; shade(hits, directions) -> (K, 3) linear RGB. chunk_samples: the
-    most samples traced at once (and the marked pixels are taken chunk_samples / n at a time)."""
+    most samples traced at once (and the marked pixels are taken chunk_samples / n at a time).
+    centre_hits: (H, W), non-zero where the pixel-centre ray hit (a streamed film's count, which
+    tells its background, exact at 255, from a highlight; None: every centre counts as a hit)."""
     offset = rotated_grid(*grid)  # (n, 2)
     step = max(1, chunk_samples // offset.shape[0])
-    centres = _Centres(linear, pixels, coverage, options.width, options.height)
+    centres = _Centres(linear, pixels, coverage if coverage is not None else centre_hits, options.width, options.height)
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     odd = (marked % options.width + marked // options.width) % 2 == 1
     known = None
@@ -139,9 +141,10 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
 class _Centres:
     """The one-sample render's pixel-centre samples, read by flat pixel index (K,) (row-major)."""
 
-    def __init__(self, linear, pixels, coverage, width: int, height: int):
+    def __init__(self, linear, pixels, hits, width: int, height: int):
+        """hits: (H, W), non-zero where the centre ray hit (the coverage or a hit count), or None."""
         self.linear, self.levels = linear, pixels.reshape(-1, 3)
-        self.coverage, self.width, self.height = coverage, width, height
+        self.hits, self.width, self.height = hits, width, height
 
     def colour(self, index) -> np.ndarray:
         """(K, 3) linear RGB (decoded from the 8-bit pixels where the film keeps no linear RGB)."""
@@ -149,13 +152,15 @@ class _Centres:
 
     def usable(self, index) -> np.ndarray:
         """(K,) bool: the colour can be interpolated from. A streamed film's 8-bit colour at 255 in
-        some channel may stand for more than 1 (a highlight, a light seen directly): its samples
-        near such a centre are traced."""
-        return np.ones(len(index), bool) if self.linear is not None else self.levels[index].max(axis=1) < 255
+        some channel may stand for more than 1 (a highlight, a light seen directly) where the centre
+        ray hit: its samples near such a centre are traced (the background's colour is exact)."""
+        if self.linear is not None:
+            return np.ones(len(index), bool)
+        return (self.levels[index].max(axis=1) < 255) | ~self.hit(index)
 
     def hit(self, index) -> np.ndarray:
-        """(K,) bool: the centre ray hit (True where the film counts no coverage)."""
-        return self.coverage.reshape(-1)[index] > 0 if self.coverage is not None else np.ones(len(index), bool)
+        """(K,) bool: the centre ray hit (True where the film counts none)."""
+        return self.hits.reshape(-1)[index] > 0 if self.hits is not None else np.ones(len(index), bool)
 
     def neighbour(self, index, dx: int, dy: int):
         """The pixels (dx, dy) from index: (flat index (K,), clamped to the film; inside (K,) bool)."""

@@ -94,6 +94,11 @@ class Film:
     def coverage(self) -> np.ndarray:
         return self._hit_samples / float(self.rows * self.columns)
 
+    @property
+    def hit_samples(self) -> np.ndarray:
+        """(H, W) uint16: each pixel's samples that hit (held, not copied)."""
+        return self._hit_samples
+
     def put_hits(self, start: int, hits: Hits) -> None:
         """The pixel-centre rays start .. start + len(hits) - 1 found ``hits``."""
         if self.keep:

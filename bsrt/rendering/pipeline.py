@@ -287,7 +287,7 @@ def render(
             film.put_hits(first * width, hits)
     coverage = film.coverage if keep else None  # (H, W) float64: only a kept film's result holds it
     if spp == 1 and opts.adaptive_spp > 1:
-        _adaptive(film.linear, film.pixels, coverage, tracer, shader, opts, geometry, stats)
+        _adaptive(film.linear, film.pixels, coverage, film.hit_samples, tracer, shader, opts, geometry, stats)
     if opts.edges:
         coverage = _edges(film.linear, film.pixels, coverage, film.hits, opts, geometry, stats)
     report("done", 1.0)
@@ -301,8 +301,11 @@ def render(
     return RenderResult(film.pixels, film.linear, film.hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
 
 
-def _adaptive(linear, pixels, coverage, tracer, shader, opts: RenderOptions, geometry: Geometry, stats: Stats) -> None:
-    """Adaptive anti-aliasing of a one-sample render (rendering/antialias.py), in place."""
+def _adaptive(
+    linear, pixels, coverage, centre_hits, tracer, shader, opts: RenderOptions, geometry: Geometry, stats
+) -> None:
+    """Adaptive anti-aliasing of a one-sample render (rendering/antialias.py), in place
+    (centre_hits: (H, W), the film's samples that hit per pixel)."""
     from bsrt.rendering.antialias import refine
 
     def trace(directions):
@@ -313,7 +316,8 @@ def _adaptive(linear, pixels, coverage, tracer, shader, opts: RenderOptions, geo
         with stats.timer("shade"):
             return shader.shade(hits, directions)
 
-    refine(linear, pixels, coverage, sample_grid(opts.adaptive_spp), shade, trace, opts, stats, MAX_BAND_SAMPLES)
+    grid = sample_grid(opts.adaptive_spp)
+    refine(linear, pixels, coverage, grid, shade, trace, opts, stats, MAX_BAND_SAMPLES, centre_hits)
 
 
 def _edges(linear, pixels, coverage, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
