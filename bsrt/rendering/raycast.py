@@ -7,10 +7,11 @@ of CHUNK rays (bounded temporaries whatever N is). The public face is
 resolution or caching.
 
 * nearest / any: one walk of the hierarchy per ray (``bvh.intersect``).
-* all: repeated nearest queries; round k starts each still-open ray at its
-  previous hit (t_min = that t) and excludes that root's parameter box
-  (1e-6 of the diagonal, as secondary rays do), so a ray crossing a surface
-  twice at one point (tangent) reports it once. Rounds stop when no ray
+* all: repeated nearest queries; round k starts each still-open ray past its
+  previous hit (t_min = that t plus SAME_T and the kernel's tolerance over
+  |cos(normal, ray)|, the t error of a grazing root) and excludes that root's
+  parameter box (1e-6 of the diagonal, as secondary rays do), so a ray
+  crossing a surface twice at one point (tangent) reports it once. Rounds stop when no ray
   finds more, or after MAX_ALL_HITS hits per ray.
 * budget: a query ray may spend QUERY_BUDGET_FACTOR times the Newton
   iterations a rendered ray may (a ray grazing a sphere 1e-6 of its radius
@@ -40,6 +41,7 @@ MIN_TOLERANCE = 1e-13  # what float64 Newton reliably reaches, as a fraction of 
 POLISH_STEPS = 4
 EXCLUDE = 1e-6  # all-hits: the found root's exclusion box, as a fraction of the diagonal
 SAME_T = 1e-8  # all-hits: a later hit lies at least this much further (fraction of the diagonal)
+GRAZING_FLOOR = 1e-4  # all-hits: |cos| floor of that margin's grazing term (at most 1e4 x the tolerance)
 POLE = 1e-8  # |S_u x S_v| below this fraction of the patch's typical |S_u| |S_v|: a pole (degenerate)
 POLE_STEP = 1e-6  # ... whose normal is taken this fraction of the patch toward its centre
 MAX_ALL_HITS = 4096  # all-hits: at most this many hits per ray
@@ -147,8 +149,12 @@ class RayCaster:
                 break
             records.append(self._records(hits, origins[rays], directions[rays], rays + first, tolerance))
             found[rays] += 1
-            start[rays] = hits.t + SAME_T * self.diagonal
-            _, _, speed = facing_frames(patches, hits, directions[rays])
+            _, normal, speed = facing_frames(patches, hits, directions[rays])
+            # the kernel's roots are good to its residual tolerance over |cos(normal, ray)|: a later
+            # round starts beyond that, or a grazing ray finds this root again in a neighbouring
+            # piece (at a pole the same point lies in every piece around it, each at its own u)
+            cos = np.maximum(np.abs(np.einsum("ij,ij->i", normal, directions[rays])), GRAZING_FLOOR)
+            start[rays] = hits.t + (SAME_T + max(tolerance, KERNEL_TOLERANCE) / cos) * self.diagonal
             eps = EXCLUDE * self.diagonal
             bounds = patches.bounds[hits.patch]
             with np.errstate(divide="ignore", invalid="ignore"):
