@@ -108,7 +108,9 @@ class SurfaceInverse:
         return out
 
     def _newton(self, pts, uv):
-        """(uv (N, 2), S (N, 3), S_u, S_v there, distances (N,)) from starts uv."""
+        """(uv (N, 2), S_u, S_v (N, 3) and distances (N,)) from starts uv: the derivatives and
+        distances at each point's last evaluated parameters (uv less its last step, where that
+        one was predicted small: ``_damped_newton``'s ``evaluations``)."""
         s, domain = self.s, (self.s.domain_u, self.s.domain_v)
         u, v, dist, su, sv = _damped_newton(
             lambda u, v: evaluate(s, u, v), domain, pts, uv[:, 0], uv[:, 1], self.size, evaluations=True

@@ -64,9 +64,10 @@ Tracing of Trimmed NURBS Surfaces" (JGT 5(1), 2000), without trimming:
    the leaves' nets would exceed LEAF_NET_FLOATS (256 MB) or LEAVES_PER_PATCH
    nets per patch (``flatten``): high-degree patches stay in bounded memory. Finer values make
    Newton from the centre fail less often, so shadow rays retry less: against 2e-3 (the default
-   until 2026-11), 512x512 renders with shadows took 13-23% less time (column 4,721 -> 6,865
-   leaves, 11752.stp 21,712 -> 23,599, U_Joint_2 3,145 -> 4,933) and the water-lily 7% less, with
-   the hierarchy built as fast; at 2.5e-4 the water-lily is slower again.
+   until 2026-11), the render stage of 512x512 renders with shadows took 4-23% less time (column
+   4,721 -> 6,865 leaves, 11752.stp 21,712 -> 23,599, U_Joint_2 3,145 -> 4,933; water-lily 7%),
+   the CAD parts' hierarchies built as fast and the column's 0.04 s slower; at 2.5e-4 the
+   water-lily is slower again (docs/performance.md).
 
 2. **BVH** over the leaves, arrays only, built breadth first (compiled,
    ``kernels/flatten.build_tree``): a node's leaves are split by the binned

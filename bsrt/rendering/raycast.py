@@ -11,8 +11,8 @@ resolution or caching.
   previous hit (t_min = that t plus SAME_T and the kernel's tolerance over
   |cos(normal, ray)|, the t error of a grazing root) and excludes that root's
   parameter box (1e-6 of the diagonal, as secondary rays do), so a ray
-  crossing a surface twice at one point (tangent) reports it once. Rounds stop when no ray
-  finds more, or after MAX_ALL_HITS hits per ray.
+  crossing a surface twice at one point (tangent) reports it once. Rounds
+  stop when no ray finds more, or after MAX_ALL_HITS hits per ray.
 * budget: a query ray may spend QUERY_BUDGET_FACTOR times the Newton
   iterations a rendered ray may (a ray grazing a sphere 1e-6 of its radius
   from the pole needs about 9,000, twice a rendered ray's budget); a ray that
