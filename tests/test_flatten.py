@@ -11,7 +11,7 @@ from numba import njit
 from bsrt.geometry.bspline import evaluate, make_surface
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels import cones
-from bsrt.kernels.flatten import CONE_DEGREES, count_leaves
+from bsrt.kernels.flatten import CONE_DEGREES, _median_split, count_leaves
 from bsrt.rendering import bvh as B
 from bsrt.rendering.bvh import build_bvh, intersect
 
@@ -208,6 +208,41 @@ def test_a_twisted_ruled_band_is_cut_along_its_rulings_and_every_aimed_ray_hits(
     hits = intersect(tree, point + 2.0 * normal, -normal)
     assert hits.hit.all()
     np.testing.assert_allclose(hits.t, 2.0, atol=1e-8)
+
+
+@njit
+def _split(order, centre, f, c, axis):  # _median_split has no Python wrapper
+    _median_split(order, centre, f, c, axis)
+
+
+def test_the_median_split_puts_the_smaller_half_first():
+    """build_tree's median split (a selection, not a sort) of a slice order[f:f + c]: the slice is
+    a permutation of what it was, its first c // 2 boxes have no larger centre than the rest, and
+    the rest of order is untouched; with ties (centres drawn from 3 values), with a single value,
+    and with sorted and reversed input."""
+    rng = np.random.default_rng(7)
+    for trial in range(300):
+        n = int(rng.integers(2, 60))
+        centre = rng.random((n, 3))
+        kind = trial % 5
+        if kind == 1:  # ties
+            centre = rng.integers(0, 3, (n, 3)).astype(float)
+        elif kind == 2:  # one value
+            centre[:] = 0.5
+        elif kind == 3:
+            centre = np.sort(centre, axis=0)
+        elif kind == 4:
+            centre = np.ascontiguousarray(np.sort(centre, axis=0)[::-1])
+        order = rng.permutation(n)
+        f = int(rng.integers(0, n - 1))
+        c = int(rng.integers(2, n - f + 1))
+        axis = int(rng.integers(0, 3))
+        before = order.copy()
+        _split(order, centre, f, c, axis)
+        assert sorted(order[f : f + c]) == sorted(before[f : f + c])
+        assert np.array_equal(order[:f], before[:f]) and np.array_equal(order[f + c :], before[f + c :])
+        keys = centre[order[f : f + c], axis]
+        assert keys[: c // 2].max() <= keys[c // 2 :].min()
 
 
 def test_the_tree_stays_shallower_than_the_walks_stack():
