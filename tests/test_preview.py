@@ -586,6 +586,32 @@ def test_device_gpu_refines_to_the_cpu_render(display, tmp_path):
 
 
 @pytest.mark.gl
+def test_device_gpu_shows_exact_images_while_the_camera_moves(display, tmp_path):
+    """On the GPU (forced here: llvmpipe) the preview goes live: the solver draws its own map
+    and solves the exact level only, moving or not, and a job whose camera has moved on meanwhile
+    is shown all the same ("live" in the frame log) instead of being cancelled: exact images
+    follow the camera during a 120-frame orbit, and the last one is the CPU's render."""
+    scene = tmp_path / "column.toml"
+    shutil.copy(SCENES / "column.toml", scene)
+    script = tmp_path / "script.txt"
+    script.write_text("wait\norbit 40 0 120\nwait\nkey c; save a.png\nquit\n")
+    result = run_preview(
+        display, scene, "--width", 96, "--height", 72, "--device", "gpu", "--script", script,
+        "--frame-log", "log.json", cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "solving on the GPU" in result.stderr
+    levels = json.loads((tmp_path / "log.json").read_text())["levels"]
+    live = [e for e in levels if e.get("verdict") in ("live", "exact") and e["divisor"] == 1]
+    assert sum(e["verdict"] == "live" for e in live) >= 1, levels  # shown while the camera moved on
+    assert all(e["size"] == [96, 72] for e in live)  # the exact level only, no coarse one
+    (camera,) = cameras_printed(result.stdout)
+    loaded = load_scene(scene)
+    options = RenderOptions.resolve(loaded, camera=camera, width=96, height=72, spp=1, adaptive_spp=0, device="cpu")
+    assert_same_image(read_png(tmp_path / "a.png"), render(loaded, options).pixels, "a.png")
+
+
+@pytest.mark.gl
 def test_device_gpu_without_opengl_4_5_exits_2_before_opening_a_window(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT), "MESA_GL_VERSION_OVERRIDE": "3.3"}
     env.pop("DISPLAY", None)  # no window is opened: the check comes first

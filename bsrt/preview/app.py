@@ -7,6 +7,9 @@ exact ray-traced image, coarse to fine, from the solver processes
 maps the window rasterises band by band (one band per frame). The window
 (window.py) turns glfw's input into named events; scripts (script.py) drive
 the same application. The window traces one sample per pixel (spp = 1).
+Where the solver runs on a GPU the refinement goes live (refine.LIVE_LEVELS):
+the exact level only, solved whenever the solver is free, moving or not, and
+shown even when the camera has moved on since (docs/usage.md).
 """
 
 from __future__ import annotations
@@ -108,6 +111,7 @@ class Preview:
         self.map_tex = None  # its map's picture (key M)
         self.map_level = -1
         self.keep_image = False  # method switch: show the old image until the new one
+        self.live = False  # the solver runs on a GPU: exact images while the camera moves (refine.LIVE_LEVELS)
         self.show_map = False
         self.held = {"orbit": False, "pan": False}  # mouse buttons down
         self.pending_saves: list[Path | None] = []
@@ -152,7 +156,7 @@ class Preview:
         """Camera, method or size changed: a new generation, refinement restarts."""
         generation = self.refine.restart(time.perf_counter(), settle)
         self.solver.cancel_before(generation)
-        self.keep_image = keep_image and self.image_tex is not None
+        self.keep_image = (keep_image or self.live) and self.image_tex is not None
         if not self.keep_image:
             self.view.release(self.image_tex)
             self.image_tex = None
@@ -180,6 +184,8 @@ class Preview:
 
     def _do_toggle_map(self) -> None:
         self.show_map = not self.show_map
+        if self.live and self.show_map and self.map_tex is None:  # live jobs send the map only when asked
+            self._changed(settle=False, keep_image=True)
 
     def _do_method(self, method: str) -> None:
         self.set_method(method)
@@ -244,7 +250,11 @@ class Preview:
     def _refine(self, now: float) -> None:
         """Rasterise the next band of the next level's map (one per frame, so
         the window never waits for a whole full-size map); when a level's map
-        is complete, hand it to the solver."""
+        is complete, hand it to the solver. Live: hand the solver the exact
+        level (it draws the map) whenever it is free, moving or not."""
+        if self.live:
+            self._submit_live()
+            return
         level = self.refine.next_level(now, self.held["orbit"] or self.held["pan"])
         if level is None or min(self.fb_size) < 1:
             return
@@ -278,7 +288,28 @@ class Preview:
         self.refine.submitted()
         entry["submitted"] = self.log.now()
 
+    def _submit_live(self) -> None:
+        """Live: the current camera's exact level to the solver, unless it is busy or has it."""
+        refine = self.refine
+        if refine.failed or refine.to_submit >= len(refine.levels) or self.solver.busy() or min(self.fb_size) < 1:
+            return
+        width, height = refine.size(0, self.fb_size)
+        entry = self.log.level(refine.generation, 0, refine.levels[0], (width, height), refine.last_change)
+        job = Job(refine.generation, 0, self.method, self.camera, width, height, None, time.time(), True, self.show_map)
+        self.solver.submit(job)
+        refine.submitted()
+        entry["submitted"] = self.log.now()
+
+    def _go_live(self) -> None:
+        """The solver turned out to run on a GPU: refine live from now on."""
+        self.live = True
+        self.solver.cancel_before(self.refine.go_live(time.perf_counter()))
+        self.solver.drop_spare()  # a live job is never cut short: no process waits to take over
+        print("bsrt preview: solving on the GPU: the exact image follows the camera", file=sys.stderr)
+
     def _collect(self) -> None:
+        if not self.live and self.solver.device() == "gpu":
+            self._go_live()
         for outcome in self.solver.outcomes():
             job = outcome.job
             if job.generation == -1:  # the solver process is gone: nothing more will come
@@ -287,6 +318,11 @@ class Preview:
                 continue
             error = None if outcome.error is None else f"{job.method} failed: {outcome.error}"
             verdict = self.refine.accept(job.generation, job.level, outcome.pixels, error, outcome.seconds)
+            if verdict == "stale" and job.live and outcome.pixels is not None:
+                verdict = "live"  # the camera has moved on since: the newest exact image, shown meanwhile
+            if job.live and outcome.map_picture is not None and verdict != "stale":
+                self.view.release(self.map_tex)
+                self.map_tex, self.map_level = self.view.texture(outcome.map_picture), job.level
             if verdict != "stale":
                 entry = self.log.level(
                     job.generation, job.level, self.refine.levels[job.level], (job.width, job.height)
@@ -295,7 +331,7 @@ class Preview:
                 entry.update(cpu_seconds=round(outcome.cpu_seconds, 4), waited=round(outcome.waited, 4))
             if verdict == "failed":
                 print(f"bsrt preview: {error}", file=sys.stderr)
-            elif verdict in ("shown", "exact"):
+            elif verdict in ("shown", "exact", "live"):
                 self.view.release(self.image_tex)
                 self.image_tex = self.view.texture(outcome.pixels)
                 self.keep_image = False
@@ -329,7 +365,7 @@ class Preview:
 
     def _image(self, state: str):
         """The texture to show (None: the fast view)."""
-        if state != "moving":
+        if state != "moving" or self.live:
             if self.show_map and self.map_tex is not None:
                 return self.map_tex
             return self.image_tex

@@ -25,6 +25,9 @@ import numpy as np
 # scripts/preview_latency.py, see docs/usage.md).
 LEVELS = (4, 1)
 SETTLE_SECONDS = 0.15  # the camera counts as stopped after this long without a change
+# Live (the solver runs on a GPU, rendering/gpu.py): the exact level only, solved while the camera
+# moves too; the window shows the newest exact image, of the camera a job or two ago.
+LIVE_LEVELS = (1,)
 # The window rasterises a level's map in bands of about this many pixels, one
 # band per frame: a whole 800x600 map blocks the window for ~80 ms on llvmpipe.
 MAP_BAND_PIXELS = 100_000
@@ -87,6 +90,12 @@ class Refinement:
         self.last_change = now if settle else -math.inf
         self._reset()
         return self.generation
+
+    def go_live(self, now: float) -> int:
+        """The solver runs on a GPU: from now on the exact level only, with no settling (a new
+        generation, returned)."""
+        self.levels, self.settle = LIVE_LEVELS, 0.0
+        return self.restart(now, settle=False)
 
     def touch(self, now: float) -> None:
         """Still moving (a mouse button released): settle from now."""

@@ -32,6 +32,7 @@ from bsrt.scene.camera import Camera
 
 SOLVER_NICENESS = 10  # os.nice of the solver processes: the window keeps its core
 STARTING, IDLE = -2, -1  # a worker's ``running`` value besides the generation it solves
+DEVICE_CODES = {None: 0, "cpu": 1, "gpu": 2}  # a worker's ``device`` value (None: not warm yet)
 
 
 class _Cancelled(Exception):
@@ -57,6 +58,10 @@ class Job:
     height: int
     prelim: object  # PrelimMap or None (only on the way there)
     sent: float = 0.0  # time.time() when the window submitted it
+    # live (the GPU preview): the solver draws the map on its own context and solves to the end
+    # even when the camera has moved on, so an exact image is shown while the camera moves
+    live: bool = False
+    map_picture: bool = False  # live: send the map's picture back (key M)
 
 
 @dataclass
@@ -67,6 +72,7 @@ class Outcome:
     seconds: float = 0.0  # wall-clock seconds of the solve
     cpu_seconds: float = 0.0  # CPU seconds of the solver process (all its threads) during the solve
     waited: float = 0.0  # seconds from submitted to the solve's start (queue, transfer, an earlier job)
+    map_picture: np.ndarray | None = None  # (H, W, 3) uint8: a live job's map, when it asked
 
 
 def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
@@ -74,7 +80,7 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     from bsrt.rendering.pipeline import render
 
     def progress(stage, fraction=0.0):
-        if job.generation < generation.value:
+        if job.generation < generation.value and not job.live:
             raise _Cancelled
 
     clock, cpu = time.perf_counter(), time.process_time()
@@ -90,8 +96,11 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
             adaptive_spp=0,
             camera=job.camera,
         )  # one sample per pixel: the interactive picture
-        result = render(scene, options, geometry=geometry, ctx=_NoGLHere(), prelim=job.prelim, progress=progress)
+        ctx = None if job.live else _NoGLHere()  # live: the map on this process's headless context
+        result = render(scene, options, geometry=geometry, ctx=ctx, prelim=job.prelim, progress=progress)
         outcome.pixels = result.pixels
+        if job.map_picture and result.prelim is not None:
+            outcome.map_picture = result.prelim.picture
     except _Cancelled:
         pass
     except (InputError, RenderError) as exc:
@@ -103,13 +112,14 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
     return outcome
 
 
-def _solver_process(scene, map_mode, jobs, outcomes, generation, running, cache=False) -> None:
-    """A solver process's loop: render() each job that is still current.
+def _solver_process(scene, map_mode, jobs, outcomes, generation, running, device, cache=False) -> None:
+    """A solver process's loop: render() each job that is still current (a live one in any case).
 
     jobs: Queue of Job (None: stop), at most one at a time; outcomes: Queue
     of Outcome, one per job (pixels None when abandoned); generation: shared
     int, the window's newest generation; running: shared int, STARTING, IDLE
-    or the generation of the job being solved.
+    or the generation of the job being solved; device: shared int, set once
+    warm to the device the scene's ``device`` setting takes here (DEVICE_CODES).
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the window's business
     from bsrt.rendering.pipeline import Geometry
@@ -119,6 +129,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running, cache=
         _ = geometry.bvh  # shadow rays and "martin" need it: build it before the first job
     except (InputError, RenderError) as exc:  # reported now; each job that needs it reports it again
         print(f"bsrt preview: warning: the solver could not build the hierarchy: {exc}", file=sys.stderr, flush=True)
+    device.value = DEVICE_CODES[_device_here(scene.render.device)]
     running.value = IDLE
     parent = multiprocessing.parent_process()
     while True:
@@ -130,7 +141,7 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running, cache=
             continue
         if job is None:
             return
-        if job.generation < generation.value:
+        if job.generation < generation.value and not job.live:
             outcomes.put(Outcome(replace(job, prelim=None)))
             continue
         running.value = job.generation
@@ -139,16 +150,28 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running, cache=
         outcomes.put(outcome)
 
 
+def _device_here(setting: str) -> str:
+    """The device ("cpu" or "gpu") that the ``device`` setting takes in this (solver) process, whose GL is its own
+    headless context; "cpu" where that cannot be had or probed (a job then reports the error itself)."""
+    from bsrt.rendering.gpu import choose_device
+
+    try:
+        return choose_device(setting)[0]
+    except (InputError, RenderError):
+        return "cpu"
+
+
 class _Worker:
     """One solver process, its queues and its state (main process side)."""
 
     def __init__(self, mp, scene, map_mode, generation, cache=False):
         self.jobs, self.outcomes = mp.Queue(), mp.Queue()
         self.running = mp.Value("q", STARTING, lock=False)
+        self.device = mp.Value("b", DEVICE_CODES[None], lock=False)
         self.job: Job | None = None  # in flight: sent, its outcome not back yet
         self.process = mp.Process(
             target=_solver_process,
-            args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running, cache),
+            args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running, self.device, cache),
             name="bsrt-preview-solver",
             daemon=True,
         )
@@ -210,7 +233,8 @@ class Solver:
     seconds. So a spare process waits, warm (geometry and hierarchy built):
     when the camera moves while the active process solves an older
     generation, that process is killed and the spare takes over at once; a
-    new spare starts once the active process is warm.
+    new spare starts once the active process is warm. A live job (Job.live,
+    the GPU preview) is never cancelled, and a live window keeps no spare.
     """
 
     def __init__(self, scene, map_mode, cache=False):
@@ -222,6 +246,7 @@ class Solver:
         self.spare: _Worker | None = None
         self._dying: list[_Worker] = []
         self._lost: str | None = None
+        self._spares = True  # keep a warm spare (False once live: a live job is never cut short)
         self.swaps = 0
 
     def _worker(self) -> _Worker:
@@ -234,14 +259,31 @@ class Solver:
         self._pending.append(job)
         self._feed()
 
+    def device(self) -> str | None:
+        """Where the active process solves: "cpu", "gpu", or None until it is warm."""
+        code = self.active.device.value if self.active is not None else 0
+        return {v: k for k, v in DEVICE_CODES.items()}[code]
+
+    def drop_spare(self) -> None:
+        """Stop the spare process and start no other."""
+        self._spares = False
+        if self.spare is not None:
+            self.spare.stop(0.5)
+            self.spare = None
+
+    def busy(self) -> bool:
+        """A job is queued or in flight."""
+        return bool(self._pending) or (self.active is not None and self.active.job is not None)
+
     def cancel_before(self, generation: int) -> None:
-        """Abandon every job older than generation."""
+        """Abandon every job older than generation (a live one in flight runs to its end)."""
         self._generation.value = generation
         self._pending = collections.deque(j for j in self._pending if j.generation >= generation)
         active, spare = self.active, self.spare
         if (
             active is not None
             and active.job is not None
+            and not active.job.live
             and active.job.generation < generation
             and active.running.value == active.job.generation  # read whole and being solved
             and spare is not None
@@ -271,7 +313,7 @@ class Solver:
                 worker.job = None
                 if outcome.pixels is not None or outcome.error is not None:
                     out.append(outcome)
-            if self.spare is None and worker.running.value != STARTING:
+            if self._spares and self.spare is None and worker.running.value != STARTING:
                 self.spare = self._worker()  # once the active one is warm: they never start together
             if worker.process.exitcode is not None and self._lost is None:
                 self._lost = f"the solver process died (exit code {worker.process.exitcode})"
