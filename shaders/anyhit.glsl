@@ -96,10 +96,18 @@ bool grazing(int k, double u, double v, dvec3 d) {
     return c < GRAZING_COSINE;
 }
 
-// Can the ray meet the piece with scratch net s before t_far? (its hull in the ray's frame e1, e2, d)
+dvec3 net_point(int s, int i, int j) {
+    return dvec3(NET(s, i, j, 0), NET(s, i, j, 1), NET(s, i, j, 2)) / NET(s, i, j, 3);
+}
+
+// Can the ray meet the piece with scratch net s before t_far? Its control points in the ray's frame
+// (e1, e2 across, d along) surround the ray within tol along e1, e2 and the corners' normal seen
+// across the ray (kernels/traverse.py's _straddles and _corner_normal, which say why).
 bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double t_min, double t_far, double tol) {
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
-    double xlo = INF, ylo = INF, zlo = INF, xhi = -INF, yhi = -INF, zhi = -INF;
+    dvec3 c = cross(net_point(s, p, q) - net_point(s, 0, 0), net_point(s, 0, q) - net_point(s, p, 0));
+    double a = dot(e1, c), b = dot(e2, c);
+    double xlo = INF, ylo = INF, zlo = INF, nlo = INF, xhi = -INF, yhi = -INF, zhi = -INF, nhi = -INF;
     for (int i = 0; i <= p; ++i) {
         for (int j = 0; j <= q; ++j) {
             double w = NET(s, i, j, 3);
@@ -113,9 +121,13 @@ bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double
             yhi = max(yhi, y);
             zlo = min(zlo, z);
             zhi = max(zhi, z);
+            nlo = min(nlo, a * x + b * y);
+            nhi = max(nhi, a * x + b * y);
         }
     }
-    return xlo <= tol && xhi >= -tol && ylo <= tol && yhi >= -tol && zhi + tol >= t_min && zlo - tol < t_far;
+    double reach = tol * sqrt(a * a + b * b);
+    return xlo <= tol && xhi >= -tol && ylo <= tol && yhi >= -tol && nlo <= reach && nhi >= -reach &&
+           zhi + tol >= t_min && zlo - tol < t_far;
 }
 
 // leaf's net (flatten.leaf_net) into scratch slot s.

@@ -108,9 +108,16 @@ def _grazing(P, k, u, v, dx, dy, dz):
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
-    """Can the ray meet the piece with this net before t_far? (its hull, in the ray's frame)."""
-    xlo = ylo = zlo = np.inf
-    xhi = yhi = zhi = -np.inf
+    """Can the ray meet the piece with this net before t_far? Its control points, in the ray's frame
+    (x, y across the ray, z along it), must surround the ray within tol along x, along y, and along
+    the piece's normal as the ray sees it (the corners' diagonals' cross product projected across
+    the ray): a piece seen edge-on, the ray passing beside it, is a thin sliver whose x-y box may
+    still hold the ray; across the sliver it does not (the hull holds the piece, so nothing is lost)."""
+    cx, cy, cz = _corner_normal(net, p, q)
+    a = e[0] * cx + e[1] * cy + e[2] * cz  # that normal across the ray: (a, b) in (x, y)
+    b = e[3] * cx + e[4] * cy + e[5] * cz
+    xlo = ylo = zlo = nlo = np.inf
+    xhi = yhi = zhi = nhi = -np.inf
     for i in range(p + 1):
         for j in range(q + 1):
             w = net[i, j, 3]
@@ -121,7 +128,31 @@ def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
             xlo, xhi = min(xlo, x), max(xhi, x)
             ylo, yhi = min(ylo, y), max(yhi, y)
             zlo, zhi = min(zlo, z), max(zhi, z)
-    return xlo <= tol and xhi >= -tol and ylo <= tol and yhi >= -tol and zhi + tol >= t_min and zlo - tol < t_far
+            nlo, nhi = min(nlo, a * x + b * y), max(nhi, a * x + b * y)
+    reach = tol * np.sqrt(a * a + b * b)
+    return (
+        xlo <= tol
+        and xhi >= -tol
+        and ylo <= tol
+        and yhi >= -tol
+        and nlo <= reach
+        and nhi >= -reach
+        and zhi + tol >= t_min
+        and zlo - tol < t_far
+    )
+
+
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
+def _corner_normal(net, p, q):
+    """The cross product of the diagonals of a net's corner points (a normal of its bilinear patch)."""
+    w00, wpq, w0q, wp0 = net[0, 0, 3], net[p, q, 3], net[0, q, 3], net[p, 0, 3]
+    ux = net[p, q, 0] / wpq - net[0, 0, 0] / w00
+    uy = net[p, q, 1] / wpq - net[0, 0, 1] / w00
+    uz = net[p, q, 2] / wpq - net[0, 0, 2] / w00
+    vx = net[0, q, 0] / w0q - net[p, 0, 0] / wp0
+    vy = net[0, q, 1] / w0q - net[p, 0, 1] / wp0
+    vz = net[0, q, 2] / w0q - net[p, 0, 2] / wp0
+    return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
