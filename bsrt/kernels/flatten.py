@@ -338,7 +338,7 @@ def build_tree(box_min, box_max, leaf_size):
     leaf (count <= leaf_size). Each inner node is cut at the best of 15 bin
     planes along the longest axis of its boxes' centres (cost: count x
     surface area on each side); where all centres coincide, or below depth
-    SAH_DEPTH, at the median (_median_split) (the walks' stacks hold 64 nodes: a chain of
+    SAH_DEPTH, at the median, by _median_split (the walks' stacks hold 64 nodes: a chain of
     one-box splits could otherwise go deeper; measured depths are 17-22).
     """
     n = box_min.shape[0]

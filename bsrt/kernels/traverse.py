@@ -13,8 +13,9 @@ trims. A piece whose centre start finds nothing, or finds a grazing root
 Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
 points do not straddle the ray (in the ray's frame, across it along its two
 axes and along the piece's normal: ``_straddles``) or lie beyond the root
-found are culled (a piece's own solve is skipped alike), as are those holding a secondary ray's start whose only
-crossing is that start (crossings.py), and Newton restarts from the
+found are culled (a piece's own solve is skipped alike), as are those
+holding a secondary ray's start whose only crossing is that start
+(crossings.py), and Newton restarts from the
 survivors' centres; a quarter whose only crossing is a root that is not a
 hit is not cut again. A planar piece (it meets a ray once) is cut only when
 its centre start finds nothing.
