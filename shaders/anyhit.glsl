@@ -16,10 +16,10 @@
 // have turned 65,535 times (gallivm's loop limiter, LP_MAX_TGSI_LOOP_ITERATIONS,
 // one count shared by every loop of a shader): from then on each loop stops
 // after one turn, silently. A long walk (a water-lily shadow ray of 643 Newton
-// iterations) ran into it and missed its blocker; occluded answers -3 where the
-// count ran out and the ray was not found blocked (nearest.glsl where it ran
-// out at all), and the host traces those rays on the CPU (gpu_shade.py). A GPU
-// has no such limit.
+// iterations) ran into it and missed its blocker, and a cut-short Newton loop
+// can also pass a false root for a blocker; occluded answers -3 wherever the
+// count ran out (as nearest.glsl does), and the host traces those rays on the
+// CPU (gpu_shade.py). A GPU has no such limit.
 //
 // The hierarchy (rendering/bvh.py's BVHArrays, packed by
 // rendering/gpu_shade.py) lies in storage buffers 6 (float64) and 7 (int32),
@@ -100,14 +100,30 @@ dvec3 net_point(int s, int i, int j) {
     return dvec3(NET(s, i, j, 0), NET(s, i, j, 1), NET(s, i, j, 2)) / NET(s, i, j, 3);
 }
 
+// Control point (i, j) of scratch net s across the ray (e1, e2), from o.
+dvec2 across(int s, int i, int j, dvec3 o, dvec3 e1, dvec3 e2) {
+    dvec3 r = net_point(s, i, j) - o;
+    return dvec2(dot(e1, r), dot(e2, r));
+}
+
+// Does [lo, hi] come within reach of 0 (the ray, on an axis across it)?
+bool holds_zero(double lo, double hi, double reach) {
+    return lo <= reach && hi >= -reach;
+}
+
 // Can the ray meet the piece with scratch net s before t_far? Its control points in the ray's frame
-// (e1, e2 across, d along) surround the ray within tol along e1, e2 and the corners' normal seen
-// across the ray (kernels/traverse.py's _straddles and _corner_normal, which say why).
+// (e1, e2 across, d along) surround the ray within tol along e1, e2, the corners' normal seen across
+// the ray and across each border chord (kernels/traverse.py's _straddles, which says why).
 bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double t_min, double t_far, double tol) {
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
     dvec3 c = cross(net_point(s, p, q) - net_point(s, 0, 0), net_point(s, 0, q) - net_point(s, p, 0));
     double a = dot(e1, c), b = dot(e2, c);
+    dvec2 k0 = across(s, 0, 0, o, e1, e2), k1 = across(s, p, 0, o, e1, e2);
+    dvec2 k2 = across(s, p, q, o, e1, e2), k3 = across(s, 0, q, o, e1, e2);
+    dvec2 n0 = dvec2(k0.y - k1.y, k1.x - k0.x), n1 = dvec2(k1.y - k2.y, k2.x - k1.x);  // each chord's normal
+    dvec2 n2 = dvec2(k2.y - k3.y, k3.x - k2.x), n3 = dvec2(k3.y - k0.y, k0.x - k3.x);
     double xlo = INF, ylo = INF, zlo = INF, nlo = INF, xhi = -INF, yhi = -INF, zhi = -INF, nhi = -INF;
+    dvec4 clo = dvec4(INF), chi = dvec4(-INF);
     for (int i = 0; i <= p; ++i) {
         for (int j = 0; j <= q; ++j) {
             double w = NET(s, i, j, 3);
@@ -123,11 +139,15 @@ bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double
             zhi = max(zhi, z);
             nlo = min(nlo, a * x + b * y);
             nhi = max(nhi, a * x + b * y);
+            dvec4 along = dvec4(n0.x * x + n0.y * y, n1.x * x + n1.y * y, n2.x * x + n2.y * y, n3.x * x + n3.y * y);
+            clo = min(clo, along);
+            chi = max(chi, along);
         }
     }
-    double reach = tol * sqrt(a * a + b * b);
-    return xlo <= tol && xhi >= -tol && ylo <= tol && yhi >= -tol && nlo <= reach && nhi >= -reach &&
-           zhi + tol >= t_min && zlo - tol < t_far;
+    return xlo <= tol && xhi >= -tol && ylo <= tol && yhi >= -tol && zhi + tol >= t_min && zlo - tol < t_far &&
+           holds_zero(nlo, nhi, tol * sqrt(a * a + b * b)) && holds_zero(clo.x, chi.x, tol * length(n0)) &&
+           holds_zero(clo.y, chi.y, tol * length(n1)) && holds_zero(clo.z, chi.z, tol * length(n2)) &&
+           holds_zero(clo.w, chi.w, tol * length(n3));
 }
 
 // leaf's net (flatten.leaf_net) into scratch slot s.
@@ -398,5 +418,5 @@ int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cu
             }
         }
     }
-    return result != 1 && !loops_whole() ? -3 : result;
+    return !loops_whole() ? -3 : result;  // a blocker found after the limiter cut a loop short may be false
 }

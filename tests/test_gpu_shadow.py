@@ -26,6 +26,7 @@ from bsrt.rendering import gl, gpu, gpu_shade
 from bsrt.rendering.bvh import build_bvh
 from bsrt.rendering.shade import facing_frames, light_arrays
 from bsrt.scene.camera import pixel_rays
+from bsrt.scene.parse import parse_scene
 
 pytestmark = pytest.mark.gl
 
@@ -211,23 +212,52 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     assert np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max() <= 1
 
 
+def _strips_under_a_light():
+    """20 flat bicubic strips in the plane x = 0.5 (y in [-1, 1], z in [0.1 j, 0.1 j + 0.05]), a
+    floor patch at z = -0.01 round the origin, a point light straight above it at z = 100, a
+    camera looking down at the floor from the side: the floor's shadow ray runs up the z axis,
+    0.5 from every strip, and meets none."""
+    knots = [0, 0, 0, 0, 1, 1, 1, 1]
+    strips = [
+        {
+            "degree": [3, 3],
+            "knots_u": knots,
+            "knots_v": knots,
+            "points": [[[0.5, y, z] for z in np.linspace(0.1 * j, 0.1 * j + 0.05, 4)] for y in np.linspace(-1, 1, 4)],
+        }
+        for j in range(20)
+    ]
+    floor = {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[-0.2, -0.2, -0.01], [-0.2, 0.2, -0.01]], [[0.2, -0.2, -0.01], [0.2, 0.2, -0.01]]],
+    }
+    return parse_scene(
+        {
+            "film": {"width": 8, "height": 8},
+            "camera": {"eye": [-3.0, 0.0, 0.5], "look_at": [0.0, 0.0, -0.01], "up": [0.0, 0.0, 1.0], "fov": 30.0},
+            "material": [{"name": "grey", "color": [0.6, 0.6, 0.6]}],
+            "light": [{"kind": "point", "position": [0.0, 0.0, 100.0], "intensity": 10000.0}],
+            "surface": [dict(surface, material="grey") for surface in [floor, *strips]],
+        }
+    )
+
+
 def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
-    """Column at 256 x 256, sub-sample (107.75, 40.75): its shadow ray toward the first light
-    passes the column's mouldings unblocked, after 522 Newton iterations on the CPU. On
-    llvmpipe the walk's loops run into Mesa's loop limiter (anyhit.glsl's head) before it
-    ends, so the shader leaves the ray unsettled (-3): the host traces it on the CPU, and
-    shades its hit with the CPU kernel (on a GPU, which has no such limiter, neither happens). The answers are the CPU's, and the host is seen to
-    take both of those ways (a lit answer alone would not tell that the ray was re-traced).
-    (Until the hull test took the piece's normal as a third axis, traverse._straddles, a
-    water-lily ray that the walk cut short came out lit where it is blocked; at the new test
-    it settles on llvmpipe in 371 iterations, and a search of both scenes' shadow rays at
-    256 x 256, 5 samples a pixel, found this one ray that still runs out.)"""
+    """A shadow ray up the z axis past 20 strips, each of whose boxes (padded by 1 here) holds it:
+    the walk solves every strip, and on the CPU spends its Newton budget (taken as lit). On
+    llvmpipe the walk runs into Mesa's loop limiter (anyhit.glsl's head) first, so the shader
+    leaves the ray unsettled (-3): the host traces it on the CPU, and re-shades its hit with the
+    CPU kernel; the answers are the CPU's, and the host is seen to take both of those ways. Until
+    2026-11-25 the shader trusted a blocker it found after the limiter had cut its loops short:
+    here it answered blocked (941 iterations) where the CPU finds no blocker. (On a GPU, which has
+    no such limiter, nothing is re-traced.)"""
     from bsrt.kernels.lighting import shade_hits
     from bsrt.kernels.threads import run_chunks
     from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
     from bsrt.rendering.options import RenderOptions
     from bsrt.rendering.pipeline import Geometry
-    from bsrt.rendering.screen import film_rays
 
     retraced, reshaded = [], []
     spy_intersect, spy_run_chunks = gpu_shade.intersect, gpu_shade.run_chunks
@@ -237,21 +267,23 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
     monkeypatch.setattr(
         gpu_shade, "run_chunks", lambda f, n, *a, **k: reshaded.append(n) or spy_run_chunks(f, n, *a, **k)
     )
-    scene = bsrt.load(ROOT / "scenes" / "column.toml")
-    options = RenderOptions.resolve(scene, width=256, height=256)
+    scene = _strips_under_a_light()
+    options = RenderOptions.resolve(scene)
     geometry = Geometry(scene)
+    geometry._bvh = build_bvh(geometry.patches, padding=1.0)
     tolerance = options.tolerance * geometry.diagonal
-    camera_rays = film_rays(options.camera, 256, 256, np.array([[107.75, 40.75]]))
+    camera_rays = np.array([[3.0, 0.0, -0.51]]) / np.linalg.norm([3.0, 0.0, -0.51])  # the eye to the floor's centre
     hits = geometry.intersect(np.asarray(options.camera.eye)[None, :], camera_rays, tolerance=tolerance)
-    assert hits.hit.all()
+    assert hits.hit.all() and hits.surface[0] == 0
     origins, directions, t_max, exclusion = next(_shadow_rays(geometry, hits, camera_rays, scene.lights))
     cpu = geometry.intersect(origins, directions, t_max=t_max, tolerance=tolerance, exclude=exclusion, any_hit=True)
-    blocked, _, iterations = gpu_shade.occluded_gpu(_context(), geometry.bvh, origins, directions, t_max, tolerance,
-                                                    exclusion)  # fmt: skip
-    assert len(origins) == 1 and not cpu.hit.any() and cpu.iterations[0] > 500
+    blocked, exhausted, iterations = gpu_shade.occluded_gpu(
+        _context(), geometry.bvh, origins, directions, t_max, tolerance, exclusion
+    )
     with _context() as ctx:
         limited = [] if gl.capabilities(ctx).hardware else [1]  # a GPU has no loop limiter
-    assert retraced == limited and not blocked.any() and iterations[0] == cpu.iterations[0]
+    assert len(origins) == 1 and not cpu.hit.any() and cpu.iterations[0] >= ray_budget()  # lit, budget spent
+    assert retraced == limited and not blocked.any() and exhausted.all() and iterations[0] == cpu.iterations[0]
     materials, lights, background = _look(scene, options)
     n, bvh, eps = 1, geometry.bvh, 1e-6 * geometry.diagonal
     want, got = (
@@ -267,6 +299,7 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
         _context(), bvh, hits, camera_rays, geometry.material, materials, lights, background, eps, tolerance, 16, got
     )
     assert reshaded == limited  # the hit whose shadow ray the shader left unsettled, shaded by the CPU kernel
+    assert want[5][0] == 1  # its shadow ray spent its budget: lit
     for a, b in zip(want, got):
         np.testing.assert_array_equal(b, a)
 
