@@ -2,8 +2,9 @@
 // float64 for compute shaders: a file that other shaders include (no
 // #version here), after patches.glsl, trim64.glsl and solve_core.glsl. A
 // line-by-line port of bsrt/kernels/lighting.py's occluded (the walk) and
-// kernels/traverse.py's _solve_piece, _root_in, _straddles, _slab and
-// _obb_slab, and kernels/crossings.py's crosses_once and holds_once (their
+// kernels/traverse.py's _solve_piece, _root_in, _slab and _obb_slab,
+// kernels/hulls.py's straddles, and kernels/crossings.py's crosses_once
+// and holds_once (their
 // docstrings explain each step), without the hint (the
 // leaf that blocked the previous ray of a CPU slice, tried first there: it
 // changes the order pieces are tried in, not whether a ray is blocked) and,
@@ -113,7 +114,7 @@ bool holds_zero(double lo, double hi, double reach) {
 
 // Can the ray meet the piece with scratch net s before t_far? Its control points in the ray's frame
 // (e1, e2 across, d along) surround the ray within tol along e1, e2, the corners' normal seen across
-// the ray and across each border chord (kernels/traverse.py's _straddles, which says why).
+// the ray and across each border chord (kernels/hulls.py, which says why).
 bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double t_min, double t_far, double tol) {
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
     dvec3 c = cross(net_point(s, p, q) - net_point(s, 0, 0), net_point(s, 0, q) - net_point(s, p, 0));

@@ -24,12 +24,13 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.kernels.crossings import crosses_once
+from bsrt.kernels.hulls import straddles
 from bsrt.kernels.jit import njit
 from bsrt.kernels.nets import leaf_net
 from bsrt.kernels.patches import locate
 from bsrt.kernels.roots import ray_frame
 from bsrt.kernels.shading import radiance, surface_frame
-from bsrt.kernels.traverse import STACK, _leaves_grazing, _normal, _obb_slab, _slab, _solve_piece, _straddles
+from bsrt.kernels.traverse import STACK, _leaves_grazing, _normal, _obb_slab, _slab, _solve_piece
 
 
 @njit(cache=True, nogil=True, no_cpython_wrapper=True, _nrt=False)
@@ -42,7 +43,7 @@ def _leaf_blocks(P, T, B, leaf, ox, oy, oz, dx, dy, dz, e, t_max, tol, max_itera
         return False, 0
     net = leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf)
     p, q = B.leaf_degree[leaf, 0], B.leaf_degree[leaf, 1]
-    if not _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, 0.0, t_max, cull_tol):
+    if not straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, 0.0, t_max, cull_tol):
         return False, 0
     found, _, _, _, _, _, its = _solve_piece(
         P,

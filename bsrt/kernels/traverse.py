@@ -11,8 +11,8 @@ not the excluded start root of a secondary ray, and is kept by the surface's
 trims. A piece whose centre start finds nothing, or finds a grazing root
 (|cos| < 0.3: the ray may cross it twice), is cut into quarters by de
 Casteljau, recursively up to ``retry_depth`` levels; quarters whose control
-points do not straddle the ray (in the ray's frame, across it along its two
-axes and along the piece's normal: ``_straddles``) or lie beyond the root
+points do not straddle the ray (separating axes across the ray:
+``hulls.straddles``) or lie beyond the root
 found are culled (a piece's own solve is skipped alike), as are those
 holding a secondary ray's start whose only crossing is that start
 (crossings.py), and Newton restarts from the
@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 
 from bsrt.kernels.crossings import holds_once
+from bsrt.kernels.hulls import straddles
 from bsrt.kernels.jit import njit
 from bsrt.kernels.method_ids import NEWTON
 from bsrt.kernels.nets import copy_net, leaf_net, split_half
@@ -106,83 +107,6 @@ def _leaves_grazing(n, dx, dy, dz):
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _grazing(P, k, u, v, dx, dy, dz):
     return _leaves_grazing(_normal(P, k, u, v), dx, dy, dz)
-
-
-@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
-def _straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
-    """Can the ray meet the piece with this net before t_far? Its control points, in the ray's frame
-    (x, y across the ray, z along it), must surround the ray within tol along x and y, along the
-    piece's normal as the ray sees it (the corners' diagonals' cross product projected across the
-    ray), and across each border edge of the projected net (the corners' chords): a piece seen
-    edge-on beside the ray is a thin sliver, a piece the ray passes just beyond a slanted border
-    lies on one side of that border's line, and in both cases the x-y box may still hold the ray.
-    Separating axes: the hull holds the piece, so a piece culled cannot meet the ray."""
-    cx, cy, cz = _corner_normal(net, p, q)
-    a = e[0] * cx + e[1] * cy + e[2] * cz  # that normal across the ray: (a, b) in (x, y)
-    b = e[3] * cx + e[4] * cy + e[5] * cz
-    x0, y0 = _across(net, 0, 0, ox, oy, oz, e)  # the corners across the ray, in border order
-    x1, y1 = _across(net, p, 0, ox, oy, oz, e)
-    x2, y2 = _across(net, p, q, ox, oy, oz, e)
-    x3, y3 = _across(net, 0, q, ox, oy, oz, e)
-    g0, h0, g1, h1 = y0 - y1, x1 - x0, y1 - y2, x2 - x1  # each chord's normal in (x, y)
-    g2, h2, g3, h3 = y2 - y3, x3 - x2, y3 - y0, x0 - x3
-    xlo = ylo = zlo = nlo = lo0 = lo1 = lo2 = lo3 = np.inf
-    xhi = yhi = zhi = nhi = hi0 = hi1 = hi2 = hi3 = -np.inf
-    for i in range(p + 1):
-        for j in range(q + 1):
-            w = net[i, j, 3]
-            px, py, pz = net[i, j, 0] / w - ox, net[i, j, 1] / w - oy, net[i, j, 2] / w - oz
-            x = e[0] * px + e[1] * py + e[2] * pz
-            y = e[3] * px + e[4] * py + e[5] * pz
-            z = dx * px + dy * py + dz * pz
-            xlo, xhi = min(xlo, x), max(xhi, x)
-            ylo, yhi = min(ylo, y), max(yhi, y)
-            zlo, zhi = min(zlo, z), max(zhi, z)
-            nlo, nhi = min(nlo, a * x + b * y), max(nhi, a * x + b * y)
-            lo0, hi0 = min(lo0, g0 * x + h0 * y), max(hi0, g0 * x + h0 * y)
-            lo1, hi1 = min(lo1, g1 * x + h1 * y), max(hi1, g1 * x + h1 * y)
-            lo2, hi2 = min(lo2, g2 * x + h2 * y), max(hi2, g2 * x + h2 * y)
-            lo3, hi3 = min(lo3, g3 * x + h3 * y), max(hi3, g3 * x + h3 * y)
-    return (
-        xlo <= tol
-        and xhi >= -tol
-        and ylo <= tol
-        and yhi >= -tol
-        and zhi + tol >= t_min
-        and zlo - tol < t_far
-        and _holds_zero(nlo, nhi, tol * np.sqrt(a * a + b * b))
-        and _holds_zero(lo0, hi0, tol * np.sqrt(g0 * g0 + h0 * h0))
-        and _holds_zero(lo1, hi1, tol * np.sqrt(g1 * g1 + h1 * h1))
-        and _holds_zero(lo2, hi2, tol * np.sqrt(g2 * g2 + h2 * h2))
-        and _holds_zero(lo3, hi3, tol * np.sqrt(g3 * g3 + h3 * h3))
-    )
-
-
-@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
-def _holds_zero(lo, hi, reach):
-    """Does [lo, hi] come within reach of 0 (the ray, on an axis across it)?"""
-    return lo <= reach and hi >= -reach
-
-
-@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
-def _across(net, i, j, ox, oy, oz, e):
-    """Control point (i, j) of a net in the ray's frame, across the ray: (x, y)."""
-    w = net[i, j, 3]
-    px, py, pz = net[i, j, 0] / w - ox, net[i, j, 1] / w - oy, net[i, j, 2] / w - oz
-    return e[0] * px + e[1] * py + e[2] * pz, e[3] * px + e[4] * py + e[5] * pz
-
-
-@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
-def _corner_normal(net, p, q):
-    """The cross product of the diagonals of a net's corner points (a normal of its bilinear patch)."""
-    w00, wpq, w0q, wp0 = net[0, 0, 3], net[p, q, 3], net[0, q, 3], net[p, 0, 3]
-    ux = net[p, q, 0] / wpq - net[0, 0, 0] / w00
-    uy = net[p, q, 1] / wpq - net[0, 0, 1] / w00
-    uz = net[p, q, 2] / wpq - net[0, 0, 2] / w00
-    vx = net[0, q, 0] / w0q - net[p, 0, 0] / wp0
-    vy = net[0, q, 1] / w0q - net[p, 0, 1] / wp0
-    vz = net[0, q, 2] / w0q - net[p, 0, 2] / wp0
-    return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
@@ -305,7 +229,7 @@ def _solve_piece(
         rects[top + 3, 0], rects[top + 3, 1], rects[top + 3, 2], rects[top + 3, 3] = um, r1, vm, r3
         first = top
         for s in range(first, first + 4):
-            if not _straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
+            if not straddles(nets[s], p, q, ox, oy, oz, e, dx, dy, dz, t_min, min(t_max, best_t), cull_tol):
                 continue
             sr = rects[s]
             if m == ex_m and holds_once(nets[s], p, q, sr, ex_u, ex_v, ox, oy, oz, e, nets[size - 1]):
@@ -445,7 +369,7 @@ def trace_rays(
                     lo, hi = _obb_slab(B.leaf_obb[leaf], ox, oy, oz, dx, dy, dz)
                     if not (lo <= hi and hi >= lo_t and lo <= hi_t and lo < best_t):
                         continue
-                    if not _straddles(
+                    if not straddles(
                         leaf_net(B.patch_net, B.leaf_net, B.leaf_net_row, leaf),
                         B.leaf_degree[leaf, 0],
                         B.leaf_degree[leaf, 1],
