@@ -227,6 +227,17 @@ def _tessellation(patches: PatchSet, camera: Camera, width: int, height: int):
     return cached[1]
 
 
+def _each_edge_once(triangles: np.ndarray) -> np.ndarray:
+    """triangles (T, 3) uint32 vertex indices -> their edges (E, 2) uint32, each once whichever way
+    and however many triangles share it (the first in the triangles' order, as drawn). A neighbour's
+    edge drawn again leaves the same fragments at the same depth, which the depth test rejects; on
+    llvmpipe each line costs the drawing thread its setup (half the map's time with every edge twice)."""
+    edges = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    low, high = edges.min(axis=1).astype(np.int64), edges.max(axis=1).astype(np.int64)
+    _, first = np.unique(low << 32 | high, return_index=True)
+    return np.ascontiguousarray(edges[np.sort(first)])
+
+
 # Draw the triangles that trim curves cross with the per-fragment trim test
 # (shaders/prelim.glsl's TRIM_TEST variant); False: the map of every kept cell
 # whole, as before the test (for comparisons).
@@ -237,7 +248,7 @@ class _MapMesh:
     """The map's triangles as C-ordered arrays for GL buffers.
 
     vertices (V, 6) float32 (tessellate()'s rows), indices (T, 3) uint32 and
-    edges (T, 6) uint32 (every triangle's edges as lines): the triangles drawn
+    edges (E, 2) uint32 (every triangle's edges as lines, an edge two triangles share once): the triangles drawn
     without the trim test. tested (3 K, 10) float32: the K triangles drawn
     with it, three vertices each, rows (x, y, z, u_norm, v_norm, surface
     index + 1, u, v in the knot domain, reach_u, reach_v: the margin of the
@@ -284,7 +295,7 @@ class _MapMesh:
         plain = np.concatenate([plain, vertices.shape[0] + np.arange(extra.shape[0]).reshape(-1, 3)]).astype(np.uint32)
         self.vertices = np.ascontiguousarray(np.concatenate([vertices, extra]))
         self.indices = np.ascontiguousarray(plain)
-        self.edges = np.ascontiguousarray(plain[:, [0, 1, 1, 2, 2, 0]])
+        self.edges = _each_edge_once(plain)
         k = int(test.sum())
         rows = np.empty((k, 3, 10), dtype=np.float32)
         rows[:, :, :5] = sub[test][:, :, :5]
