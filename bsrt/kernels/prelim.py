@@ -89,12 +89,16 @@ def pixel_rays_into(start, stop, forward, right, up, x, y, directions):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def normalise_rows(start, stop, d, out):
-    """out[k] = d[k] / |d[k]| for rows k of d (N, 3) float64 (out may be d)."""
+def normalise_rows(start, stop, d, out, origin, origin_out):
+    """out[k] = d[k] / |d[k]| for rows k of d (N, 3) float64 (out may be d), and origin_out[k] =
+    origin[k], or origin[0] for an origin (1, 3) shared by every ray (origin_out (N, 3))."""
+    shared = origin.shape[0] == 1
     for k in range(start, stop):
         x, y, z = d[k, 0], d[k, 1], d[k, 2]
         n = np.sqrt(x * x + y * y + z * z)
         out[k, 0], out[k, 1], out[k, 2] = x / n, y / n, z / n
+        o = 0 if shared else k
+        origin_out[k, 0], origin_out[k, 1], origin_out[k, 2] = origin[o, 0], origin[o, 1], origin[o, 2]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -239,3 +243,40 @@ def seeded_hits(
             t_out[p] = u_out[p] = v_out[p] = residual_out[p] = np.nan
             surface_out[p] = patch_out[p] = -1
             iterations_out[p] = 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def neighbour_starts(
+    suspects, width, height, offsets, hit, hit_surface, hit_u, hit_v, seed_surface, seed_u, seed_v, pixel, surface, u, v
+):
+    """The Newton starts of the suspect pixels (N,) (flat indices of a width x height film, sorted,
+    distinct): for each pixel and each surface among its neighbours at offsets (9, 2) (row and
+    column steps, nearest first), the first such neighbour's start: its hit's surface, u, v where
+    it hit (hit, hit_surface, hit_u, hit_v: (H W,)), else its map seed (seed_surface, seed_u,
+    seed_v: (H W,), surface -1: none). Written in (pixel, surface) order into pixel, surface, u, v
+    (9 N,); returns how many. As hard_pixels did in NumPy: np.unique of pixel x S + surface."""
+    n = 0
+    for p in suspects:
+        row, col = p // width, p % width
+        first = n  # this pixel's starts are first..n-1, in surface order
+        for o in range(offsets.shape[0]):
+            r, c = row + offsets[o, 0], col + offsets[o, 1]
+            if r < 0 or r >= height or c < 0 or c >= width:
+                continue
+            q = r * width + c
+            if hit[q]:
+                s, su, sv = hit_surface[q], hit_u[q], hit_v[q]
+            else:
+                s, su, sv = seed_surface[q], seed_u[q], seed_v[q]
+            if s < 0:
+                continue
+            k = first
+            while k < n and surface[k] < s:
+                k += 1
+            if k < n and surface[k] == s:
+                continue  # a nearer neighbour gave this surface's start
+            for m in range(n, k, -1):
+                pixel[m], surface[m], u[m], v[m] = pixel[m - 1], surface[m - 1], u[m - 1], v[m - 1]
+            pixel[k], surface[k], u[k], v[k] = p, s, su, sv
+            n += 1
+    return n

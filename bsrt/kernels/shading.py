@@ -118,3 +118,31 @@ def radiance(
         g += (albedo[m, 1] * cos_l + spec) * strength[j, 1] * falloff
         b += (albedo[m, 2] * cos_l + spec) * strength[j, 2] * falloff
     return r, g, b
+
+
+@njit(cache=True, nogil=True)
+def mirror_rays(start, stop, mirror, direction, normal, position, surface, u, v, radius, origin_out, direction_out, ex):
+    """The bounce off mirror hits start..stop-1 of mirror (M,) (indices into the N hits): from the hit's
+    position along its ray's direction mirrored in its normal, d - 2 (d . n) n, passing the root it
+    leaves (the exclusion of bvh.intersect). direction, normal, position: (N, 3); surface: (N,) int64;
+    u, v: (N,); radius: (N, 2) the exclusion radii in u and v. Outputs: origin_out, direction_out
+    (M, 3); ex: an Exclusion of (M,) arrays."""
+    for k in range(start, stop):
+        i = mirror[k]
+        dx, dy, dz = direction[i, 0], direction[i, 1], direction[i, 2]
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        s = 2.0 * (dx * nx + dy * ny + dz * nz)
+        direction_out[k, 0], direction_out[k, 1], direction_out[k, 2] = dx - s * nx, dy - s * ny, dz - s * nz
+        origin_out[k, 0], origin_out[k, 1], origin_out[k, 2] = position[i, 0], position[i, 1], position[i, 2]
+        ex.surface[k], ex.u[k], ex.v[k] = surface[i], u[i], v[i]
+        ex.radius_u[k], ex.radius_v[k] = radius[i, 0], radius[i, 1]
+
+
+@njit(cache=True, nogil=True)
+def mix_reflections(start, stop, mirror, reflectance, reflected, colour):
+    """colour[mirror[k]] = (1 - reflectance[k]) colour[mirror[k]] + reflectance[k] reflected[k] for k in
+    start..stop-1 (mirror (M,) indices into colour (N, 3), reflected (M, 3), reflectance (M,))."""
+    for k in range(start, stop):
+        i, r = mirror[k], reflectance[k]
+        for c in range(3):
+            colour[i, c] = (1.0 - r) * colour[i, c] + r * reflected[k, c]

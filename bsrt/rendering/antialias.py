@@ -82,9 +82,9 @@ def _disagreeing(pixels: np.ndarray) -> np.ndarray:
         m = np.moveaxis(marked, axis, 0)  # a view: writes go to marked
         if q.shape[0] < 2:
             continue
-        m[1:-1] |= np.abs(q[:-2] - 2 * q[1:-1] + q[2:]).max(axis=2) > CONTRAST
-        m[0] |= np.abs(q[1] - q[0]).max(axis=1) > CONTRAST
-        m[-1] |= np.abs(q[-1] - q[-2]).max(axis=1) > CONTRAST
+        m[1:-1] |= _beyond(q[:-2] - 2 * q[1:-1] + q[2:])
+        m[0] |= _beyond(q[1] - q[0])
+        m[-1] |= _beyond(q[-1] - q[-2])
     return marked
 
 
@@ -156,7 +156,8 @@ class _Centres:
         ray hit: its samples near such a centre are traced (the background's colour is exact)."""
         if self.linear is not None:
             return np.ones(len(index), bool)
-        return (self.levels[index].max(axis=1) < 255) | ~self.hit(index)
+        levels = self.levels[index]
+        return (levels[:, 0] < 255) & (levels[:, 1] < 255) & (levels[:, 2] < 255) | ~self.hit(index)
 
     def hit(self, index) -> np.ndarray:
         """(K,) bool: the centre ray hit (True where the film counts none)."""
@@ -171,7 +172,14 @@ class _Centres:
 
 def _apart(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """p, q: (K, 3) 8-bit colours -> (K,) bool, True where they differ by more than CONTRAST in some channel."""
-    return np.abs(p.astype(np.int32) - q).max(axis=1) > CONTRAST
+    return _beyond(p.astype(np.int32) - q)
+
+
+def _beyond(difference: np.ndarray) -> np.ndarray:
+    """difference: (..., 3) signed levels -> (...) bool, True where some channel's exceeds CONTRAST
+    either way (the channels compared one by one: numpy's reduction over a last axis of 3 is slow)."""
+    a = np.abs(difference)
+    return (a[..., 0] > CONTRAST) | (a[..., 1] > CONTRAST) | (a[..., 2] > CONTRAST)
 
 
 def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options, stats):

@@ -378,6 +378,7 @@ def intersect(
     retry_depth: int = DEFAULT_RETRY_DEPTH,
     exclude=None,
     budget: int | None = None,
+    out: Hits | None = None,
 ) -> Hits:
     """Nearest hit (or any hit) of N rays with the surfaces of ``bvh``.
 
@@ -393,13 +394,17 @@ def intersect(
     again (no self-shadowing acne) without an offset that would open a gap
     where two surfaces touch. budget: Newton iterations per ray (default
     ray_budget(max_iterations); the module doc's "Budget"); a ray that spent
-    it has hits.iterations >= budget (out_of_budget).
+    it has hits.iterations >= budget (out_of_budget). out: N records to write the hits into
+    (Hits.empty's, or views of a larger one's: Hits.take of a slice), returned.
     """
     rays = Rays.from_arrays(origins, directions)
     n = len(rays)
-    hits = Hits.empty(n)
     if n == 0 or bvh.leaf_total == 0:
-        return hits
+        if out is None:
+            return Hits.empty(n)
+        out.put(slice(None), Hits.empty(n))
+        return out
+    hits = Hits.blank(n) if out is None else out  # every field written below
     # writable C arrays (a broadcast or caller's array may be read-only: another compiled signature)
     t_min = np.require(np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,)), np.float64, ("C", "W"))
     t_max = np.require(np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,)), np.float64, ("C", "W"))
@@ -439,6 +444,6 @@ def intersect(
     )
     miss = ~hits.hit
     hits.t[miss], hits.u[miss], hits.v[miss], hits.residual[miss], hits.patch[miss] = np.nan, np.nan, np.nan, np.nan, -1
-    hits.surface[hits.hit] = bvh.patches.surface[hits.patch[hits.hit]]
+    np.take(np.append(bvh.patches.surface, -1), hits.patch, out=hits.surface)  # a miss's patch -1: the -1 appended
     hits.iterations[:] = np.minimum(iterations, np.iinfo(np.int32).max)
     return hits

@@ -88,7 +88,10 @@ class Film:
     def count_hits(self, hit: np.ndarray, first: int, stop: int) -> None:
         """hit: ((stop - first) * width * columns,) bool, the samples of sample rows first..stop-1."""
         per_row = hit.reshape(stop - first, self.width, self.columns).sum(axis=2, dtype=np.uint16)
-        np.add.at(self._hit_samples, np.arange(first, stop) // self.rows, per_row)
+        if self.rows == 1:  # a sample row per pixel row (np.add.at, which sums repeated rows, is slow)
+            self._hit_samples[first:stop] += per_row
+        else:
+            np.add.at(self._hit_samples, np.arange(first, stop) // self.rows, per_row)
 
     @property
     def coverage(self) -> np.ndarray:

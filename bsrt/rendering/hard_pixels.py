@@ -41,6 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.kernels.prelim import map_suspects
+from bsrt.kernels.prelim import neighbour_starts as starts_kernel
 from bsrt.kernels.threads import run_chunks
 from bsrt.methods import REFERENCE_METHOD
 from bsrt.rendering.hits import Hits, keep_nearest
@@ -61,6 +62,8 @@ SEAM_RATIO = 4.0
 SEAM_QUANTA = 4.0
 MAP_QUANTUM = {"float": 2.0**-22, "rgba8": 1.0 / 255.0}  # the map's (u, v) step (float32: a few ulps below 1)
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+# (row, column) steps, the pixel's own first, then by city-block distance (the starts' order)
+NEIGHBOURS_NEAREST_FIRST = np.array(sorted(NEIGHBOURS, key=lambda o: abs(o[0]) + abs(o[1])), dtype=np.int64)
 REPAIR_ITERATIONS = 16
 SAME_ROOT = 100.0  # tolerances: the hierarchy's search of a suspect ends this far past the starts' root
 
@@ -107,36 +110,21 @@ def suspect_pixels(
     return suspect, layer, seam
 
 
-def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray, surfaces: int):
+def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray):
     """One Newton start per (suspect pixel, surface among its 3x3 neighbourhood), the nearest neighbour's.
 
     A neighbour gives its converged (u, v) where it has a hit, else its map
-    seed. Returns (pixel (K,), surface (K,), u (K,), v (K,)).
+    seed; a second layer of the same surface (a fold) is the hierarchy's job.
+    suspects: (N,) sorted. Returns (pixel (K,), surface (K,), u (K,), v (K,)),
+    in (pixel, surface) order (kernels/prelim.py).
     """
     h, w = prelim.surface.shape
-    row, col = np.divmod(suspects, w)
-    seed_surface, seed_u, seed_v = prelim.surface.ravel(), prelim.u.ravel(), prelim.v.ravel()
-    parts = []
-    for di, dj in sorted(NEIGHBOURS, key=lambda o: abs(o[0]) + abs(o[1])):  # own start first
-        r, c = row + di, col + dj
-        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        src = (r * w + c)[inside]
-        solved = hits.hit[src]
-        surf = np.where(solved, hits.surface[src], seed_surface[src])
-        keep = surf >= 0
-        parts.append(
-            (
-                suspects[inside][keep],
-                surf[keep],
-                np.where(solved, hits.u[src], seed_u[src])[keep],
-                np.where(solved, hits.v[src], seed_v[src])[keep],
-            )
-        )
-    pixel, surface, u, v = (np.concatenate(x) for x in zip(*parts))
-    # the first (nearest) start per (pixel, surface): a second layer of the same
-    # surface (a fold) is the hierarchy's job
-    _, first = np.unique(pixel * surfaces + surface, return_index=True)
-    return pixel[first], surface[first], u[first], v[first]
+    k = NEIGHBOURS_NEAREST_FIRST.shape[0] * suspects.size
+    pixel, surface, u, v = np.empty(k, dtype=np.int64), np.empty(k, dtype=np.int64), np.empty(k), np.empty(k)
+    seeds = (prelim.surface.ravel(), prelim.u.ravel(), prelim.v.ravel())
+    n = starts_kernel(suspects, w, h, NEIGHBOURS_NEAREST_FIRST, hits.hit, hits.surface, hits.u, hits.v, *seeds,
+                      pixel, surface, u, v)  # fmt: skip
+    return pixel[:n], surface[:n], u[:n], v[:n]
 
 
 def repair(
@@ -148,7 +136,7 @@ def repair(
     tolerance: float,
     max_iterations: int,
     footprint: float,
-) -> np.ndarray:
+) -> tuple[np.ndarray, int]:
     """Re-solve the suspect pixels (N,) (sorted), then the neighbours of those that had a farther layer.
 
     Each round is _repair_once. A pixel whose repair replaced its hit by one
@@ -156,15 +144,24 @@ def repair(
     (LAYER_SLACK_PIXELS footprints: two layers closer than the map can
     order) makes its 8 neighbours not yet repaired the next round's pixels.
     footprint: pixel size at unit distance. Returns every pixel repaired
-    (sorted).
+    (sorted) and how many of them changed: hit or miss, surface, or t by
+    more than 10 tolerances.
     """
     h, w = prelim.surface.shape
     visited = np.zeros(h * w, dtype=bool)
     visited[suspects] = True
     front = suspects
+    changed = 0
     while front.size:
-        had, t = hits.hit[front], hits.t[front]  # copies (fancy indexing)
+        had, t, surface = hits.hit[front], hits.t[front], hits.surface[front]  # copies (fancy indexing)
         _repair_once(geometry, rays, prelim, hits, front, tolerance, max_iterations)
+        changed += int(
+            np.count_nonzero(
+                (had != hits.hit[front])
+                | (surface != hits.surface[front])
+                | (np.abs(np.nan_to_num(t) - np.nan_to_num(hits.t[front])) > 10 * tolerance)
+            )
+        )
         with np.errstate(invalid="ignore"):
             gap = np.where(had & hits.hit[front], t - hits.t[front], 0.0)
         layer = front[(gap > 10.0 * tolerance) & (gap <= LAYER_SLACK_PIXELS * footprint * t + tolerance)]
@@ -178,7 +175,7 @@ def repair(
         front = np.unique(np.concatenate(grown))
         front = front[~visited[front]]
         visited[front] = True
-    return np.flatnonzero(visited)
+    return np.flatnonzero(visited), changed
 
 
 def _repair_once(
@@ -192,7 +189,7 @@ def _repair_once(
     if not suspects.size:
         return
     patches = geometry.patches
-    pixel, surface, u, v = neighbour_starts(prelim, hits, suspects, len(patches.surfaces))
+    pixel, surface, u, v = neighbour_starts(prelim, hits, suspects)
     # Newton from a pixel away converges in a few steps or not at all.
     res = find_roots(
         patches,

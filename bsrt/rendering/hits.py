@@ -43,6 +43,12 @@ class Hits:
             residual=nan,
         )
 
+    @classmethod
+    def blank(cls, n: int) -> Hits:
+        """n records left uninitialised (np.empty), for a caller that writes every field of each."""
+        dtypes = (bool, np.float64, np.int64, np.int64, np.float64, np.float64, np.int32, np.float64)
+        return cls(*(np.empty(n, dtype=d) for d in dtypes))
+
     def __len__(self) -> int:
         return self.hit.shape[0]
 

@@ -18,7 +18,9 @@ import numpy as np
 
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.lighting import shade_hits
+from bsrt.kernels.shading import mirror_rays, mix_reflections
 from bsrt.kernels.threads import run_chunks
+from bsrt.kernels.traverse import Exclusion
 from bsrt.rendering import gpu
 from bsrt.rendering.bvh import (
     DEFAULT_MAX_ITERATIONS,
@@ -356,6 +358,8 @@ class _Shader:
         self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
         self.tolerance = options.tolerance * geometry.diagonal
         self.reflectance = np.array([m.reflectance for m in scene.materials])
+        self.surface_reflectance = self.reflectance[geometry.material]  # (S,) per surface
+        self.mirror = self.surface_reflectance > 0
         mats = scene.materials
         self.materials = (
             np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
@@ -434,17 +438,17 @@ class _Shader:
             self._occlude(colour, hit, surface, position[hit], normal[hit], geometry.material[surface], exclude)
         if not hit.size or depth >= self.options.max_depth:
             return colour
-        reflectance = self.reflectance[geometry.material[hits.surface[hit]]]
-        mirror = hit[reflectance > 0]
+        mirror = np.flatnonzero(hits.hit & self.mirror[hits.surface])  # a miss's surface -1 is masked
         if mirror.size:
-            d, nrm = directions[mirror], normal[mirror]
-            r = d - 2.0 * np.einsum("ij,ij->i", d, nrm)[:, None] * nrm
-            self.stats.add("reflection_rays", mirror.size)
-            exclude = (hits.surface[mirror], hits.u[mirror], hits.v[mirror], radius[mirror, 0], radius[mirror, 1])
-            seen = self._trace(position[mirror], r, exclude)
-            reflected = self.shade(seen, r, depth + 1)
-            k = reflectance[reflectance > 0][:, None]
-            colour[mirror] = (1.0 - k) * colour[mirror] + k * reflected
+            m = mirror.size
+            origins, mirrored = np.empty((m, 3)), np.empty((m, 3))
+            exclude = Exclusion(np.empty(m, dtype=np.int64), *(np.empty(m) for _ in range(4)))
+            run_chunks(mirror_rays, m, mirror, directions, normal, position, hits.surface, hits.u, hits.v, radius,
+                       origins, mirrored, exclude)  # fmt: skip
+            self.stats.add("reflection_rays", m)
+            seen = self._trace(origins, mirrored, exclude)
+            reflected = self.shade(seen, mirrored, depth + 1)
+            run_chunks(mix_reflections, m, mirror, self.surface_reflectance[hits.surface[mirror]], reflected, colour)
         return colour
 
     def _occlude(self, colour, hit, surface, pos, nrm, material, exclude) -> None:
@@ -472,17 +476,17 @@ class _Shader:
     def _trace(self, origins, directions, exclude, t_max=np.inf, any_hit=False) -> Hits:
         """Mirror, occlusion and edge rays through the hierarchy (nearest hits, or any hit before
         t_max), in chunks (progress, cancellation)."""
-        parts = []
         n = directions.shape[0]
+        hits = Hits.blank(n)  # every record written below
         t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
         with self.stats.timer("secondary"):
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
                 o, d, far, ex = origins[part], directions[part], t_max[part], tuple(x[part] for x in exclude)
                 if self.gpu is not None and not any_hit:  # mirror rays: the nearest-hit walk on the GPU
-                    parts.append(nearest_gpu(self.gpu, self.geometry.bvh, o, d, 0.0, far, float(self.tolerance), ex))
+                    hits.put(part, nearest_gpu(self.gpu, self.geometry.bvh, o, d, 0.0, far, float(self.tolerance), ex))
                 else:
                     kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit)
-                    parts.append(self.geometry.intersect(o, d, **kw))
+                    self.geometry.intersect(o, d, out=hits.take(part), **kw)  # written in place
                 self._advance(part.stop - part.start)
-        return Hits.concatenate(parts) if parts else Hits.empty(0)
+        return hits

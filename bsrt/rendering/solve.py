@@ -31,12 +31,13 @@ class Rays:
     def from_arrays(cls, origins: np.ndarray, directions: np.ndarray) -> Rays:
         """origins: (N, 3) or (1, 3) (broadcast); directions: (N, 3), normalised here."""
         d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
-        unit = np.empty_like(d)
-        run_chunks(normalise_rows, d.shape[0], d, unit)  # d / |d|, row by row
-        d = unit
-        o = np.broadcast_to(np.asarray(origins, dtype=np.float64).reshape(-1, 3), d.shape)
-        # writable C arrays always (a broadcast view is read-only): numba compiles a kernel again per flag
-        return cls(np.require(o, np.float64, ("C", "W")), np.require(d, np.float64, ("C", "W")))
+        o = np.require(np.asarray(origins, dtype=np.float64).reshape(-1, 3), np.float64, ("C", "W"))
+        if o.shape[0] not in (1, d.shape[0]):
+            raise ValueError(f"{o.shape[0]} origins for {d.shape[0]} directions")
+        # writable C arrays always (numba compiles a kernel again per flag), the origins broadcast there
+        unit, origin = np.empty_like(d), np.empty_like(d)
+        run_chunks(normalise_rows, d.shape[0], d, unit, o, origin)  # d / |d|, row by row
+        return cls(origin, unit)
 
     def __len__(self) -> int:
         return self.direction.shape[0]

@@ -131,14 +131,8 @@ class MapTracer:
             prelim, hits, failed, footprint, self.tolerance, patches.domain, hard_pixels.MAP_QUANTUM[options.map]
         )
         suspects = np.flatnonzero(suspect)
-        before = (hits.hit.copy(), hits.surface.copy(), np.nan_to_num(hits.t))
-        repaired = hard_pixels.repair(
+        repaired, changed = hard_pixels.repair(
             self.geometry, rays, prelim, hits, suspects, self.tolerance, options.max_iterations, footprint
-        )
-        changed = (
-            (before[0][repaired] != hits.hit[repaired])
-            | (before[1][repaired] != hits.surface[repaired])
-            | (np.abs(before[2][repaired] - np.nan_to_num(hits.t[repaired])) > 10 * self.tolerance)
         )
         for key, value in (
             ("covered_by_map", covered.size),
@@ -147,7 +141,7 @@ class MapTracer:
             ("suspect", suspects.size),
             ("wrong_layer", layer.sum()),
             ("seam", seam.sum()),
-            ("repaired", changed.sum()),
+            ("repaired", changed),
             ("hierarchy", repaired.size),
         ):
             stats.add(key, value)
