@@ -45,9 +45,9 @@ class Hits:
 
     @classmethod
     def blank(cls, n: int) -> Hits:
-        """n records left uninitialised (np.empty), for a caller that writes every field of each."""
-        dtypes = (bool, np.float64, np.int64, np.int64, np.float64, np.float64, np.int32, np.float64)
-        return cls(*(np.empty(n, dtype=d) for d in dtypes))
+        """n records left uninitialised (np.empty, empty()'s dtypes), for a caller that writes every field of each."""
+        template = cls.empty(0)
+        return cls(*(np.empty(n, dtype=getattr(template, name).dtype) for name in cls.FIELDS))
 
     def __len__(self) -> int:
         return self.hit.shape[0]
@@ -62,10 +62,6 @@ class Hits:
         """Store ``other``'s records at ``index`` (a slice or an index array)."""
         for name in self.FIELDS:
             getattr(self, name)[index] = getattr(other, name)
-
-    @classmethod
-    def concatenate(cls, parts: list[Hits]) -> Hits:
-        return cls(*(np.concatenate([getattr(p, name) for p in parts]) for name in cls.FIELDS))
 
 
 def keep_nearest(hits: Hits, ray: np.ndarray, candidates: Hits) -> np.ndarray:
