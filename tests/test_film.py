@@ -11,7 +11,7 @@ import pytest
 from bsrt.rendering import pipeline
 from bsrt.rendering.film import Film
 from bsrt.rendering.hits import Hits
-from bsrt.rendering.image import srgb_encode
+from bsrt.rendering.image import srgb_decode, srgb_encode
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import load_scene
@@ -154,3 +154,15 @@ def test_shadow_rays_block_exactly_where_the_any_hit_tracer_finds_an_occluder():
     expect = albedo * total[:, None]
     assert shadowed > 200 and hit.size > 4000
     np.testing.assert_allclose(res.linear.reshape(-1, 3)[hit], expect, rtol=1e-12, atol=1e-15)
+
+
+def test_srgb_decode_is_the_curves_inverse_at_every_level():
+    """IEC 61966-2-1 by hand: the linear segment below 0.04045, the 2.4 power above; encoding
+    each decoded level gives the level back; any array shape."""
+    levels = np.arange(256, dtype=np.uint8)
+    linear = srgb_decode(levels)
+    assert linear[0] == 0.0 and linear[255] == 1.0
+    assert linear[10] == pytest.approx(10 / 255 / 12.92, rel=1e-15)
+    assert linear[128] == pytest.approx(((128 / 255 + 0.055) / 1.055) ** 2.4, rel=1e-15)
+    np.testing.assert_array_equal(srgb_encode(linear), levels)
+    assert srgb_decode(levels.reshape(16, 16)).shape == (16, 16)

@@ -75,7 +75,7 @@ def disagreeing(pixels: np.ndarray, rows: int = BAND_ROWS) -> np.ndarray:
 
 def _disagreeing(pixels: np.ndarray) -> np.ndarray:
     """disagreeing for one slab of rows (its first and last rows taken as the film's border)."""
-    p = pixels.astype(np.int32)
+    p = pixels.astype(np.int16)  # second differences lie within +-510
     marked = np.zeros(p.shape[:2], dtype=bool)
     for axis in (0, 1):
         q = np.moveaxis(p, axis, 0)  # (n, m, 3): differences along the first axis
@@ -148,7 +148,13 @@ class _Centres:
 
     def colour(self, index) -> np.ndarray:
         """(K, 3) linear RGB (decoded from the 8-bit pixels where the film keeps no linear RGB)."""
-        return self.linear.reshape(-1, 3)[index] if self.linear is not None else srgb_decode(self.levels[index])
+        if self.linear is not None:
+            return self.linear.reshape(-1, 3).take(index, axis=0)
+        return srgb_decode(self.levels_at(index))
+
+    def levels_at(self, index) -> np.ndarray:
+        """(K, 3) uint8 sRGB levels (take: several times faster than fancy indexing of rows)."""
+        return self.levels.take(index, axis=0)
 
     def usable(self, index) -> np.ndarray:
         """(K,) bool: the colour can be interpolated from. A streamed film's 8-bit colour at 255 in
@@ -156,7 +162,7 @@ class _Centres:
         ray hit: its samples near such a centre are traced (the background's colour is exact)."""
         if self.linear is not None:
             return np.ones(len(index), bool)
-        levels = self.levels[index]
+        levels = self.levels_at(index)
         return (levels[:, 0] < 255) & (levels[:, 1] < 255) & (levels[:, 2] < 255) | ~self.hit(index)
 
     def hit(self, index) -> np.ndarray:
@@ -188,26 +194,32 @@ def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options
     first pass (indices (M,) sorted, colour (M, n, 3), 8-bit levels (M, n, 3)), which a
     sample may also be interpolated from (the second pass: the marked pixels' neighbours are there)."""
     n = offset.shape[0]
-    centre, levels = centres.colour(marked), centres.levels[marked]
+    centre, levels, centre_usable = centres.colour(marked), centres.levels_at(marked), centres.usable(marked)
     colour, hit = np.empty((marked.size, n, 3)), np.repeat(centres.hit(marked)[:, None], n, axis=1)
     need = np.zeros((marked.size, n), dtype=bool)
+    # the pixel itself, then its four neighbours (SIDES), each gathered once:
+    # (index (K,), inside the film (K,), levels (K, 3), colour (K, 3), usable (K,))
+    near = [(marked, np.ones(marked.size, bool), levels, centre, centre_usable)]
+    for dx, dy in SIDES:
+        index, inside = centres.neighbour(marked, dx, dy)
+        near.append((index, inside, centres.levels_at(index), centres.colour(index), centres.usable(index)))
+    apart = [None] + [_apart(levels, m[2]) for m in near[1:]]  # each neighbour apart from the centre
     for s, (dx, dy) in enumerate(offset - 0.5):  # from the pixel centre, in pixels
         # the sample lies in the triangle of the centre and its neighbours on its side along the
         # row (h) and the column (v): where those agree, it is on their side of any straight edge
-        h, h_in = centres.neighbour(marked, 1 if dx > 0 else -1, 0)
-        v, v_in = centres.neighbour(marked, 0, 1 if dy > 0 else -1)
-        need[:, s] = ~centres.usable(marked)
+        h = 1 + SIDES.index((1 if dx > 0 else -1, 0))
+        v = 1 + SIDES.index((0, 1 if dy > 0 else -1))
+        need[:, s] = ~centre_usable
         if dx != 0:
-            need[:, s] |= ~h_in | ~centres.usable(h) | _apart(levels, centres.levels[h])
+            need[:, s] |= ~near[h][1] | ~near[h][4] | apart[h]
         if dy != 0:
-            need[:, s] |= ~v_in | ~centres.usable(v) | _apart(levels, centres.levels[v])
+            need[:, s] |= ~near[v][1] | ~near[v][4] | apart[v]
         if dx != 0 and dy != 0:
-            need[:, s] |= ~h_in | ~v_in | _apart(centres.levels[h], centres.levels[v])
-        colour[:, s] = centre + abs(dx) * (centres.colour(h) - centre) + abs(dy) * (centres.colour(v) - centre)
+            need[:, s] |= _apart(near[h][2], near[v][2])  # (either neighbour outside is needed already)
+        colour[:, s] = centre + abs(dx) * (near[h][3] - centre) + abs(dy) * (near[v][3] - centre)
     if known and need.any():  # not across a line one pixel thin (the centre apart from both neighbours)
-        apart = {side: _apart(levels, centres.levels[centres.neighbour(marked, *side)[0]]) for side in SIDES}
-        thin = (apart[SIDES[0]] & apart[SIDES[1]]) | (apart[SIDES[2]] & apart[SIDES[3]])
-        _from_neighbours(marked[~thin], grid, known, centres, colour, need, ~thin)
+        wide = ~((apart[1] & apart[2]) | (apart[3] & apart[4]))
+        _from_neighbours([tuple(a[wide] for a in m) for m in near], grid, known, colour, need, wide)
     which, sample = np.nonzero(need)
     if which.size:
         xy = np.stack([marked[which] % options.width, marked[which] // options.width], axis=1) + offset[sample]
@@ -219,27 +231,31 @@ def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options
     return colour, hit, need
 
 
-def _from_neighbours(marked, grid, known, centres: _Centres, colour, need, rows) -> None:
-    """Interpolate, in place, the samples still needed of the pixels marked (J,) (flat indices), rows
-    (a (K,) mask, J True) of colour (K, n, 3) and need (K, n) (cleared where done) that lie in
-    a triangle of points known around their pixel that agree within CONTRAST (the centre, the four
-    neighbours' centres and their samples, of the first pass or, for a pixel not marked, its centre's
-    value): the mean of the triangle's colours."""
+def _from_neighbours(near, grid, known, colour, need, rows) -> None:
+    """Interpolate, in place, the samples still needed of J marked pixels, rows (a (K,) mask, J
+    True) of colour (K, n, 3) and need (K, n) (cleared where done) that lie in a triangle of points
+    known around their pixel that agree within CONTRAST (the centre, the four neighbours' centres
+    and their samples, of the first pass or, for a pixel not marked, its centre's value): the mean
+    of the triangle's colours. near: the J pixels themselves, then their neighbours at SIDES, as
+    _block gathers them (index (J,), inside the film (J,), levels (J, 3), colour (J, 3), usable (J,))."""
     points, triangles = _triangles(*grid)
+    first, first_colour, first_levels = known
     table = {}  # point -> (levels (J, 3), colour (J, 3), inside the film and usable (J,))
+    found = {}  # side -> (where the neighbour is a first-pass pixel (J,), its row there)
 
     def point(p):
         if p not in table:
             side, sample = int(points[p, 2]), int(points[p, 3])
-            index, inside = (
-                (marked, np.ones(marked.size, bool)) if side < 0 else centres.neighbour(marked, *SIDES[side])
-            )
-            lv, col, usable = centres.levels[index].astype(np.int32), centres.colour(index), centres.usable(index)
+            index, inside, levels, col, usable = near[side + 1]
+            lv = levels.astype(np.int32)
             if sample >= 0:  # a neighbour's sample: the first pass's where it was marked
-                first, first_colour, first_levels = known
-                at = np.minimum(np.searchsorted(first, index), first.size - 1)
-                there = first[at] == index
-                lv[there], col[there] = first_levels[at[there], sample], first_colour[at[there], sample]
+                if side not in found:
+                    at = np.minimum(np.searchsorted(first, index), first.size - 1)
+                    there = first[at] == index
+                    found[side] = there, at[there]
+                there, at = found[side]
+                col, usable = col.copy(), usable.copy()
+                lv[there], col[there] = first_levels[at, sample], first_colour[at, sample]
                 usable[there] = True  # traced, or interpolated from usable colours
             table[p] = lv, col, inside & usable
         return table[p]
