@@ -39,7 +39,7 @@ class Film:
         self._sums = np.zeros((height if keep else min(height, band // rows + 2), width, 3))
         self._base = 0  # the pixel row of _sums[0]
         self._complete = 0  # pixel rows 0 .. _complete - 1 are final
-        self.hits = Hits.empty(width * height) if keep else None
+        self.hits = Hits.blank(width * height) if keep else None  # every pixel-centre ray is put (put_hits)
         self._hit_samples = np.zeros((height, width), dtype=np.uint16)  # spp <= 256 < 2^16
         self.hit_count = self.iterations_sum = self.iterations_count = self.iterations_max = 0
 
