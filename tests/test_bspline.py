@@ -133,12 +133,13 @@ def test_patch_evaluation_mixed_degrees_and_high_degree():
     s1 = _random_surface(rng, 3, 2, True)
     s2 = make_surface((1, 1), [0, 0, 1, 1], [0, 0, 2, 2], rng.normal(size=(2, 2, 3)))
     s3 = make_surface((7, 7), [0] * 8 + [1] * 8, [0] * 8 + [1] * 8, rng.normal(size=(8, 8, 3)))
-    ps = PatchSet([s1, s2, s3])
-    sid = rng.integers(0, 3, 900)
+    s4 = _random_surface(rng, 3, 3, False)  # bicubic polynomial: kernels/patches.py's copy of the loop for it
+    ps = PatchSet([s1, s2, s3, s4])
+    sid = rng.integers(0, 4, 900)
     d = ps.domain[sid]
     u, v = rng.uniform(d[:, 0], d[:, 1]), rng.uniform(d[:, 2], d[:, 3])
     S, Su, Sv = ps.evaluate(ps.locate(sid, u, v), u, v)
-    for m, surf in enumerate((s1, s2, s3)):
+    for m, surf in enumerate((s1, s2, s3, s4)):
         k = sid == m
         ref = evaluate(surf, u[k], v[k])
         scale = np.abs(surf.points).max()
