@@ -53,8 +53,8 @@ class PatchArrays(NamedTuple):
     patch_grid: np.ndarray
 
 
-# inline="always": point and frame each get a copy with ``derivatives`` a constant, instead of
-# numba compiling _horner standalone once per literal value of ``derivatives``.
+# inline="always": point and frame get their copies with ``derivatives`` a constant (and, for a bicubic
+# patch, the degrees too: below), instead of numba compiling _horner standalone once per literal value.
 @njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _horner(coef, base, p, q, dim, s, t, derivatives):
     """Homogeneous value (and d/ds, d/dt) of one patch at local (s, t), all components in one pass.
@@ -93,9 +93,9 @@ def _horner(coef, base, p, q, dim, s, t, derivatives):
 # _horner with the degrees and dim constants: its loops have a known length (LLVM unrolls them) and
 # its tests of dim fold away. One Newton step (an evaluation with derivatives): 97 -> 71 ns on the
 # 2-core machine, one thread; the same arithmetic in the same order, so the same results. A copy per
-# degree pair costs compile time: with (2, 1), (1, 2) and (2, 2) rational as well (cylinders, cones,
-# spheres of CAD parts), the hits kernels took 4 s longer to compile on one core; and the branches
-# must stay here (through a shared inlined helper returning the tuple, the step took 80 ns).
+# degree pair costs compile time: (2, 1) rational (the cylinders of CAD parts) written here as well took
+# 1.3 s more of one core's compile for a CAD part's step 0-10% faster, so bicubic alone. The branches
+# stay in point and frame: through a shared inlined helper returning the tuple, the step took 80 ns.
 @njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def point(P, k, u, v):
     """S(u, v) of patch k at global parameters: (x, y, z)."""
