@@ -169,13 +169,17 @@ def test_console_script_runs_in_a_fresh_process(tmp_path):
     """The installed entry point, stderr quiet when not a terminal, no traceback on errors."""
     out = tmp_path / "q.png"
     ok = subprocess.run(
-        [sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out)],
+        [sys.executable, "-m", "bsrt", "render", str(SCENES / "quad.toml"), "-o", str(out), "--stats"],
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert ok.returncode == 0, ok.stderr
     assert ok.stderr == "" and out.exists()
+    # the process ends without the interpreter's teardown (bsrt.__main__.run): all written first
+    assert json.loads(ok.stdout)["pixels"] == 64 * 64
+    with Image.open(out) as picture:
+        assert picture.size == (64, 64) and np.ptp(np.asarray(picture)) > 0  # not one flat colour
     bad = _write(tmp_path, "[camera]\neye = [0, 0, 0]\n")
     fail = subprocess.run(
         [sys.executable, "-m", "bsrt", "render", str(bad), "-o", str(tmp_path / "b.png")],

@@ -117,3 +117,11 @@ def run_chunks(kernel, n: int, *args, min_chunk: int = MIN_CHUNK, per_worker: in
             extra[0][0] = 1
         wait(futures)
         raise
+
+
+def stop_pool() -> None:
+    """End the pool's threads (idle between run_chunks calls); the next call starts a new pool."""
+    global _POOL
+    pool, _POOL = _POOL, None
+    if pool is not None:
+        pool.shutdown(wait=True)
