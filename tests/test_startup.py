@@ -177,6 +177,37 @@ def test_an_edit_to_any_kernel_file_invalidates_every_kernel_of_the_folder(tmp_p
     assert locator.get_source_stamp() == jit.folder_source_stamp(str(Path(tables.__file__).resolve().parent))
 
 
+def test_a_kernel_loaded_from_the_cache_runs_and_links_into_a_kernel_compiled_after_it(tmp_path):
+    """Loaded without numba's registry refresh and with its kept bitcode unparsed (jit.KernelCache,
+    jit.LoadedLibrary): it runs, and a kernel compiled later in the same process that calls it
+    links its bitcode (parsed then) and gets the same answers."""
+    code = (
+        "import numpy as np, numba\n"
+        "from bsrt.kernels.prelim import normalise_rows\n"
+        "from bsrt.kernels.jit import LoadedLibrary\n"
+        "d = np.array([[3.0, 0.0, 4.0], [0.0, 2.0, 0.0]]); o = np.array([[1.0, 2.0, 3.0]])\n"
+        "out, origin = np.empty_like(d), np.empty_like(d)\n"
+        "normalise_rows(0, 2, d, out, o, origin)\n"
+        "assert np.allclose(out, [[0.6, 0.0, 0.8], [0.0, 1.0, 0.0]]) and np.all(origin == o)\n"
+        "(library,) = [cres.library for cres in normalise_rows.overloads.values()]\n"
+        "print(type(library).__name__, library._shared_module is None)\n"
+        "@numba.njit\n"
+        "def twice(start, d, o):  # start: an argument (a literal 0 would be another specialisation)\n"
+        "    out, origin = np.empty_like(d), np.empty_like(d)\n"
+        "    normalise_rows(start, d.shape[0], d, out, o, origin)\n"
+        "    return 2.0 * out\n"
+        "assert np.allclose(twice(0, d, o), 2.0 * out) and len(normalise_rows.overloads) == 1\n"
+        "print(library._shared_module is None)\n"
+    )
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "cache")
+    runs = [
+        subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True) for _ in "ab"
+    ]
+    assert [r.returncode for r in runs] == [0, 0], runs[1].stderr
+    assert runs[0].stdout.split() == ["JITCodeLibrary", "False", "False"]  # compiled here, then cached
+    assert runs[1].stdout.split() == ["LoadedLibrary", "True", "False"]  # loaded; parsed to link
+
+
 @pytest.mark.gl
 def test_a_second_cli_render_takes_the_geometry_from_the_cache_and_no_cache_writes_none(tmp_path):
     env = _env(BSRT_CACHE_DIR=tmp_path / "cache")

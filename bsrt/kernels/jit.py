@@ -1,10 +1,12 @@
-"""numba's ``njit``, with bsrt's kernels cached in the user's cache folder.
+"""numba's ``njit``, with bsrt's kernels cached in the user's cache folder and loaded fast.
 
 Every kernel module takes ``njit`` from here, so the first kernel module
 imported installs :class:`KernelCacheLocator` in front of numba's own
 locators (it answers only for functions of ``bsrt.kernels``; any other
-numba function in the process is cached as numba would). The machine code
-goes to
+numba function in the process is cached as numba would), and every kernel's
+machine code loads through :class:`KernelCache` (without numba's registry
+refresh, its kept bitcode parsed only when needed: a small render's loads
+take about 25 instead of 200 ms). The machine code goes to
 
     $NUMBA_CACHE_DIR (numba's own setting, when set), else
     $XDG_CACHE_HOME/bsrt/kernels (default ~/.cache/bsrt/kernels),
@@ -58,9 +60,13 @@ def _numpy_functions_without_the_blas_probe() -> None:
 
 _numpy_functions_without_the_blas_probe()
 
-from numba import njit  # noqa: E402
+import llvmlite.binding as llvm  # noqa: E402
+import numba  # noqa: E402
 from numba.core import caching, config  # noqa: E402
+from numba.core.codegen import JITCodeLibrary  # noqa: E402
+from numba.core.compiler_lock import global_compiler_lock  # noqa: E402
 from numba.core.registry import CPUDispatcher  # noqa: E402
+from numba.core.runtime import rtsys  # noqa: E402
 
 __all__ = ["CACHE_EPOCH", "KernelCacheLocator", "cache_root", "njit", "njit_typed"]
 
@@ -107,6 +113,94 @@ def drop_stale_machine_code(folder: str) -> None:
         pass
 
 
+class LoadedLibrary(JITCodeLibrary):
+    """A kernel's machine code loaded from the cache, whose LLVM bitcode (kept in the cache for
+    linking the kernel into kernels compiled later) is parsed only when that happens or when a
+    symbol the machine code does not define is asked for. numba parses it at every load: 50 of
+    the 90 ms that a small render's 15 loads take, and 15 ms more to list its symbols."""
+
+    _bitcode = b""
+
+    @classmethod
+    def _unserialize(cls, codegen, state):
+        name, kind, data = state
+        if kind != "object":
+            return super()._unserialize(codegen, state)
+        library = codegen.create_library(name)  # this class: KernelCache.load_overload
+        library._bitcode = data[1]
+        library.enable_object_caching()
+        library._set_compiled_object(data[0])
+        library._finalize_final_module()  # the machine code is loaded here
+        return library
+
+    def _parse_bitcode(self) -> None:
+        if self._shared_module is None and self._bitcode:
+            self._shared_module = llvm.parse_bitcode(self._bitcode)
+            self._codegen._engine._load_defined_symbols(self._shared_module)
+
+    def _get_module_for_linking(self):
+        self._parse_bitcode()
+        return super()._get_module_for_linking()
+
+    def get_pointer_to_function(self, name):
+        engine = self._codegen._engine
+        if not engine.is_symbol_defined(name):
+            if engine.get_function_address(name):  # defined by the loaded machine code
+                engine._defined_symbols.add(name)
+            else:
+                self._parse_bitcode()
+        return super().get_pointer_to_function(name)
+
+
+def prepare_runtime() -> None:
+    """Set up numba's runtime (NRT), which every kernel load needs first: 25-50 ms, mostly LLVM
+    compiling outside the GIL, so a thread can do it while the render is being set up."""
+    from numba.core.registry import cpu_target
+
+    rtsys.initialize(cpu_target.target_context)
+
+
+class KernelCache(caching.FunctionCache):
+    """numba's cache of a kernel's machine code, loaded faster than numba loads it: without
+    refreshing numba's typing and lowering registries first (a loaded kernel is only called,
+    never typed or lowered, and numba's compiler refreshes them itself before any compile: the
+    imports of numba's implementations and the typing context's refresh are about 85 ms of a
+    process's first load; only the runtime (NRT), whose symbols the machine code links against,
+    is set up), and with its bitcode parsed only when needed (:class:`LoadedLibrary`)."""
+
+    def load_overload(self, sig, target_context):
+        rtsys.initialize(target_context)
+        codegen = target_context.codegen()
+        lazy = type(codegen)._library_class is JITCodeLibrary and "_library_class" not in vars(codegen)
+        with global_compiler_lock:  # numba creates libraries only under it: the swap is seen by this load alone
+            if lazy:
+                codegen._library_class = LoadedLibrary
+            try:
+                with self._guard_against_spurious_io_errors():
+                    return self._load_overload(sig, target_context)
+            finally:
+                if lazy:
+                    del codegen._library_class
+
+
+def _cached(dispatcher):
+    """The dispatcher, its machine code cached through :class:`KernelCache`."""
+    dispatcher._cache = KernelCache(dispatcher.py_func)
+    return dispatcher
+
+
+def njit(*args, **options):
+    """numba's ``njit`` (the same arguments); with ``cache=True`` the kernel's machine code is
+    cached through :class:`KernelCache`. No kernel passes signatures here (``njit_typed`` does)."""
+    if not options.get("cache"):
+        return numba.njit(*args, **options)
+    if args:  # @njit(cache=True) only: a signature would compile before the cache is in place
+        raise TypeError("bsrt's njit takes options only; use njit_typed for a signature")
+    options.pop("cache")
+    decorate = numba.njit(**options)
+    return lambda func: _cached(decorate(func))
+
+
 class OneSignatureDispatcher(CPUDispatcher):
     """A kernel of one explicit signature, compiled (or loaded from the cache) when a kernel that
     calls it is first compiled, or when it is first called, not when its module is imported: a
@@ -136,9 +230,7 @@ def njit_typed(signature: str, *, cache: bool = False, **options):
     def wrap(func):
         dispatcher = OneSignatureDispatcher(func, locals={}, targetoptions={**options, "nopython": True})
         dispatcher.signature = signature
-        if cache:
-            dispatcher.enable_caching()
-        return dispatcher
+        return _cached(dispatcher) if cache else dispatcher
 
     return wrap
 
