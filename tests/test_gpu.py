@@ -262,6 +262,23 @@ def test_egl_devices_are_named():
     assert all(name != "unknown device" for name in gl.egl_devices())
 
 
+@pytest.mark.gl
+def test_loading_the_driver_ahead_of_the_context_fails_quietly_and_the_context_follows(monkeypatch):
+    """gl.load_driver (a render's head start on a thread) never raises: a device that does not
+    exist or a bad name is left to the context's own creation to report."""
+    for chosen in ("4096", "abc", None):
+        if chosen is None:
+            monkeypatch.delenv("BSRT_EGL_DEVICE", raising=False)
+        else:
+            monkeypatch.setenv("BSRT_EGL_DEVICE", chosen)
+        gl.load_driver()
+    ctx = gl.create_headless_context()
+    try:
+        assert ctx.version_code >= gl.GL_VERSION
+    finally:
+        ctx.release()
+
+
 @pytest.mark.dask
 @pytest.mark.parametrize("command", ["batch", "animate"])
 def test_batch_and_animate_refuse_gpu_without_opengl_4_5_before_any_item(tmp_path, command):

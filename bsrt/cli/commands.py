@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from bsrt import interrupts
-from bsrt.cli.compiling import compile_if_cold, compile_kernels, compiling_if_cold
+from bsrt.cli.compiling import compile_if_cold, compile_kernels, compiling_if_cold, start_set_up
 from bsrt.errors import InputError, RenderError
 from bsrt.methods import METHODS
 from bsrt.settings import flag_values
@@ -95,6 +95,7 @@ def _progress(args):
 
 def _cmd_render(args) -> int:
     """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
+    start_set_up()
     from bsrt.outputs import Outputs
     from bsrt.rendering.image import check_image_path, image_writer, npz_writer
     from bsrt.rendering.options import RenderOptions

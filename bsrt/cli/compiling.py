@@ -7,6 +7,27 @@ import time
 from contextlib import contextmanager
 
 
+def start_set_up() -> None:
+    """Begin on a thread what a render's first steps wait for, while this thread imports the
+    renderer and loads the model: the GL driver's load (the EGL display) and numba's runtime.
+    Both are mostly C outside the GIL: 40-70 ms of a small render's start on two cores. Best
+    effort: what fails here fails again where the render needs it, and is reported there."""
+    import threading
+
+    def set_up() -> None:
+        try:
+            from bsrt.rendering.gl import load_driver
+
+            load_driver()
+            from bsrt.kernels.jit import prepare_runtime
+
+            prepare_runtime()
+        except Exception:  # noqa: BLE001 - only a head start (above)
+            pass
+
+    threading.Thread(target=set_up, name="bsrt-set-up", daemon=True).start()
+
+
 @contextmanager
 def compiling_if_cold(progress=None):
     """The first render on a machine: the kernels compile in worker processes while the block

@@ -28,38 +28,89 @@ FIX_HINT = (
 )
 
 
+class _Egl:
+    """libEGL through ctypes with EGL_EXT_device_enumeration: ``devices`` (handles), ``describe``
+    and ``initialise`` of a device's display. None where EGL or the extension is missing."""
+
+    def __init__(self, egl: ctypes.CDLL, query_ptr: int, string_ptr: int, display_ptr: int):
+        self.egl = egl
+        self._query = ctypes.CFUNCTYPE(
+            ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int)
+        )(query_ptr)
+        self._string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(string_ptr)
+        self._display = (
+            ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.c_uint, ctypes.c_void_p, ctypes.c_void_p)(display_ptr)
+            if display_ptr
+            else None
+        )
+
+    @classmethod
+    def load(cls) -> _Egl | None:
+        name = ctypes.util.find_library("EGL")
+        if not name:
+            return None
+        try:
+            egl = ctypes.CDLL(name)
+        except OSError:
+            return None
+        egl.eglGetProcAddress.restype = ctypes.c_void_p
+        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+        query_ptr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
+        string_ptr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
+        if not query_ptr or not string_ptr:
+            return None
+        return cls(egl, query_ptr, string_ptr, egl.eglGetProcAddress(b"eglGetPlatformDisplayEXT"))
+
+    def devices(self) -> list:
+        count = ctypes.c_int(0)
+        if not self._query(0, None, ctypes.byref(count)) or count.value <= 0:
+            return []
+        devices = (ctypes.c_void_p * count.value)()
+        self._query(count.value, devices, ctypes.byref(count))
+        return list(devices[: count.value])
+
+    def describe(self, device) -> str:
+        return _describe_device(lambda name: self._string(device, name))
+
+    def initialise(self, device) -> None:
+        """eglInitialize the device's display (EGL_PLATFORM_DEVICE_EXT): the driver loads here."""
+        if self._display is None:
+            return
+        display = self._display(0x313F, device, None)  # EGL_PLATFORM_DEVICE_EXT
+        if display:
+            self.egl.eglInitialize.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+            self.egl.eglInitialize(display, None, None)
+
+
 def egl_devices() -> list[str]:
     """Describe each EGL device (DRM node or 'software'), [] if EGL is missing.
 
     Uses EGL_EXT_device_enumeration through ctypes; best effort, for
     ``bsrt doctor`` only.
     """
-    name = ctypes.util.find_library("EGL")
-    if not name:
-        return []
+    egl = _Egl.load()
+    return [egl.describe(device) for device in egl.devices()] if egl else []
+
+
+def _chosen_device() -> int | None:
+    """The EGL device named by BSRT_EGL_DEVICE / GLCONTEXT_DEVICE_INDEX, None where neither is set."""
+    chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
+    return None if chosen is None else int(chosen)
+
+
+def load_driver() -> None:
+    """Initialise the EGL display of the device that create_headless_context tries first, where
+    the driver loads (20-40 ms with Mesa): called from a thread ahead of the context (the GIL is
+    released in EGL), the context then takes 5-15 ms. Best effort: any failure is left to
+    create_headless_context to report."""
     try:
-        egl = ctypes.CDLL(name)
-    except OSError:
-        return []
-    egl.eglGetProcAddress.restype = ctypes.c_void_p
-    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-    query_ptr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
-    string_ptr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
-    if not query_ptr or not string_ptr:
-        return []
-    query = ctypes.CFUNCTYPE(
-        ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_int)
-    )(query_ptr)
-    device_string = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(string_ptr)
-    count = ctypes.c_int(0)
-    if not query(0, None, ctypes.byref(count)) or count.value <= 0:
-        return []
-    devices = (ctypes.c_void_p * count.value)()
-    query(count.value, devices, ctypes.byref(count))
-    out = []
-    for dev in devices[: count.value]:
-        out.append(_describe_device(lambda name: device_string(dev, name)))
-    return out
+        egl = _Egl.load()
+        devices = egl.devices() if egl else []
+        index = _chosen_device() or 0
+        if index < len(devices):
+            egl.initialise(devices[index])
+    except Exception:  # noqa: BLE001 - only a head start; the context's own creation reports
+        pass
 
 
 def _describe_device(query) -> str:
@@ -93,11 +144,12 @@ def create_headless_context() -> moderngl.Context:
     Tries the device named by GLCONTEXT_DEVICE_INDEX / BSRT_EGL_DEVICE, else
     each device in turn. Raises RenderError with a fix when none works.
     """
-    chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
+    chosen = _chosen_device()
     if chosen is not None:
-        candidates = [int(chosen)]
+        candidates = [chosen]
     else:
-        candidates = list(range(max(1, len(egl_devices()))))
+        egl = _Egl.load()
+        candidates = list(range(max(1, len(egl.devices()) if egl else 0)))
     errors = []
     for index in candidates:
         for version in (GL_COMPUTE_VERSION, GL_VERSION):
