@@ -178,8 +178,8 @@ def test_an_edit_to_any_kernel_file_invalidates_every_kernel_of_the_folder(tmp_p
 
 
 def test_a_kernel_loaded_from_the_cache_runs_and_links_into_a_kernel_compiled_after_it(tmp_path):
-    """Loaded without numba's registry refresh and with its kept bitcode unparsed (jit.KernelCache,
-    jit.LoadedLibrary): it runs, and a kernel compiled later in the same process that calls it
+    """Its cache made at its first call, loaded without numba's registry refresh and with its kept
+    bitcode unparsed (jit.KernelCache, jit.LoadedLibrary): it runs, and a kernel compiled later in the same process that calls it
     links its bitcode (parsed then) and gets the same answers."""
     code = (
         "import numpy as np, numba\n"
@@ -187,7 +187,9 @@ def test_a_kernel_loaded_from_the_cache_runs_and_links_into_a_kernel_compiled_af
         "from bsrt.kernels.jit import LoadedLibrary\n"
         "d = np.array([[3.0, 0.0, 4.0], [0.0, 2.0, 0.0]]); o = np.array([[1.0, 2.0, 3.0]])\n"
         "out, origin = np.empty_like(d), np.empty_like(d)\n"
+        "print(type(normalise_rows._cache).__name__)\n"
         "normalise_rows(0, 2, d, out, o, origin)\n"
+        "print(type(normalise_rows._cache).__name__)\n"
         "assert np.allclose(out, [[0.6, 0.0, 0.8], [0.0, 1.0, 0.0]]) and np.all(origin == o)\n"
         "(library,) = [cres.library for cres in normalise_rows.overloads.values()]\n"
         "print(type(library).__name__, library._shared_module is None)\n"
@@ -204,8 +206,10 @@ def test_a_kernel_loaded_from_the_cache_runs_and_links_into_a_kernel_compiled_af
         subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True) for _ in "ab"
     ]
     assert [r.returncode for r in runs] == [0, 0], runs[1].stderr
-    assert runs[0].stdout.split() == ["JITCodeLibrary", "False", "False"]  # compiled here, then cached
-    assert runs[1].stdout.split() == ["LoadedLibrary", "True", "False"]  # loaded; parsed to link
+    # the cache is made at the first call (jit._DeferredCache); compiled, then cached
+    assert runs[0].stdout.split() == ["_DeferredCache", "KernelCache", "JITCodeLibrary", "False", "False"]
+    # loaded from the cache, its bitcode parsed only to link it
+    assert runs[1].stdout.split() == ["_DeferredCache", "KernelCache", "LoadedLibrary", "True", "False"]
 
 
 @pytest.mark.gl
