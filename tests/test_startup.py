@@ -212,6 +212,18 @@ def test_a_kernel_loaded_from_the_cache_runs_and_links_into_a_kernel_compiled_af
     assert runs[1].stdout.split() == ["_DeferredCache", "KernelCache", "LoadedLibrary", "True", "False"]
 
 
+def test_a_kernel_is_cached_under_the_sources_of_its_modules_import(monkeypatch):
+    """Its cache is made at its first use (jit._DeferredCache), maybe after a file of the folder
+    was edited: the machine code compiled from the source in memory must not be stored under the
+    edited sources' stamp (a later process would load it for code it was not compiled from)."""
+    folder = str(Path(tables.__file__).resolve().parent)
+    at_import = jit.source_stamp_at_import(tables.permute_rows.py_func)
+    assert at_import == jit._import_stamps["bsrt.kernels.tables"] == jit.folder_source_stamp(folder)
+    monkeypatch.setattr(jit, "folder_source_stamp", lambda folder: b"edited since")
+    locator = jit.KernelCacheLocator.from_function(tables.permute_rows.py_func, tables.__file__)
+    assert locator.get_source_stamp() == at_import
+
+
 @pytest.mark.gl
 def test_a_second_cli_render_takes_the_geometry_from_the_cache_and_no_cache_writes_none(tmp_path):
     env = _env(BSRT_CACHE_DIR=tmp_path / "cache")

@@ -27,9 +27,9 @@ ModuleNotFoundError instead of being recompiled).
 numba checks a kernel's cached machine code against a hash of the kernel's
 own source file, but a kernel inlines the kernels it calls from other files
 of the package: :meth:`KernelCacheLocator.get_source_stamp` hashes every
-source file of the kernel's folder instead, so an edit to any kernel
-recompiles all of them (in a development checkout; an installed bsrt
-changes only with its version).
+source file of the kernel's folder instead (as they were when the kernel's
+module was imported), so an edit to any kernel recompiles all of them (in a
+development checkout; an installed bsrt changes only with its version).
 """
 
 from __future__ import annotations
@@ -199,7 +199,10 @@ class _DeferredCache:
 
 
 def _cached(dispatcher):
-    """The dispatcher, its machine code cached through :class:`KernelCache` (made at first use)."""
+    """The dispatcher, its machine code cached through :class:`KernelCache` (made at first use,
+    under the sources of its module's import: source_stamp_at_import)."""
+    if _ours(dispatcher.py_func):  # others are left to numba's own locators
+        source_stamp_at_import(dispatcher.py_func)
     dispatcher._cache = _DeferredCache(dispatcher)
     return dispatcher
 
@@ -268,11 +271,27 @@ def _hash_files(folder: str, files: tuple) -> bytes:
     return digest.digest()
 
 
+_import_stamps: dict[str, bytes] = {}  # module name -> its folder's source stamp when its kernels were made
+
+
+def source_stamp_at_import(py_func) -> bytes:
+    """The stamp (:func:`folder_source_stamp`) of the folder of ``py_func``'s module, as it was
+    when the module's first kernel was made: the kernel's machine code is cached under the
+    sources it was compiled from, even when its cache is made later (:class:`_DeferredCache`)
+    and a file was edited in between. Computed once per module."""
+    module = py_func.__module__
+    if module not in _import_stamps:
+        folder = os.path.dirname(os.path.abspath(py_func.__code__.co_filename))
+        _import_stamps[module] = folder_source_stamp(folder)
+    return _import_stamps[module]
+
+
 class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
     """numba's cache locator for bsrt's kernels: :func:`cache_root` / <source folder's name and hash>;
-    the machine code is valid while no source file of the folder changes (:func:`folder_source_stamp`)."""
+    the machine code is valid while no source file of the folder changes (:func:`source_stamp_at_import`)."""
 
     def __init__(self, py_func, py_file):
+        self._py_func = py_func
         self._py_file = py_file
         self._lineno = py_func.__code__.co_firstlineno
         self._cache_path = os.path.join(cache_root(), self.get_suitable_cache_subpath(py_file))
@@ -281,7 +300,7 @@ class KernelCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLo
         return self._cache_path
 
     def get_source_stamp(self):
-        return folder_source_stamp(os.path.dirname(os.path.abspath(self._py_file)))
+        return source_stamp_at_import(self._py_func)
 
     def ensure_cache_path(self):
         if self._cache_path in _writable:  # checked once per folder (numba writes a file to check, per kernel)
