@@ -48,10 +48,11 @@ def run() -> None:
 
 
 def _leave_now(code: int) -> None:
-    """Exit at once after an interruption, without the interpreter's shutdown:
-    kernel threads may still be inside a compiled loop, and tearing Python and
-    the GL context down under them can crash. Staged outputs were already
-    discarded on the way here; only the standard streams need flushing."""
+    """Exit at once, without the interpreter's shutdown, after an interruption
+    (kernel threads may still be inside a compiled loop, and tearing Python and
+    the GL context down under them can crash; staged outputs were already
+    discarded on the way here) or a finished run (:func:`run`: the outputs are
+    committed). Only the standard streams need flushing."""
     import os
 
     for stream in (sys.stdout, sys.stderr):
