@@ -29,8 +29,8 @@ def main(argv=None) -> int:
 
 def run() -> None:
     """The ``bsrt`` program: :func:`main`, then the process ends without the interpreter's
-    teardown (freeing numba's and LLVM's objects one by one: 0.1-0.15 s, a sixth of a small
-    render's whole run). Every output was committed and closed by then; the kernels' idle
+    teardown (freeing numba's and LLVM's objects one by one: 0.1-0.15 s, as long as a small
+    render's own stages). Every output was committed and closed by then; the kernels' idle
     threads are stopped first, and where any other thread or a child process still runs,
     Python ends as usual (waiting for the thread, ending the child)."""
     code = main()
