@@ -271,6 +271,7 @@ SLOW: dict[str, float] = {
     "tests/test_progress.py::test_render_on_a_terminal_shows_the_bar_then_the_summary": 1.6,
     "tests/test_startup.py::test_a_cli_render_imports_no_opencascade_dask_window_or_preview": 11.6,
     "tests/test_startup.py::test_a_first_render_with_an_empty_cache_announces_the_compile_and_fills_the_cache": 185.8,
+    "tests/test_startup.py::test_a_kernel_loaded_from_the_cache_runs_and_links_into_a_kernel_compiled_after_it": 2.2,
     "tests/test_startup.py::test_an_unwritable_cache_folder_still_renders": 262.6,
     "tests/test_startup.py::test_doctor_compile_fills_an_empty_cache": 146.2,
     "tests/test_startup.py::test_the_command_line_parser_imports_neither_numba_nor_any_extra": 1.5,

@@ -189,6 +189,10 @@ def test_egl_device_index_that_is_not_a_number_is_refused(tmp_path):
     path.write_text(QUAD)
     line = refused(path, env={"GLCONTEXT_DEVICE_INDEX": "abc"}, named=False)
     assert "GLCONTEXT_DEVICE_INDEX" in line and "'abc'" in line
+    doctor = bsrt_cli("doctor", env={"BSRT_EGL_DEVICE": "abc"})  # the same one line, not an internal error
+    assert doctor.returncode == 2 and doctor.stderr.splitlines() == [
+        "bsrt: error: environment variable BSRT_EGL_DEVICE: expected an EGL device index (0, 1, ...), got 'abc'"
+    ], doctor.stderr
 
 
 # ---------------------------------------------------------------------------

@@ -221,8 +221,10 @@ def _cmd_info(args) -> int:
 
 
 def _cmd_doctor(args) -> int:
+    from bsrt import validate
     from bsrt.rendering import gl
 
+    validate.environment()  # a bad EGL device index: one line, exit 2 (as for a render)
     devices = gl.egl_devices()
     print(f"EGL devices: {len(devices)}")
     for i, name in enumerate(devices):
@@ -247,7 +249,7 @@ def _cmd_doctor(args) -> int:
             else f"--device auto uses the {'GPU' if caps.hardware else 'CPU (llvmpipe is no faster)'}"
         )
     )
-    chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
+    chosen = gl.chosen_device()
     print(
         f"device chosen:   {chosen if chosen is not None else 'first that works'} (set GLCONTEXT_DEVICE_INDEX=N to pick)"
     )

@@ -92,7 +92,7 @@ def egl_devices() -> list[str]:
     return [egl.describe(device) for device in egl.devices()] if egl else []
 
 
-def _chosen_device() -> int | None:
+def chosen_device() -> int | None:
     """The EGL device named by BSRT_EGL_DEVICE / GLCONTEXT_DEVICE_INDEX, None where neither is set."""
     chosen = os.environ.get("BSRT_EGL_DEVICE", os.environ.get("GLCONTEXT_DEVICE_INDEX"))
     return None if chosen is None else int(chosen)
@@ -106,7 +106,7 @@ def load_driver() -> None:
     try:
         egl = _Egl.load()
         devices = egl.devices() if egl else []
-        index = _chosen_device() or 0
+        index = chosen_device() or 0
         if index < len(devices):
             egl.initialise(devices[index])
     except Exception:  # noqa: BLE001 - only a head start; the context's own creation reports
@@ -144,7 +144,7 @@ def create_headless_context() -> moderngl.Context:
     Tries the device named by GLCONTEXT_DEVICE_INDEX / BSRT_EGL_DEVICE, else
     each device in turn. Raises RenderError with a fix when none works.
     """
-    chosen = _chosen_device()
+    chosen = chosen_device()
     if chosen is not None:
         candidates = [chosen]
     else:
