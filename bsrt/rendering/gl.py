@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import os
 import re
 from dataclasses import dataclass
@@ -46,7 +47,7 @@ class _Egl:
 
     @classmethod
     def load(cls) -> _Egl | None:
-        name = ctypes.util.find_library("EGL")
+        name = _library("EGL")
         if not name:
             return None
         try:
@@ -98,12 +99,20 @@ def chosen_device() -> int | None:
     return None if chosen is None else int(chosen)
 
 
+@functools.cache
+def _library(name: str) -> str | None:
+    """ctypes' file name of the system library ``name`` ("EGL", "GL"), or None; found once per
+    process (each search runs ``ldconfig -p``, 1-2 ms, which glcontext would run per context)."""
+    return ctypes.util.find_library(name)
+
+
 def load_driver() -> None:
     """Initialise the EGL display of the device that create_headless_context tries first, where
     the driver loads (20-40 ms with Mesa): called from a thread ahead of the context (the GIL is
     released in EGL), the context then takes 5-15 ms. Best effort: any failure is left to
     create_headless_context to report."""
     try:
+        _library("GL")
         egl = _Egl.load()
         devices = egl.devices() if egl else []
         index = chosen_device() or 0
@@ -154,7 +163,14 @@ def create_headless_context() -> moderngl.Context:
     for index in candidates:
         for version in (GL_COMPUTE_VERSION, GL_VERSION):
             try:
-                return moderngl.create_context(standalone=True, backend="egl", require=version, device_index=index)
+                return moderngl.create_context(
+                    standalone=True,
+                    backend="egl",
+                    require=version,
+                    device_index=index,
+                    libgl=_library("GL"),
+                    libegl=_library("EGL"),
+                )
             except Exception as exc:  # glcontext raises plain Exception subclasses
                 if version == GL_VERSION:
                     errors.append(f"device {index}: {exc}")
