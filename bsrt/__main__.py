@@ -15,6 +15,9 @@ interrupts.install()
 def main(argv=None) -> int:
     """Run the command line; returns the exit code."""
     try:
+        from bsrt.allocator import keep_freed_memory
+
+        keep_freed_memory()  # the program only: process-wide (bsrt/allocator.py)
         from bsrt.cli import main as run
 
         code = run(argv)

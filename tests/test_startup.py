@@ -368,3 +368,41 @@ def _version() -> str:
     from bsrt import __version__
 
     return __version__
+
+
+_REUSE = """
+import resource, sys
+import numpy as np
+from bsrt.allocator import keep_freed_memory
+print(keep_freed_memory() if sys.argv[1] == "keep" else False)
+faults = []
+for _ in range(4):  # a render's pattern: film-sized arrays made, filled and freed together
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    arrays = [np.ones(512 * 512) for _ in range(24)]
+    del arrays
+    faults.append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+print(max(faults[1:]))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc (the CI machine's)")
+def test_the_program_keeps_freed_memory_for_the_next_renders_arrays():
+    """keep_freed_memory (the bsrt program calls it): a second round of film-sized arrays reuses
+    the first round's memory instead of faulting in fresh pages (glibc unmaps and trims them by
+    default); a user's own malloc settings are left alone."""
+    runs = {}
+    for mode in ("default", "keep"):
+        out = subprocess.run([sys.executable, "-c", _REUSE, mode], env=_env(), capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        runs[mode] = out.stdout.split()
+    assert runs["keep"][0] == "True"
+    pages = 24 * 512 * 512 * 8 // 4096
+    assert int(runs["default"][1]) > pages // 2  # the setting is what makes the difference here
+    assert int(runs["keep"][1]) < pages // 20
+    user = subprocess.run(
+        [sys.executable, "-c", "from bsrt.allocator import keep_freed_memory as k; print(k())"],
+        env=_env(MALLOC_TOP_PAD_=0),
+        capture_output=True,
+        text=True,
+    )
+    assert user.stdout.strip() == "False", user.stderr
