@@ -3,7 +3,8 @@
 For each core set (``--cores 0 0,1`` by default) a fresh child process is
 pinned with ``taskset -c SET`` (bsrt's thread pool sizes itself to the
 affinity), renders the scene once untimed (kernels, GL context, hierarchy),
-then ``--rounds`` times, in process (as ``bsrt bench``); it reports each
+then ``--rounds`` times, in process (as ``bsrt bench``, with the program's
+allocator settings: bsrt/allocator.py); it reports each
 set's median wall and CPU seconds and the speed-up of the wall time against
 the first set, with the load average before and after (on a shared machine
 other jobs take the same cores: read the speed-ups with the load). Usage:
@@ -26,6 +27,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 CHILD = """
 import json, os, sys, time
+from bsrt.allocator import keep_freed_memory
+keep_freed_memory()  # as the bsrt program (bench) does
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import load_scene
