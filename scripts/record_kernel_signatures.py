@@ -7,8 +7,11 @@ then). In a child with an empty numba cache, the warm-up (``bsrt doctor``'s)
 compiles every kernel and its signatures are taken; a second child with
 another empty cache compiles them one by one from those signatures, timed
 (CPU seconds; a kernel's callees count for the first kernel that needs
-them). ``bsrt.kernels.compile.compile_all`` deals the kernels to its
-workers by these seconds, longest first.
+them); then each kernel is compiled alone, in a child of its own with an
+empty cache ("solo": its callees included), as many children at once as
+there are cores (CPU seconds do not depend on that much).
+``bsrt.kernels.compile.compile_all`` deals the kernels to its workers by
+these seconds (compile._plan).
 """
 
 from __future__ import annotations
@@ -52,12 +55,32 @@ def main() -> int:
             text=True,
         ).stdout
         record = pickle.loads(found.read_bytes())
-    record["seconds"] = json.loads(out.strip().splitlines()[-1])
+        record["seconds"] = json.loads(out.strip().splitlines()[-1])
+        record["solo"] = _solo(names, found, env, Path(tmp))
     with open(kernels.SIGNATURES, "wb") as f:
         pickle.dump(record, f, protocol=4)
     total = sum(record["seconds"].values())
     print(f"wrote {kernels.SIGNATURES}: {len(names)} kernels, {total:.1f} s of compiling on one core")
+    for workers in (2, 4):
+        print(f"  {workers} workers: {kernels._plan(record, workers)[1]:.1f} s for the longest share")
     return 0
+
+
+def _solo(names: list[str], found: Path, env: dict, tmp: Path) -> dict:
+    """{name: CPU seconds} of each kernel compiled alone, in a child with an empty cache."""
+    pending, running, seconds = list(names), [], {}
+    while pending or running:
+        while pending and len(running) < (os.cpu_count() or 1):
+            name = pending.pop(0)
+            child_env = {**env, "NUMBA_CACHE_DIR": str(tmp / f"solo-{name}")}
+            command = [sys.executable, "-m", "bsrt.kernels.compile", "--record", str(found), name]
+            running.append(subprocess.Popen(command, env=child_env, stdout=subprocess.PIPE, text=True))
+        child = running.pop(0)
+        out, _ = child.communicate()
+        if child.returncode:
+            raise SystemExit(f"compiling {child.args[-1]} alone failed ({child.returncode})")
+        seconds |= json.loads(out.strip().splitlines()[-1])
+    return seconds
 
 
 if __name__ == "__main__":

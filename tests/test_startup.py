@@ -243,15 +243,40 @@ def test_the_compile_is_dealt_by_family_longest_first_to_the_least_loaded_worker
     seconds = {"traverse.a": 10.0, "roots.b": 3.0, "flatten.c": 6.0, "flatten.d": 4.0, "prelim.e": 5.0, "x.f": 1.0}
     # families: hits (traverse, roots) 13, tree (flatten) 10, map (prelim) 5, x.f alone 1
     # hits -> 0 (13); tree -> 1 (10); map -> 1 (15); x.f -> 0 (14)
-    assert kernels._shares(seconds, 2) == [["traverse.a", "roots.b", "x.f"], ["flatten.c", "flatten.d", "prelim.e"]]
-    assert kernels._shares(seconds, 4) == [["traverse.a", "roots.b"], ["flatten.c", "flatten.d"], ["prelim.e"], ["x.f"]]
+    record = {"seconds": seconds}  # no solo seconds: families stay whole
+    assert kernels._plan(record, 2) == (
+        [["traverse.a", "roots.b", "x.f"], ["flatten.c", "flatten.d", "prelim.e"]],
+        15.0,
+    )
+    assert kernels._plan(record, 4) == (
+        [["traverse.a", "roots.b"], ["flatten.c", "flatten.d"], ["prelim.e"], ["x.f"]],
+        13.0,
+    )
+
+
+def test_a_family_is_split_where_that_shortens_the_longest_share():
+    seconds = {"traverse.a": 10, "lighting.g": 6, "roots.b": 3, "flatten.c": 6, "flatten.d": 4, "prelim.e": 5, "x.f": 1}
+    solo = {**seconds, "lighting.g": 12, "flatten.d": 5}  # g shares a's callees: 12 s alone, 6 s after a
+    record = {"seconds": seconds, "solo": solo}
+    # two workers: hits whole (19) against tree, map and x.f (16): 19; hits split (g 12, a 10, b 3) deals
+    # g, tree, a, map, b, f -> loads 12+5+3+1 = 21 and 10+10 = 20: longer, so hits stays whole
+    assert kernels._plan(record, 2) == (
+        [["traverse.a", "lighting.g", "roots.b"], ["flatten.c", "flatten.d", "prelim.e", "x.f"]],
+        19,
+    )
+    # four: hits whole 19; split: g 12 | tree 10 | a 10 | e 5 + b 3 + f 1 = 12; tree split too
+    # (c 6, d 5): g 12 | a 10 | c 6 + b 3 + f 1 | e 5 + d 5 = 12, no shorter: tree stays whole
+    assert kernels._plan(record, 4) == (
+        [["lighting.g"], ["flatten.c", "flatten.d"], ["traverse.a"], ["prelim.e", "roots.b", "x.f"]],
+        12,
+    )
 
 
 def test_the_recorded_signatures_cover_every_entry_kernel():
     record = kernels.recorded()
     assert record is not None, "bsrt/kernels/signatures.pickle: run scripts/record_kernel_signatures.py"
     names = {kernels.name_of(k) for k in kernels.ENTRY_KERNELS}
-    assert set(record["signatures"]) == names == set(record["seconds"])
+    assert set(record["signatures"]) == names == set(record["seconds"]) == set(record["solo"])
     assert all(len(sigs) == 1 for sigs in record["signatures"].values())  # one specialisation each
 
 

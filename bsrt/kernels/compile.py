@@ -104,11 +104,9 @@ def recorded() -> dict | None:
 def estimate_seconds(workers: int | None = None) -> float:
     """The cold compile's expected wall time on this machine's cores (from the record)."""
     record = recorded()
-    total = sum(record["seconds"].values()) if record else DEFAULT_SECONDS
     if not record:
-        return total
-    workers = min(workers or _cores(), 4)
-    return max(sum(record["seconds"][n] for n in share) for share in _shares(record["seconds"], workers))
+        return DEFAULT_SECONDS
+    return _plan(record, min(workers or _cores(), 4))[1]
 
 
 def compile_all(workers: int | None = None) -> float:
@@ -131,7 +129,7 @@ def start(workers: int | None = None) -> list[subprocess.Popen]:
         return []
     return [
         subprocess.Popen([sys.executable, "-m", "bsrt.kernels.compile", *share], stdout=subprocess.DEVNULL)
-        for share in _shares(record["seconds"], workers)
+        for share in _plan(record, workers)[0]
         if share
     ]
 
@@ -150,27 +148,54 @@ def finish(children: list[subprocess.Popen], stop: bool = False) -> None:
                 child.wait()
 
 
-# kernels of one family share heavy callees (compiled once per process that needs them): dealt together.
-# lighting's shadow rays run traverse's piece solver: shade_hits compiles in 13.1 s of CPU alone, 6.6 s
-# after trace_rays (2 busy cores, measured)
+# kernels of one family share heavy callees (compiled once per process that needs them): dealt together
+# while that is quickest. lighting's shadow rays run traverse's piece solver: shade_hits compiles in
+# 13.6 s of CPU alone, 6.1 s after trace_rays.
 FAMILIES = {"traverse": "hits", "lighting": "hits", "roots": "hits", "patches": "hits", "shading": "hits"}
 FAMILIES |= {"trim": "trims", "trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
 
 
-def _shares(seconds: dict, workers: int) -> list[list[str]]:
-    """The entry kernels dealt to ``workers`` processes by family (FAMILIES), the longest family
-    first to the least loaded worker."""
+def _plan(record: dict, workers: int) -> tuple[list[list[str]], float]:
+    """(shares, seconds): the entry kernels dealt to ``workers`` processes, and the longest
+    share's expected CPU seconds (the wall time on idle cores).
+
+    Each family (FAMILIES; a kernel of no family is one alone) is first a unit costing its
+    kernels' seconds in a row (record["seconds"]); the units go longest first to the least loaded
+    worker. Then, while it shortens the longest share, the costliest family still whole is split
+    into its kernels, each costing its seconds compiled alone (record["solo"]: its callees
+    compiled again in each process that needs them). On two cores that never pays (the shared
+    callees would be compiled twice on the same two cores); with more, the family of the tracing
+    and shading kernels (22 s in a row) is the first run's floor unless it is split."""
+    seconds, solo = record["seconds"], record.get("solo", {})
     families: dict[str, list[str]] = {}
     for name in seconds:
         families.setdefault(FAMILIES.get(name.split(".")[0], name), []).append(name)
-    cost = {family: sum(seconds[n] for n in names) for family, names in families.items()}
+    units = [
+        (sum(seconds[n] for n in names), sorted(names, key=seconds.get, reverse=True)) for names in families.values()
+    ]
+    best = _deal(units, workers)
+    while True:
+        whole = [unit for unit in units if len(unit[1]) > 1 and all(n in solo for n in unit[1])]
+        if not whole:
+            return best
+        family = max(whole, key=lambda unit: unit[0])
+        split = [unit for unit in units if unit is not family] + [(solo[n], [n]) for n in family[1]]
+        trial = _deal(split, workers)
+        if trial[1] >= best[1]:
+            return best
+        units, best = split, trial
+
+
+def _deal(units: list[tuple[float, list[str]]], workers: int) -> tuple[list[list[str]], float]:
+    """Units (seconds, kernel names) dealt longest first to the least loaded of ``workers``:
+    (shares, the largest load)."""
     loads = [0.0] * workers
     shares: list[list[str]] = [[] for _ in range(workers)]
-    for family in sorted(families, key=cost.get, reverse=True):
+    for cost, names in sorted(units, key=lambda unit: unit[0], reverse=True):
         i = loads.index(min(loads))
-        shares[i] += sorted(families[family], key=seconds.get, reverse=True)
-        loads[i] += cost[family]
-    return shares
+        shares[i] += names
+        loads[i] += cost
+    return shares, max(loads)
 
 
 def _cores() -> int:
