@@ -12,10 +12,12 @@ dozen faults per render. The peak is unchanged (larger blocks, a big film's
 bands, are still mapped and returned); what stays resident after a render is
 at most TRIM_THRESHOLD more.
 
-Only the program sets this (bsrt/__main__.py): it is process-wide, and a
-library must not change the allocator under its host. Python code that
-renders often can call :func:`keep_freed_memory` itself. Settings the user
-gave glibc (MALLOC_*_ variables, GLIBC_TUNABLES) are left as they are.
+Only bsrt's own processes set this: the program (bsrt/__main__.py) and the
+preview's solver processes. It is process-wide, and a library must not change
+the allocator under its host: Python code that renders often can call
+:func:`keep_freed_memory` itself. Dask's workers keep Dask's own setting (it
+trims freed memory at once, so that their memory limits see it). Settings the
+user gave glibc (MALLOC_*_ variables, GLIBC_TUNABLES) are left as they are.
 """
 
 from __future__ import annotations

@@ -122,6 +122,9 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running, device
     warm to the device the scene's ``device`` setting takes here (DEVICE_CODES).
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the window's business
+    from bsrt.allocator import keep_freed_memory
+
+    keep_freed_memory()  # bsrt's own process, rendering again and again (bsrt/allocator.py)
     from bsrt.rendering.pipeline import Geometry
 
     geometry = Geometry(scene, cache)  # cache: through the prepared-geometry cache
