@@ -13,23 +13,14 @@ memory from the kernel (ru_maxrss). Usage:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-
-PEAK_CHILD = """
-import json, resource, subprocess, sys
-run = subprocess.run(sys.argv[1:], capture_output=True, text=True)
-peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
-print(json.dumps({"code": run.returncode, "peak_mb": peak, "stderr": run.stderr[-2000:]}))
-"""
 
 
 def timed_rounds(scene_path: Path, sizes: list[int], rounds: int):
@@ -71,11 +62,13 @@ def peak_mb(scene_path: Path, size: int) -> float:
             "--height",
             str(size),
         ]
-        out = subprocess.run([sys.executable, "-c", PEAK_CHILD, *cmd], capture_output=True, text=True, check=True)
-    result = json.loads(out.stdout)
-    if result["code"] != 0:
-        raise SystemExit(f"render at {size} failed: {result['stderr']}")
-    return result["peak_mb"]
+        from bsrt.errors import InputError
+        from bsrt.rendering.bench_memory import peak_rss
+
+        try:
+            return peak_rss(cmd, dict(os.environ)) / 2**20
+        except InputError as exc:
+            raise SystemExit(f"render at {size} failed: {exc}") from None
 
 
 def main() -> int:

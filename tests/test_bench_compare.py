@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import embreex  # noqa: F401  (the real library: the test extra installs it; never a skip)
+import numpy as np
 import pytest
 
 from bsrt.errors import InputError
@@ -52,3 +53,17 @@ def test_memory_rows_measure_two_new_processes():
 def test_a_failing_child_is_one_input_error():
     with pytest.raises(InputError, match="failed"):
         bench_memory.peak_rss([sys.executable, "-c", "raise SystemExit(3)"], bench.child_env())
+
+
+def test_a_childs_peak_does_not_count_the_memory_of_the_process_measuring_it():
+    """Linux records, at a child's exec, the high-water mark of the address space it was started
+    from: measured from this process directly, a child that allocates nothing would show this
+    process's 400 MB (bench runs after Embree's scenes: 2.4 GB each)."""
+    held = np.ones(400 * 2**20 // 8)  # 400 MB resident here
+    small = bench_memory.peak_rss([sys.executable, "-c", "pass"], bench.child_env())
+    big = bench_memory.peak_rss(
+        [sys.executable, "-c", "import numpy as np; a = np.ones(2**28 // 8)"], bench.child_env()
+    )
+    assert held[-1] == 1.0
+    assert small < 100 * 2**20
+    assert 256 * 2**20 < big < 256 * 2**20 + small + 50 * 2**20  # its own 256 MB array

@@ -10,8 +10,10 @@ pixel and the band being traced, so this tends to a few bytes per pixel.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -19,18 +21,29 @@ from bsrt.errors import InputError
 
 DEFAULT_SIZES = (512, 2048)
 
+# Linux counts in a child's peak the memory of the process it was started from (at exec, the
+# copied or borrowed address space's high-water mark: a bench process holding 2.4 GB of Embree
+# scenes made every child's "peak" 2.4 GB). So the child is started from a small Python process of
+# its own, which reports its children's peak.
+_PROBE = """
+import json, resource, subprocess, sys
+run = subprocess.run(sys.argv[1:], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+print(json.dumps({"code": run.returncode, "peak_kb": peak, "stderr": run.stderr.decode(errors="replace")[-2000:]}))
+"""
+
 
 def peak_rss(argv: list[str], env: dict, cwd=None) -> int:
-    """Run ``argv`` in a child process (in folder ``cwd``); its peak resident memory in bytes. A failure is
-    an InputError."""
-    proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=cwd)
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    err = proc.stderr.read().decode(errors="replace")
-    proc.stderr.close()
-    if proc.returncode != 0:
-        raise InputError(f"{' '.join(argv)}: failed ({proc.returncode}): {err.strip()[-300:]}")
-    return int(usage.ru_maxrss) * 1024  # kB on Linux
+    """Run ``argv`` in a child process (in folder ``cwd``); its peak resident memory in bytes, not
+    counting this process's (_PROBE). A failure is an InputError."""
+    probe = subprocess.run([sys.executable, "-c", _PROBE, *argv], env=env, capture_output=True, text=True, cwd=cwd)
+    try:
+        result = json.loads(probe.stdout.strip().splitlines()[-1])
+    except (ValueError, IndexError):
+        raise InputError(f"{' '.join(argv)}: could not be run ({probe.stderr.strip()[-300:]})") from None
+    if result["code"] != 0:
+        raise InputError(f"{' '.join(argv)}: failed ({result['code']}): {result['stderr'].strip()[-300:]}")
+    return int(result["peak_kb"]) * 1024  # kB on Linux
 
 
 def per_pixel(render_argv, env: dict, sizes=DEFAULT_SIZES, cwd=None) -> dict:
