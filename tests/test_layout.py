@@ -12,7 +12,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "bsrt"
 # Floors from the bottom: a module may import its own floor's modules and any lower floor's.
 # The top-level package (bsrt/__init__.py) is lazy: it names the API and imports nothing at import.
 FLOORS = (
-    ("errors", "interrupts", "files", "progress"),
+    ("errors", "interrupts", "files", "progress", "allocator"),
     ("kernels",),  # numba loops over flat arrays
     ("methods", "geometry"),
     ("validate",),
