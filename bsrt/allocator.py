@@ -17,7 +17,7 @@ preview's solver processes. It is process-wide, and a library must not change
 the allocator under its host: Python code that renders often can call
 :func:`keep_freed_memory` itself. Dask's workers keep Dask's own setting (it
 trims freed memory at once, so that their memory limits see it). Settings the
-user gave glibc (MALLOC_*_ variables, GLIBC_TUNABLES) are left as they are.
+user gave glibc's thresholds (THRESHOLD_VARIABLES) are left as they are.
 """
 
 from __future__ import annotations
@@ -30,14 +30,28 @@ M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
 MMAP_THRESHOLD = 32 << 20  # glibc's own ceiling for its rising threshold (64-bit)
 TRIM_THRESHOLD = 256 << 20
 
-_USER_SETTINGS = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_", "GLIBC_TUNABLES")
+
+# what sets glibc's thresholds from the environment (GLIBC_TUNABLES: any, even empty)
+THRESHOLD_VARIABLES = (
+    "MALLOC_MMAP_THRESHOLD_",
+    "MALLOC_TRIM_THRESHOLD_",
+    "MALLOC_TOP_PAD_",
+    "MALLOC_MMAP_MAX_",
+    "GLIBC_TUNABLES",
+)
+
+
+def user_settings(environ=os.environ) -> list[str]:
+    """The THRESHOLD_VARIABLES set in ``environ``."""
+    return [name for name in THRESHOLD_VARIABLES if name in environ]
 
 
 def keep_freed_memory() -> bool:
     """Have glibc's malloc keep freed blocks of up to MMAP_THRESHOLD in the heap, and up to
     TRIM_THRESHOLD of freed memory in all, for the next allocations. Returns whether it was set:
-    False off Linux, with another C library, or where the user set glibc's malloc options."""
-    if not sys.platform.startswith("linux") or any(name in os.environ for name in _USER_SETTINGS):
+    False off Linux, with another C library, or where the environment tunes glibc's malloc
+    (user_settings: even an empty GLIBC_TUNABLES)."""
+    if not sys.platform.startswith("linux") or user_settings():
         return False
     import ctypes
 

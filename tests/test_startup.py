@@ -414,12 +414,12 @@ print(max(faults[1:]))
 def test_the_program_keeps_freed_memory_for_the_next_renders_arrays():
     """keep_freed_memory (the bsrt program calls it): a second round of film-sized arrays reuses
     the first round's memory instead of faulting in fresh pages (glibc unmaps and trims them by
-    default); a user's own malloc settings are left alone."""
+    default); a user's own thresholds are left alone, other malloc settings do not count."""
     from bsrt import allocator
 
     # glibc's defaults in the children: Dask's nanny puts its MALLOC_TRIM_THRESHOLD_ into the
     # environment of the process that starts a cluster (this one, after the batch tests)
-    defaults = _env(**dict.fromkeys(allocator._USER_SETTINGS))
+    defaults = _env(**dict.fromkeys(allocator.user_settings()))
     runs = {}
     for mode in ("default", "keep"):
         out = subprocess.run([sys.executable, "-c", _REUSE, mode], env=defaults, capture_output=True, text=True)
@@ -429,10 +429,11 @@ def test_the_program_keeps_freed_memory_for_the_next_renders_arrays():
     pages = 24 * 512 * 512 * 8 // 4096
     assert int(runs["default"][1]) > pages // 2  # the setting is what makes the difference here
     assert int(runs["keep"][1]) < pages // 20
-    user = subprocess.run(
-        [sys.executable, "-c", "from bsrt.allocator import keep_freed_memory as k; print(k())"],
-        env={**defaults, "MALLOC_TOP_PAD_": "0"},
-        capture_output=True,
-        text=True,
-    )
-    assert user.stdout.strip() == "False", user.stderr
+    for variable, kept in (("MALLOC_TOP_PAD_", "False"), ("GLIBC_TUNABLES", "False"), ("MALLOC_ARENA_MAX", "True")):
+        user = subprocess.run(
+            [sys.executable, "-c", "from bsrt.allocator import keep_freed_memory as k; print(k())"],
+            env={**defaults, variable: "2" if variable == "MALLOC_ARENA_MAX" else ""},
+            capture_output=True,
+            text=True,
+        )
+        assert user.stdout.strip() == kept, (variable, user.stderr)

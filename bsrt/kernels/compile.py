@@ -150,7 +150,7 @@ def finish(children: list[subprocess.Popen], stop: bool = False) -> None:
 
 # kernels of one family share heavy callees (compiled once per process that needs them): dealt together
 # while that is quickest. lighting's shadow rays run traverse's piece solver: shade_hits compiles in
-# 13.6 s of CPU alone, 6.1 s after trace_rays.
+# 13.5 s of CPU alone, 5.1 s after trace_rays (signatures.pickle).
 FAMILIES = {"traverse": "hits", "lighting": "hits", "roots": "hits", "patches": "hits", "shading": "hits"}
 FAMILIES |= {"trim": "trims", "trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
 
@@ -165,7 +165,7 @@ def _plan(record: dict, workers: int) -> tuple[list[list[str]], float]:
     into its kernels, each costing its seconds compiled alone (record["solo"]: its callees
     compiled again in each process that needs them). On two cores that never pays (the shared
     callees would be compiled twice on the same two cores); with more, the family of the tracing
-    and shading kernels (22 s in a row) is the first run's floor unless it is split."""
+    and shading kernels (18.7 s of one core in a row) is the first run's floor unless it is split."""
     seconds, solo = record["seconds"], record.get("solo", {})
     families: dict[str, list[str]] = {}
     for name in seconds:
