@@ -437,3 +437,24 @@ def test_the_program_keeps_freed_memory_for_the_next_renders_arrays():
             text=True,
         )
         assert user.stdout.strip() == kept, (variable, user.stderr)
+
+
+def test_a_compile_worker_compiles_this_bsrt_whatever_the_current_folder(tmp_path, monkeypatch):
+    """In a folder holding another ``bsrt`` (a clone of the repository, bsrt installed from it),
+    ``python -m`` would import that one and fill a cache of its own sources: the worker must
+    compile the caller's package into the caller's cache."""
+    decoy = tmp_path / "clone" / "bsrt" / "kernels"
+    decoy.mkdir(parents=True)
+    (decoy.parent / "__init__.py").write_text("")
+    (decoy / "__init__.py").write_text("")
+    (decoy / "compile.py").write_text("open('decoy-ran', 'w').close()\nraise SystemExit(3)\n")
+    monkeypatch.chdir(decoy.parent.parent)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "kernels"))
+    child = kernels.spawn(["prelim.normalise_rows"])
+    assert child.wait(timeout=600) == 0
+    assert not (decoy.parent.parent / "decoy-ran").exists()
+    probe = "from bsrt.kernels import prelim; print(prelim.normalise_rows._cache._cache_file._load_index() != {})"
+    here = Path(kernels.__file__).resolve().parents[2]  # the folder holding the bsrt this test imported
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "kernels", PYTHONPATH=here)
+    out = subprocess.run([sys.executable, "-P", "-c", probe], env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert out.stdout.strip() == "True", out.stderr

@@ -127,11 +127,21 @@ def start(workers: int | None = None) -> list[subprocess.Popen]:
     workers = min(workers or _cores(), 4)
     if record is None or workers < 2:
         return []
-    return [
-        subprocess.Popen([sys.executable, "-m", "bsrt.kernels.compile", *share], stdout=subprocess.DEVNULL)
-        for share in _plan(record, workers)[0]
-        if share
-    ]
+    return [spawn(share) for share in _plan(record, workers)[0] if share]
+
+
+def spawn(names: list[str]) -> subprocess.Popen:
+    """A worker process compiling the entry kernels ``names`` of this very bsrt package. The
+    machine code is cached under its package's sources, so a worker that imported another copy
+    (``python -m`` puts the current folder first: a user rendering in their clone of the
+    repository, bsrt installed from it) fills a cache the caller never reads, and the caller
+    then compiles alone, on every later run too. So the worker's path starts with the folder
+    that holds this package, and not with the current folder (-P)."""
+    root = str(Path(__file__).resolve().parents[2])
+    path = [root] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(path)}
+    command = [sys.executable, "-P", "-m", "bsrt.kernels.compile", *names]
+    return subprocess.Popen(command, stdout=subprocess.DEVNULL, env=env)
 
 
 def finish(children: list[subprocess.Popen], stop: bool = False) -> None:
