@@ -22,9 +22,12 @@ def main(argv=None) -> int:
 
         code = run(argv)
         interrupts.ignore()  # finished: a late signal must not turn into a traceback on the way out
-    except KeyboardInterrupt as exc:
+    except BaseException as exc:
+        signal = interrupts.behind(exc)  # wrapped where it landed: an import's class body raises RuntimeError
+        if signal is None:
+            raise
         interrupts.ignore()
-        message, code = interrupts.describe(exc)
+        message, code = interrupts.describe(signal)
         print(message, file=sys.stderr)
         _leave_now(code)
     return code

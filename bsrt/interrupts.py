@@ -51,6 +51,19 @@ def ignore() -> None:
         signal.signal(sig, signal.SIG_IGN)
 
 
+def behind(exc: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (a signal) behind ``exc`` in its chain of causes and
+    contexts, if any: code between the signal and bsrt may wrap it (numba's imports
+    raise ImportError; a class body's ``__set_name__`` during an import, RuntimeError)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def describe(exc: KeyboardInterrupt) -> tuple[str, int]:
     """(one-line message, exit code) for an interruption."""
     signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT

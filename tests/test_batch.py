@@ -250,3 +250,25 @@ def test_without_dask_one_line_and_exit_2(tmp_path):
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert (run.returncode, run.stderr) == (2, "bsrt: error: bsrt batch needs Dask: pip install 'bsrt[dask]'\n")
     assert list(tmp_path.iterdir()) == []
+
+
+LOUD_WORKER = """
+import logging
+from bsrt.batches.api import connect
+
+def complain():  # what a worker logs when its heartbeat meets the closing scheduler
+    logging.getLogger("distributed.worker").error("Failed to communicate with scheduler during heartbeat.")
+
+if __name__ == "__main__":
+    with connect("batch", workers=1) as client:
+        client.run(complain)
+"""
+
+
+def test_the_local_clusters_own_errors_stay_off_stderr(tmp_path):
+    # CI saw a worker's heartbeat meet the scheduler closing at a batch's end: a 30-line
+    # traceback after the summary line. bsrt reports each item's failure itself
+    script = tmp_path / "loud.py"
+    script.write_text(LOUD_WORKER)
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    assert (run.returncode, run.stderr) == (0, ""), run.stderr

@@ -176,3 +176,30 @@ def test_sigterm_during_a_large_antialiased_column_ends_it_within_a_second(tmp_p
     command = [sys.executable, "-m", "bsrt", "render", str(ROOT / "scenes" / "column.toml"), "-o", "out.png"]
     command += ["--width", "2048", "--height", "2048", "--spp", "4"]
     _signal_at_random_moments(tmp_path, command, seed=5, renders=4, longest=5.0)
+
+
+WRAPPED_SIGNAL = """
+import os, signal, sys
+from bsrt import __main__ as program  # installs the handlers, as `python -m bsrt` does
+
+class Finder:  # importing bsrt.cli runs a class body whose __set_name__ takes SIGTERM
+    def find_spec(self, name, path=None, target=None):
+        if name == "bsrt.cli":
+            class Attribute:
+                def __set_name__(self, owner, name):
+                    os.kill(os.getpid(), signal.SIGTERM)
+                    sum(range(1000))  # the handler runs at the next bytecode, here
+            class Holder:
+                field = Attribute()
+        return None
+
+sys.meta_path.insert(0, Finder())
+sys.exit(program.main(["--help"]))
+"""
+
+
+def test_a_signal_that_lands_in_an_import_and_comes_back_wrapped_ends_the_run_in_one_line():
+    # CI saw it: SIGTERM 0.06 s into a run landed in platform.py's class body during NumPy's
+    # import; Python wrapped it in RuntimeError and the program printed a traceback, exit 1
+    run = subprocess.run([sys.executable, "-c", WRAPPED_SIGNAL], capture_output=True, text=True, timeout=120)
+    assert (run.returncode, run.stderr) == (128 + signal.SIGTERM, "bsrt: interrupted (SIGTERM)\n"), run.stderr

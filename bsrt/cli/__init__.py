@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import sys
 
+from bsrt import interrupts
 from bsrt.cli import commands
 from bsrt.cli.parser import _join_negative_values, _parser
 from bsrt.errors import InputError, OutputError, RenderError
@@ -53,22 +54,10 @@ def main(argv=None) -> int:
         )
         return 1
     except Exception as exc:  # a bug: still one line, the traceback on request
-        signal = _interruption(exc)
+        signal = interrupts.behind(exc)
         if signal is not None:  # a signal inside a library that wrapped it (numba's imports: ImportError)
             raise signal from None
         if os.environ.get("BSRT_DEBUG", "").strip().lower() in ("1", "true", "yes"):
             raise
         print(f"bsrt: internal error: {type(exc).__name__}: {exc} (set BSRT_DEBUG=1 for a traceback)", file=sys.stderr)
         return 1
-
-
-def _interruption(exc: BaseException):
-    """The KeyboardInterrupt (a signal, bsrt/interrupts.py) behind ``exc`` in its chain of
-    causes and contexts, if any."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
