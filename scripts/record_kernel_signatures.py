@@ -40,7 +40,7 @@ def main() -> int:
     sys.path.insert(0, str(ROOT))
     from bsrt.kernels import compile as kernels
 
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env = kernels.worker_env()  # compiled as the first run's workers compile (NUMBA_OPT)
     with tempfile.TemporaryDirectory() as tmp:
         found = Path(tmp) / "signatures.pickle"
         env["NUMBA_CACHE_DIR"] = str(Path(tmp) / "a")

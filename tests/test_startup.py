@@ -458,3 +458,22 @@ def test_a_compile_worker_compiles_this_bsrt_whatever_the_current_folder(tmp_pat
     env = _env(NUMBA_CACHE_DIR=tmp_path / "kernels", PYTHONPATH=here)
     out = subprocess.run([sys.executable, "-P", "-c", probe], env=env, capture_output=True, text=True, cwd=tmp_path)
     assert out.stdout.strip() == "True", out.stderr
+
+
+def test_the_workers_compile_at_their_optimisation_level_and_the_caller_loads_it_at_its_own(tmp_path, monkeypatch):
+    """Workers compile at OPT_LEVEL (unless the user set NUMBA_OPT); a caller at numba's default
+    level loads that machine code from the cache, compiling nothing."""
+    monkeypatch.setenv("NUMBA_OPT", "1")
+    assert kernels.worker_env()["NUMBA_OPT"] == "1"  # the user's choice stands
+    monkeypatch.delenv("NUMBA_OPT")
+    assert kernels.worker_env()["NUMBA_OPT"] == str(kernels.OPT_LEVEL) != "3"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "kernels"))
+    assert kernels.spawn(["prelim.normalise_rows"]).wait(timeout=600) == 0
+    probe = (
+        "import numpy as np; from bsrt.kernels import prelim; d = np.ones((2, 3)); "
+        "prelim.normalise_rows(0, 2, d, np.empty((2, 3)), d[:1], np.empty((2, 3))); "
+        "s = prelim.normalise_rows.stats; print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))"
+    )
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "kernels", NUMBA_OPT=None)
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=600)
+    assert out.stdout.split() == ["1", "0"], out.stderr
