@@ -55,6 +55,19 @@ def whole_run_seconds(tmp_path_factory):
     return _seconds_uninterrupted(COMMAND, tmp_path_factory.mktemp("whole"))
 
 
+# Python reaches bsrt's first line (which installs the handlers) 25-30 ms after it starts here;
+# a signal before that takes its default action. Allowed this early only, on a slow machine.
+BEFORE_THE_HANDLERS = 0.15
+
+
+def _before_the_handlers(code: int, err: str, left: list, signum: int, delay: float) -> bool:
+    """The process was ended by the signal itself, before bsrt ran: nothing said, nothing left."""
+    if code != -signum:
+        return False
+    assert delay < BEFORE_THE_HANDLERS and err == "" and left == [], f"{signum.name} after {delay:.3f} s: {err!r}"
+    return True
+
+
 def _run_and_signal(folder: Path, signum: int, delay: float):
     proc = subprocess.Popen(COMMAND, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(delay)
@@ -75,6 +88,8 @@ def test_a_signal_at_any_moment_leaves_all_outputs_or_none(tmp_path, whole_run_s
         where = f"signal {signum.name} after {delay:.3f} s"
         if code == 0:  # the render was over before the signal came
             assert left == ["out.npz", "out.png"], where
+            continue
+        if _before_the_handlers(code, err, left, signum, delay):
             continue
         interrupted += 1
         assert code == 128 + signum, f"{where}: exit {code}, {err!r}"
@@ -125,6 +140,8 @@ def test_a_signal_during_bsrt_map_leaves_the_map_or_nothing(tmp_path):
         left = sorted(os.listdir(folder))
         if proc.returncode == 0:
             assert left == ["map.png"]
+            continue
+        if _before_the_handlers(proc.returncode, err, left, signal.SIGTERM, delay):
             continue
         interrupted += 1
         assert proc.returncode == 143, f"after {delay:.3f} s: exit {proc.returncode}, {err!r}"
