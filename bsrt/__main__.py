@@ -2,7 +2,8 @@
 
 The signal handlers are installed before anything else is imported, so
 Ctrl-C, SIGTERM or SIGHUP at any moment, even while NumPy and OpenGL load,
-ends the run with one line and no traceback (bsrt/interrupts.py).
+ends the run with one line and no traceback (bsrt/interrupts.py); during
+the imports a signal waits for their end (interrupts.at_safe_points).
 """
 
 import sys
@@ -15,10 +16,11 @@ interrupts.install()
 def main(argv=None) -> int:
     """Run the command line; returns the exit code."""
     try:
-        from bsrt.allocator import keep_freed_memory
+        with interrupts.at_safe_points():  # a signal waits for the imports' end (bsrt/interrupts.py)
+            from bsrt.allocator import keep_freed_memory
 
-        keep_freed_memory()  # the program only: process-wide (bsrt/allocator.py)
-        from bsrt.cli import main as run
+            keep_freed_memory()  # the program only: process-wide (bsrt/allocator.py)
+            from bsrt.cli import main as run
 
         code = run(argv)
         interrupts.ignore()  # finished: a late signal must not turn into a traceback on the way out

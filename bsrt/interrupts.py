@@ -80,15 +80,19 @@ def at_safe_points():
     :func:`safe_point` or at the end of the block. An exception raised at an
     arbitrary bytecode could land inside numba's loading of a cached kernel,
     which then crashed the process (SIGSEGV) in about one run in ten when the
-    signal came in the first second of a render."""
+    signal came in the first second of a render. The program's imports run in
+    such a block too (bsrt/__main__.py, the render's first lines): raised inside
+    importlib, the exception could leave the import lock held while a library
+    that wrapped it carried on, and the next import waiting on the set-up
+    thread's then hung the process for good."""
     global _deferring
     old = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
-    _deferring = True
+    outer, _deferring = _deferring, True
     try:
         yield
     finally:
-        _deferring = False
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a waiting signal is taken here
+        _deferring = outer  # a block inside another leaves the outer one deferring
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)  # a waiting signal is taken here (the outermost block)
 
 
 def safe_point() -> None:
