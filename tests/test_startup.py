@@ -474,6 +474,8 @@ def test_the_workers_compile_at_their_optimisation_level_and_the_caller_loads_it
         "prelim.normalise_rows(0, 2, d, np.empty((2, 3)), d[:1], np.empty((2, 3))); "
         "s = prelim.normalise_rows.stats; print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))"
     )
-    env = _env(NUMBA_CACHE_DIR=tmp_path / "kernels", NUMBA_OPT=None)
-    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=600)
+    here = Path(kernels.__file__).resolve().parents[2]  # the bsrt the worker compiled (an install in CI)
+    env = _env(NUMBA_CACHE_DIR=tmp_path / "kernels", NUMBA_OPT=None, PYTHONPATH=here)
+    run = [sys.executable, "-P", "-c", probe]
+    out = subprocess.run(run, env=env, capture_output=True, text=True, timeout=600, cwd=tmp_path)
     assert out.stdout.split() == ["1", "0"], out.stderr
