@@ -96,12 +96,14 @@ def _progress(args):
 def _cmd_render(args) -> int:
     """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
     with interrupts.at_safe_points():  # the set-up thread and this one import at once: a signal waits
-        start_set_up()
+        set_up = start_set_up()
         from bsrt.outputs import Outputs
         from bsrt.rendering.image import check_image_path, image_writer, npz_writer
         from bsrt.rendering.options import RenderOptions
         from bsrt.rendering.pipeline import render
         from bsrt.scene import loading  # noqa: F401  (imported here, not while the model loads)
+
+        set_up.join(1.0)  # its imports too are over before a signal can raise (a stuck driver: 1 s at most)
 
     out = _check_output(args.output or default_output(args.scene), None)
     given = flag_values(args, "render")

@@ -7,11 +7,12 @@ import time
 from contextlib import contextmanager
 
 
-def start_set_up() -> None:
+def start_set_up():
     """Begin on a thread what a render's first steps wait for, while this thread imports the
-    renderer and loads the model: the GL driver's load (the EGL display) and numba's runtime.
-    Both are mostly C outside the GIL: 40-70 ms of a small render's start on two cores. Best
-    effort: what fails here fails again where the render needs it, and is reported there."""
+    renderer: the GL driver's load (the EGL display) and numba's runtime. Both are mostly C
+    outside the GIL: 40-70 ms of a small render's start on two cores. Returns the thread (the
+    render waits for it with its imports, signals held: bsrt/interrupts.py). Best effort: what
+    fails here fails again where the render needs it, and is reported there."""
     import threading
 
     def set_up() -> None:
@@ -25,7 +26,9 @@ def start_set_up() -> None:
         except Exception:  # noqa: BLE001 - only a head start (above)
             pass
 
-    threading.Thread(target=set_up, name="bsrt-set-up", daemon=True).start()
+    thread = threading.Thread(target=set_up, name="bsrt-set-up", daemon=True)
+    thread.start()
+    return thread
 
 
 @contextmanager
