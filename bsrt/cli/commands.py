@@ -147,11 +147,12 @@ def _cmd_render(args) -> int:
 
 
 def _cmd_map(args) -> int:
-    from bsrt.outputs import Outputs
-    from bsrt.rendering.image import png_writer
-    from bsrt.rendering.pipeline import Geometry
-    from bsrt.rendering.prelim import render_map
-    from bsrt.settings import with_settings
+    with interrupts.at_safe_points():  # as render's: a signal waits for the imports' end (bsrt/interrupts.py)
+        from bsrt.outputs import Outputs
+        from bsrt.rendering.image import png_writer
+        from bsrt.rendering.pipeline import Geometry
+        from bsrt.rendering.prelim import render_map
+        from bsrt.settings import with_settings
 
     out = _check_output(args.output, ".png")
     scene = _load_input(args)
