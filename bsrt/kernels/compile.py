@@ -148,13 +148,24 @@ def spawn(names: list[str]) -> subprocess.Popen:
 OPT_LEVEL = 2
 
 
+# The folder holding this bsrt package: a child that must run this very copy has it first on
+# PYTHONPATH and runs with -P or in this folder (``python -m`` puts the current folder first).
+PACKAGE_FOLDER = Path(__file__).resolve().parents[2]
+
+
+def this_bsrt_env(**extra) -> dict:
+    """The caller's environment with PACKAGE_FOLDER first on PYTHONPATH, then ``extra``."""
+    path = [str(PACKAGE_FOLDER)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(path), **extra}
+
+
 def worker_env() -> dict:
-    """The environment of a compile worker: the caller's, with the folder that holds this
-    package first on PYTHONPATH (:func:`spawn`) and NUMBA_OPT = OPT_LEVEL unless the caller
-    set one. numba's cache does not key machine code by the level, so the caller loads it."""
-    root = str(Path(__file__).resolve().parents[2])
-    path = [root] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
-    return {"NUMBA_OPT": str(OPT_LEVEL), **os.environ, "PYTHONPATH": os.pathsep.join(path)}
+    """The environment of a compile worker (:func:`spawn`): :func:`this_bsrt_env`, with
+    NUMBA_OPT = OPT_LEVEL unless the caller set one. numba's cache does not key machine code
+    by the level, so the caller loads it."""
+    env = this_bsrt_env()
+    env.setdefault("NUMBA_OPT", str(OPT_LEVEL))
+    return env
 
 
 def finish(children: list[subprocess.Popen], stop: bool = False) -> None:

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from bsrt.errors import InputError
+from bsrt.kernels import compile as compile_kernels
 from bsrt.kernels.threads import workers
 from bsrt.methods import MAP_METHODS, REFERENCE_METHOD
 from bsrt.rendering.options import RenderOptions
@@ -404,17 +405,9 @@ def render_argv(scene: str, out: Path) -> list[str]:
     return [sys.executable, "-m", "bsrt", "render", str(scene_path(scene).resolve()), "-o", str(out)]
 
 
-# The folder holding this bsrt package: children run there and have it first on PYTHONPATH
-# (``python -m`` puts the working folder before PYTHONPATH).
-CHILD_FOLDER = Path(__file__).resolve().parents[2]
-
-
-def child_env(**extra) -> dict:
-    """The environment of a child that runs this bsrt (CHILD_FOLDER first on PYTHONPATH)."""
-    import os
-
-    path = os.environ.get("PYTHONPATH")
-    return {**os.environ, "PYTHONPATH": str(CHILD_FOLDER) + (os.pathsep + path if path else ""), **extra}
+# children run in the folder holding this bsrt package, with it first on PYTHONPATH
+CHILD_FOLDER = compile_kernels.PACKAGE_FOLDER
+child_env = compile_kernels.this_bsrt_env
 
 
 def startup(scene: str = "column", repeat: int = 5) -> dict:
