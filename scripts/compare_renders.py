@@ -32,15 +32,20 @@ def render(root: Path, scene: Path, size: int, stem: Path) -> None:
     subprocess.run(args, env=env, check=True, stdout=subprocess.DEVNULL, cwd=stem.parent)
 
 
+def _file(stem: Path, suffix: str) -> Path:
+    """stem's file with suffix added (a model's stem may hold dots: ``Ring_5.98mm``)."""
+    return stem.with_name(stem.name + suffix)
+
+
 def compare(before: Path, after: Path) -> tuple[bool, str]:
     """(PNGs identical, one report line per scene and per differing array)."""
-    same = before.with_suffix(".png").read_bytes() == after.with_suffix(".png").read_bytes()
+    same = _file(before, ".png").read_bytes() == _file(after, ".png").read_bytes()
     line = "png identical" if same else "png DIFFERENT"
     if not same:
-        a, b = (np.asarray(Image.open(p.with_suffix(".png")), dtype=int) for p in (before, after))
+        a, b = (np.asarray(Image.open(_file(p, ".png")), dtype=int) for p in (before, after))
         d = np.abs(a - b).max(axis=-1)
         line += f" ({int((d > 0).sum())} pixels, {int((d > 2).sum())} by more than 2/255, max {d.max()})"
-    with np.load(before.with_suffix(".npz")) as A, np.load(after.with_suffix(".npz")) as B:
+    with np.load(_file(before, ".npz")) as A, np.load(_file(after, ".npz")) as B:
         for key in A.files:
             x, y = A[key], B[key]
             if np.array_equal(x, y, equal_nan=True):
@@ -61,7 +66,7 @@ def main() -> None:
     parser.add_argument("--after", type=Path, default=ROOT)
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--out", type=Path, help="keep the renders here (default: a temporary folder)")
-    args = parser.parse_args()
+    args = parser.parse_intermixed_args()
     scenes = args.scenes or sorted((ROOT / "scenes").glob("*.toml"))
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)

@@ -547,8 +547,18 @@ def test_map_bands_stitch_to_the_whole_map(ctx):
     assert len(refine.map_bands(800, 600)) == round(800 * 600 / refine.MAP_BAND_PIXELS)
     three = [(0, 30), (30, 60), (60, 90)]
     stitched = refine.stitch_maps([render_map(patches, scene.camera, width, height, ctx=ctx, rows=r) for r in three])
-    assert np.array_equal(stitched.surface, whole.surface)
-    covered = whole.surface >= 0
+    # The same surface at every pixel but where the line pass meets a border between two surfaces
+    # at a tie in depth: a band's off-centre projection rounds the lines it clips differently
+    # (GL promises no invariance across projections). Such a pixel shows one of the two, both
+    # in its 3 x 3 neighbourhood: a suspect pixel, solved exactly whichever it shows.
+    differ = np.argwhere(stitched.surface != whole.surface)
+    assert len(differ) <= width * height // 1000
+    for r, c in differ:
+        around = whole.surface[max(r - 1, 0) : r + 2, max(c - 1, 0) : c + 2]
+        assert {whole.surface[r, c], stitched.surface[r, c]} <= set(around.ravel()) and min(
+            whole.surface[r, c], stitched.surface[r, c]
+        ) >= 0
+    covered = (whole.surface >= 0) & (stitched.surface == whole.surface)
     assert np.allclose(stitched.u[covered], whole.u[covered], atol=1e-3)
     assert np.allclose(stitched.v[covered], whole.v[covered], atol=1e-3)
     assert ctx.error == "GL_NO_ERROR"

@@ -76,12 +76,24 @@ def keep_nearest(hits: Hits, ray: np.ndarray, candidates: Hits) -> np.ndarray:
     if not valid.size:
         return np.zeros(0, dtype=np.int64)
     r, t = ray[valid], candidates.t[valid]
-    order = np.lexsort((t, r))  # nearest first within each ray
-    valid, r, t = valid[order], r[order], t[order]
-    first = np.concatenate([[True], r[1:] != r[:-1]])
-    valid, r, t = valid[first], r[first], t[first]
+    if np.any(r[1:] < r[:-1]):  # not grouped by ray yet: nearest first within each ray
+        order = np.lexsort((t, r))
+        valid, r, t = valid[order], r[order], t[order]
+    valid, r, t = _nearest_of_each_run(valid, r, t)
     better = ~hits.hit[r] | (t < hits.t[r])
     valid, r = valid[better], r[better]
     for name in ("hit", "t", "surface", "patch", "u", "v", "residual"):
         getattr(hits, name)[r] = getattr(candidates, name)[valid]
     return r
+
+
+def _nearest_of_each_run(index: np.ndarray, ray: np.ndarray, t: np.ndarray):
+    """(index, ray, t) (K,) with ray non-decreasing -> the first record of least t of each run of
+    one ray, in ray order (the repair's candidates come grouped by pixel: no sort needed)."""
+    starts = np.flatnonzero(np.concatenate([[True], ray[1:] != ray[:-1]]))
+    if starts.size == ray.size:  # one record per ray
+        return index, ray, t
+    counts = np.diff(np.append(starts, ray.size))
+    least = np.flatnonzero(t == np.repeat(np.minimum.reduceat(t, starts), counts))
+    first = least[np.concatenate([[True], ray[least[1:]] != ray[least[:-1]]])]
+    return index[first], ray[first], t[first]

@@ -2,8 +2,9 @@
 
 Each Bezier patch is tessellated into a grid fine enough that its chords stay
 within half a pixel of the surface (map_mesh.py). OpenGL rasterises the
-triangles, then their edges as lines (so slivers thinner than a pixel still
-leave fragments), with a depth test into two targets: the map itself (red = surface
+triangles, then the edges that outline each surface's picture as lines (so
+slivers thinner than a pixel still leave fragments; map_mesh.outline_edges),
+with a depth test into two targets: the map itself (red = surface
 index + 1, green/blue = u, v normalised over the surface's domain), either
 32-bit float or the paper's 8-bit RGBA decoded with eq. 6, and the distance
 from the eye (32-bit float). Arrays leave this module; no GL object does (the
@@ -214,9 +215,9 @@ def _draw_tiles(patches, camera, width, mode, ctx, rows, height, side):
                 prog["clip_from_eye"].write(matrix.T.astype("f4").tobytes())
             size = (c1 - c0, r1 - r0)
             passes = _passes(ctx, size, dtype, resources)
-            # Every triangle edge again as a line, in a pass of its own: a sliver
-            # thinner than a pixel covers no pixel centre, but its edges still
-            # leave fragments. They fill pixels the triangles left empty and win
+            # The outline's edges (map_mesh.outline_edges) as lines, in a pass of
+            # its own: a sliver thinner than a pixel covers no pixel centre, but
+            # its edges still leave fragments. They fill pixels the triangles left empty and win
             # where they show a nearer other surface (decode_tile); elsewhere the
             # triangles' exact pixel-centre values stay.
             for name in ("tri", "line"):
