@@ -39,7 +39,7 @@ class Film:
         self._sums = np.zeros((height if keep else min(height, band // rows + 2), width, 3))
         self._base = 0  # the pixel row of _sums[0]
         self._complete = 0  # pixel rows 0 .. _complete - 1 are final
-        self.hits = Hits.blank(width * height) if keep else None  # every pixel-centre ray is put (put_hits)
+        self.hits: Hits | None = None  # when kept, every pixel-centre ray's record (put_hits)
         self._hit_samples = np.zeros((height, width), dtype=np.uint16)  # spp <= 256 < 2^16
         self.hit_count = self.iterations_sum = self.iterations_count = self.iterations_max = 0
 
@@ -103,9 +103,17 @@ class Film:
         return self._hit_samples
 
     def put_hits(self, start: int, hits: Hits) -> None:
-        """The pixel-centre rays start .. start + len(hits) - 1 found ``hits``."""
+        """The pixel-centre rays start .. start + len(hits) - 1 found ``hits``. A film traced in one
+        band keeps that band's records themselves (not a copy: 13 MB at 512 x 512); the caller
+        must not change them after."""
         if self.keep:
-            self.hits.put(slice(start, start + len(hits)), hits)
+            n = self.width * self.height
+            if self.hits is None and start == 0 and len(hits) == n:
+                self.hits = hits
+            else:
+                if self.hits is None:
+                    self.hits = Hits.blank(n)  # every record is put, band by band
+                self.hits.put(slice(start, start + len(hits)), hits)
         its = hits.iterations
         self.hit_count += int(np.count_nonzero(hits.hit))
         spent = its > 0
