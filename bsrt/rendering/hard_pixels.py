@@ -33,9 +33,10 @@ answers, 5-19% less time on the repair) and skips the piece holding that
 root unless the ray meets it grazing (it found the same root again; the
 hierarchy's time on the column's suspects 8.8 -> 5.9 ms, the same pictures);
 the nearer root wins. The starts once ran for every suspect, but for one with
-a root they only found what the hierarchy finds (the same pictures and hits
-on scenes/ and 65 model files without them; the column's repair 11.3 -> 8.5
-ms). A pixel
+a root they only found what the hierarchy finds (without them, on scenes/
+and 65 model files: the same pictures, and the same hits but for one pixel
+on the edge of two faces, either face's root; the column's repair 11.3 ->
+8.5 ms). A pixel
 whose repair found a nearer root than its own start's, within the layer
 slack (the map showed the farther of two close layers), makes its 8
 neighbours suspect too, round after round until a round finds no such
