@@ -253,8 +253,9 @@ def outline_edges(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     side = np.where(facing > margin, 1, np.where(facing < -margin, -1, 0)).astype(np.int8)
     edges = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
     low, high = edges.min(axis=1).astype(np.int64), edges.max(axis=1).astype(np.int64)
-    order = np.argsort(low << 32 | high, kind="stable")
-    key = (low << 32 | high)[order]
+    key = low << 32 | high
+    order = np.argsort(key, kind="stable")
+    key = key[order]
     starts = np.ones(key.size, dtype=bool)
     starts[1:] = key[1:] != key[:-1]
     first = np.flatnonzero(starts)  # each edge's first row in order
