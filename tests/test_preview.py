@@ -439,6 +439,39 @@ def test_input_callbacks_in_process(display, monkeypatch):
     assert window.gl_error == "GL_NO_ERROR" and not window.view.owned
 
 
+def test_an_outcome_ends_the_windows_wait_at_once(display, monkeypatch):
+    """The solver's outcome wakes the window waiting for input or its next frame (the thread that
+    reads the outcomes calls Window.wake): without it, wait(60) under Xvfb, where no input comes,
+    would return after a minute, and the image would be shown at the next frame, not at once."""
+    import time
+
+    monkeypatch.setenv("DISPLAY", display)
+    path = SCENES / "quad.toml"
+    app = preview.Preview(load_scene(path), path, preview.WindowOptions(120, 90))
+    app.open()
+    try:
+        solver = app.solver
+        deadline = time.monotonic() + TIMEOUT
+        while solver.active.running.value != solver_module.IDLE:  # warm: the job's time is the solve's
+            assert time.monotonic() < deadline, "the solver never got ready"
+            time.sleep(0.02)
+        generation = app.refine.generation  # martin: no map (this thread's GL is the window's)
+        solver.submit(solver_module.Job(generation, 0, "martin", app.camera, 40, 30, None, time.time()))
+        clock, got = time.monotonic(), []
+        while not got:  # the window's own events (its first expose) may end a wait too
+            app.window.wait(60.0)
+            got = solver.outcomes()
+            assert time.monotonic() - clock < 30.0, "the outcome did not end the window's wait"
+        assert [o.job.generation for o in got] == [generation] and got[0].error is None
+        options = RenderOptions.resolve(
+            app.scene, method="martin", camera=app.camera, width=40, height=30, spp=1, adaptive_spp=0
+        )
+        want = render(app.scene, options).pixels
+        assert np.array_equal(got[0].pixels, want)
+    finally:
+        app.close()
+
+
 def test_solver_abandons_a_stale_job_at_once(ctx):
     """A camera move while a long solve runs: the warm spare process takes over."""
     import time
@@ -466,8 +499,11 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
             assert time.monotonic() < deadline
             time.sleep(0.01)
         moved = orbit(scene.camera, 20.0, 0.0)
+        killed = solver.active
         solver.cancel_before(2)
         assert solver.swaps == 1
+        killed.watcher.join(10.0)  # the killed process's end of the pipe closed: its outcome reader ends
+        assert not killed.watcher.is_alive()
         solver.submit(job(2, 40, 30, moved))
         got = []
         while not got:

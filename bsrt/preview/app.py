@@ -102,7 +102,7 @@ class Preview:
         self.log = FrameLog()
         self.window = Window(self, scene_path)
         self.view: View | None = None
-        self.solver = Solver(scene, self.map_mode, options.cache)
+        self.solver = Solver(scene, self.map_mode, options.cache, wake=self.window.wake)
         self.refine = Refinement()
         self.fb_size = (0, 0)
         self.released = 0  # how many GL objects close() released

@@ -21,6 +21,7 @@ import os
 import queue
 import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass, replace
 
@@ -115,8 +116,8 @@ def _solve(scene, map_mode, geometry, job: Job, generation) -> Outcome:
 def _solver_process(scene, map_mode, jobs, outcomes, generation, running, device, cache=False) -> None:
     """A solver process's loop: render() each job that is still current (a live one in any case).
 
-    jobs: Queue of Job (None: stop), at most one at a time; outcomes: Queue
-    of Outcome, one per job (pixels None when abandoned); generation: shared
+    jobs: Queue of Job (None: stop), at most one at a time; outcomes: the
+    writing end of a pipe, an Outcome per job (pixels None when abandoned); generation: shared
     int, the window's newest generation; running: shared int, STARTING, IDLE
     or the generation of the job being solved; device: shared int, set once
     warm to the device the scene's ``device`` setting takes here (DEVICE_CODES).
@@ -145,12 +146,15 @@ def _solver_process(scene, map_mode, jobs, outcomes, generation, running, device
         if job is None:
             return
         if job.generation < generation.value and not job.live:
-            outcomes.put(Outcome(replace(job, prelim=None)))
-            continue
-        running.value = job.generation
-        outcome = _solve(scene, map_mode, geometry, job, generation)
-        running.value = IDLE
-        outcomes.put(outcome)
+            outcome = Outcome(replace(job, prelim=None))
+        else:
+            running.value = job.generation
+            outcome = _solve(scene, map_mode, geometry, job, generation)
+            running.value = IDLE
+        try:
+            outcomes.send(outcome)
+        except OSError:  # the window is gone (its end of the pipe closed)
+            return
 
 
 def _device_here(setting: str) -> str:
@@ -165,25 +169,54 @@ def _device_here(setting: str) -> str:
 
 
 class _Worker:
-    """One solver process, its queues and its state (main process side)."""
+    """One solver process, its job queue, its outcomes and its state (main process side).
 
-    def __init__(self, mp, scene, map_mode, generation, cache=False):
-        self.jobs, self.outcomes = mp.Queue(), mp.Queue()
+    Outcomes come back through a pipe whose reading end a thread of the
+    window's process watches: it takes each outcome as it comes (the image's
+    transfer and unpickling off the frame loop) and calls ``wake``, so the
+    window, waiting for its next frame, shows it at once (8 ms sooner on
+    average at 60 frames a second). Only the solver process holds the writing
+    end: when it ends, killed mid-message or not, the thread reads the end of
+    the file and ends too."""
+
+    def __init__(self, mp, scene, map_mode, generation, cache=False, wake=None):
+        self.jobs = mp.Queue()
+        reader, writer = mp.Pipe(duplex=False)
+        self.arrived: queue.SimpleQueue[Outcome] = queue.SimpleQueue()  # filled by the watcher thread
         self.running = mp.Value("q", STARTING, lock=False)
         self.device = mp.Value("b", DEVICE_CODES[None], lock=False)
         self.job: Job | None = None  # in flight: sent, its outcome not back yet
         self.process = mp.Process(
             target=_solver_process,
-            args=(scene, map_mode, self.jobs, self.outcomes, generation, self.running, self.device, cache),
+            args=(scene, map_mode, self.jobs, writer, generation, self.running, self.device, cache),
             name="bsrt-preview-solver",
             daemon=True,
         )
-        self.process.start()
+        try:
+            self.process.start()
+        finally:
+            writer.close()  # the solver process has its own
         if hasattr(os, "setpriority"):  # from the start (its imports too): the window keeps its core
             try:
                 os.setpriority(os.PRIO_PROCESS, self.process.pid, SOLVER_NICENESS)
             except OSError as exc:  # it still works, competing with the window for the CPU
                 print(f"bsrt preview: warning: cannot lower the solver's priority ({exc.strerror})", file=sys.stderr)
+        self.watcher = threading.Thread(
+            target=self._watch, args=(reader, wake), name="bsrt-preview-outcomes", daemon=True
+        )
+        self.watcher.start()
+
+    def _watch(self, reader, wake) -> None:
+        """The watcher thread: each outcome into ``arrived``, then wake(), until the process ends."""
+        with reader:
+            while True:
+                try:
+                    outcome = reader.recv()
+                except (EOFError, OSError):  # the process ended (perhaps mid-message)
+                    return
+                self.arrived.put(outcome)
+                if wake is not None:
+                    wake()
 
     def send(self, job: Job) -> None:
         self.job = job
@@ -193,7 +226,7 @@ class _Worker:
         out = []
         while True:
             try:
-                out.append(self.outcomes.get_nowait())
+                out.append(self.arrived.get_nowait())
             except queue.Empty:
                 return out
 
@@ -212,12 +245,12 @@ class _Worker:
                 if self.process.is_alive():
                     self.process.terminate()
         self.process.join(timeout)
+        self.watcher.join(timeout)  # the end of the pipe reached: no wake() after the window closes
         self._close_queues()
 
     def _close_queues(self) -> None:
-        for q in (self.jobs, self.outcomes):
-            q.cancel_join_thread()
-            q.close()
+        self.jobs.cancel_join_thread()
+        self.jobs.close()
 
 
 class Solver:
@@ -227,9 +260,9 @@ class Solver:
     of its time (many small array operations, the hierarchy's traversal), and
     a thread doubled the time the window's own map bands took (frame gaps of
     130-180 ms at 800x600); the processes run niced, so the window also wins
-    the CPU. Maps go there and images come back through queues (pickled in
-    multiprocessing's feeder threads, off the frame loop), one job in flight
-    per process.
+    the CPU. Maps go there through a queue (pickled in multiprocessing's
+    feeder thread, off the frame loop) and images come back through a pipe
+    (read by a thread, _Worker), one job in flight per process.
 
     Cancelling. render() can only be stopped between its stages (its
     progress callback), and a full-size shading stage with shadow rays takes
@@ -240,9 +273,10 @@ class Solver:
     the GPU preview) is never cancelled, and a live window keeps no spare.
     """
 
-    def __init__(self, scene, map_mode, cache=False):
+    def __init__(self, scene, map_mode, cache=False, wake=None):
+        """wake: called from another thread as each outcome arrives (the window collects it then)."""
         self._mp = multiprocessing.get_context("spawn")  # never fork a process holding a GL context
-        self._scene, self._map_mode, self._cache = scene, map_mode, cache
+        self._scene, self._map_mode, self._cache, self._wake = scene, map_mode, cache, wake
         self._generation = self._mp.Value("q", 0, lock=False)
         self._pending: collections.deque[Job] = collections.deque()
         self.active: _Worker | None = None
@@ -253,7 +287,7 @@ class Solver:
         self.swaps = 0
 
     def _worker(self) -> _Worker:
-        return _Worker(self._mp, self._scene, self._map_mode, self._generation, self._cache)
+        return _Worker(self._mp, self._scene, self._map_mode, self._generation, self._cache, self._wake)
 
     def start(self) -> None:
         self.active = self._worker()

@@ -147,6 +147,11 @@ class Window:
         else:
             glfw.poll_events()
 
+    def wake(self) -> None:
+        """End wait() now (callable from any thread: the solver's outcome watchers)."""
+        if self.handle is not None:
+            glfw.post_empty_event()
+
     def set_title(self, title: str) -> None:
         glfw.set_window_title(self.handle, title)
 
