@@ -473,14 +473,21 @@ def test_an_outcome_ends_the_windows_wait_at_once(display, monkeypatch):
 
 
 def test_solver_abandons_a_stale_job_at_once(ctx):
-    """A camera move while a long solve runs: the warm spare process takes over."""
+    """A camera move while a long solve runs: the warm spare process takes over; its outcome wakes
+    the window (here a wake that fails, which only leaves the outcome to the next frame)."""
     import time
 
     from bsrt.rendering.prelim import render_map
 
     scene = load_scene(SCENES / "column.toml")
     patches = Geometry(scene).patches
-    solver = solver_module.Solver(scene, "float")
+    woken = []
+
+    def wake():  # called as each outcome arrives; raising (a window closing) must not lose it
+        woken.append(time.monotonic())
+        raise RuntimeError("the window is closing")
+
+    solver = solver_module.Solver(scene, "float", wake=wake)
     solver.start()
     try:
 
@@ -515,6 +522,14 @@ def test_solver_abandons_a_stale_job_at_once(ctx):
             scene, RenderOptions.resolve(scene, camera=moved, width=40, height=30, spp=1, adaptive_spp=0)
         ).pixels
         assert np.array_equal(got[0].pixels, want)
+        solver.submit(job(2, 40, 30, moved))  # the next outcome still comes, past the failed wake
+        again = []
+        while not again:
+            again = solver.outcomes()
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert np.array_equal(again[0].pixels, want)
+        assert len(woken) == 2  # one per outcome: the killed process's job never came back
     finally:
         solver.stop()
     assert solver.active is None

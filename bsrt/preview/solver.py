@@ -216,7 +216,10 @@ class _Worker:
                     return
                 self.arrived.put(outcome)
                 if wake is not None:
-                    wake()
+                    try:
+                        wake()
+                    except Exception:  # (a window closing) the frame loop collects it at its next frame anyway
+                        pass
 
     def send(self, job: Job) -> None:
         self.job = job
