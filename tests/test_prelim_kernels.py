@@ -18,7 +18,7 @@ from bsrt.rendering.hard_pixels import (
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.solve import Rays
 from bsrt.scene import parse_scene
-from bsrt.scene.camera import Camera, pixel_rays
+from bsrt.scene.camera import Camera, pixel_ray_arrays, pixel_rays
 
 DOMAIN = np.array([[0.0, 1.0, 0.0, 1.0], [2.0, 5.0, -1.0, 3.0], [0.25, 0.75, 10.0, 10.5]])
 
@@ -131,6 +131,16 @@ def test_pixel_rays_are_the_numpy_expression_bit_for_bit(rows):
     y = (1.0 - 2.0 * (np.arange(first, stop) + 0.5) / height) * ty
     d = (f[None, None, :] + x[None, :, None] * r[None, None, :] + y[:, None, None] * u[None, None, :]).reshape(-1, 3)
     np.testing.assert_array_equal(pixel_rays(CAMERA, width, height, rows), d / np.linalg.norm(d, axis=1, keepdims=True))
+
+
+@pytest.mark.parametrize("rows", [None, (3, 8)])
+def test_pixel_ray_arrays_are_rays_from_arrays_of_pixel_rays_bit_for_bit(rows):
+    """The map tracer's rays in one pass: the same numbers as normalising pixel_rays again."""
+    origins, directions = pixel_ray_arrays(CAMERA, 11, 9, rows)
+    rays = Rays.from_arrays(CAMERA.eye[None, :], pixel_rays(CAMERA, 11, 9, rows))
+    np.testing.assert_array_equal(directions, rays.direction)
+    np.testing.assert_array_equal(origins, rays.origin)
+    assert origins.flags.c_contiguous and origins.flags.writeable and directions.flags.c_contiguous
 
 
 def test_pixel_rays_closed_form_centre_and_corner():
@@ -432,3 +442,94 @@ def test_neighbour_starts_of_a_hand_worked_map():
     np.testing.assert_array_equal(surf, [0, 1, 2])
     np.testing.assert_array_equal(su, [0.1, 0.2, 0.5])
     np.testing.assert_array_equal(sv, [1.1, 1.2, 0.25])
+
+
+# A bumpy bicubic sheet of 2 x 2 patches under a plate with a square hole (u, v in [0.3, 0.7] removed: its trim is
+# the outer square and the inner one), seen at a slant: seeds on both, roots inside the hole that
+# the trims remove, silhouettes where seeds fail.
+HOLE = (0.3, 0.7)
+
+
+def _square(lo, hi):
+    corners = [[lo, lo], [hi, lo], [hi, hi], [lo, hi], [lo, lo]]
+    return [{"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]} for a, b in zip(corners, corners[1:])]
+
+
+def _holed_scene():
+    sheet = {  # 2 x 2 patches: the plate's patch is 4, its surface 1
+        "degree": [3, 3],
+        "knots_u": [0, 0, 0, 0, 0.5, 1, 1, 1, 1],
+        "knots_v": [0, 0, 0, 0, 0.5, 1, 1, 1, 1],
+        "points": [[[x, y, 0.3 * np.sin(3 * x + 2 * y)] for y in np.linspace(-1, 1, 5)] for x in np.linspace(-1, 1, 5)],
+    }
+    plate = {
+        "degree": [1, 1],
+        "knots_u": [0, 0, 1, 1],
+        "knots_v": [0, 0, 1, 1],
+        "points": [[[-0.8, -0.8, 0.5], [-0.8, 0.8, 0.5]], [[0.8, -0.8, 0.5], [0.8, 0.8, 0.5]]],
+        "trim": [{"curves": _square(0.0, 1.0)}, {"curves": _square(*HOLE)}],
+    }
+    return parse_scene(
+        {
+            "film": {"width": 48, "height": 40},
+            "camera": {"eye": [0.4, -2.5, 2.2], "look_at": [0.0, 0.0, 0.2]},
+            "light": [{"kind": "ambient", "intensity": 1.0}],
+            "surface": [sheet, plate],
+        },
+        "<holed>",
+    )
+
+
+@pytest.mark.parametrize("method", ["newton", "gradient", "fast"])
+def test_the_seeded_solve_into_hits_is_find_roots_then_seeded_hits(ctx, method):
+    """trace._solved_seeds (solve_items writing hits) against find_roots of the seeded pixels and
+    _seeded_hits of its roots, bit for bit, trimmed roots included."""
+    from bsrt.methods import METHODS
+    from bsrt.rendering.pipeline import Geometry
+    from bsrt.rendering.solve import find_roots
+    from bsrt.rendering.trace import _seeded_hits, _solved_seeds
+
+    scene = _holed_scene()
+    geometry = Geometry(scene)
+    patches, camera, (w, h) = geometry.patches, scene.camera, (scene.film.width, scene.film.height)
+    rays = Rays(*pixel_ray_arrays(camera, w, h))
+    seeds = prelim.render_map(patches, camera, w, h, ctx=ctx)
+    tolerance, stops = 1e-9 * geometry.diagonal, METHODS[method].stops_on_growth
+    hits, failed, counts = _solved_seeds(patches, rays, seeds, method, tolerance, 64, stops)
+    covered = np.flatnonzero(seeds.surface.ravel() >= 0)
+    at = (seeds.surface.ravel()[covered], seeds.u.ravel()[covered], seeds.v.ravel()[covered])
+    res = find_roots(patches, rays, covered, *at, method=method, tolerance=tolerance, stop_on_growth=stops)
+    want, want_failed = _seeded_hits(len(rays), covered, res, patches.surface)
+    for name in Hits.FIELDS:
+        a, b = getattr(hits, name), getattr(want, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    np.testing.assert_array_equal(failed, want_failed)
+    assert counts == (covered.size, np.count_nonzero(~res.converged), np.count_nonzero(res.trimmed))
+    assert counts[2] > 0 and 0 < hits.hit.sum() < covered.size  # roots in the hole, removed by the trims
+
+
+def test_find_roots_keeps_a_root_exactly_where_the_square_hole_does_not_remove_it():
+    """Newton on the plate from starts all over its domain: a converged root counts (converged)
+    outside the hole [0.3, 0.7]^2 and is trimmed inside it, by the closed form of the hole."""
+    from bsrt.rendering.pipeline import Geometry
+    from bsrt.rendering.solve import find_roots
+
+    geometry = Geometry(_holed_scene())
+    rng = np.random.default_rng(3)
+    n = 4000
+    u, v = rng.random(n), rng.random(n)
+    target = np.stack([-0.8 + 1.6 * u, -0.8 + 1.6 * v, np.full(n, 0.5)], axis=1)  # the plate at (u, v)
+    eye = np.array([0.1, -0.2, 3.0])
+    rays = Rays.from_arrays(eye[None, :], target - eye)
+    res = find_roots(geometry.patches, rays, np.arange(n), np.ones(n, dtype=np.int64), np.full(n, 0.5), np.full(n, 0.5))
+    reached = res.converged | res.trimmed
+    assert reached.all()  # a plane: Newton reaches every root from its centre
+    inside = (res.u > HOLE[0]) & (res.u < HOLE[1]) & (res.v > HOLE[0]) & (res.v < HOLE[1])
+    edge = np.minimum.reduce(
+        [np.abs(res.u - HOLE[0]), np.abs(res.u - HOLE[1]), np.abs(res.v - HOLE[0]), np.abs(res.v - HOLE[1])]
+    )
+    sure = edge > 1e-9
+    np.testing.assert_array_equal(res.trimmed[sure], inside[sure])
+    np.testing.assert_array_equal(res.converged[sure], ~inside[sure])
+    assert 0.1 < inside.mean() < 0.2  # the hole's area, 0.16

@@ -74,17 +74,26 @@ def _decode(red, green, blue, float_map):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def pixel_rays_into(start, stop, forward, right, up, x, y, directions):
+def pixel_rays_into(start, stop, forward, right, up, x, y, eye, directions, origins):
     """Unit ray directions of pixels k = i * W + j: forward + x[j] right + y[i] up,
-    normalised, into directions (N, 3) float64 (x: (W,), y: (rows,) tangents)."""
+    normalised, into directions (N, 3) float64 (x: (W,), y: (rows,) tangents).
+    With origins (N, 3) (not (0, 3)): eye (3,) into each row, and each direction
+    normalised a second time, as Rays.from_arrays would (normalise_rows): the
+    rays of a map's pixels in one pass instead of two."""
     w = x.shape[0]
+    rays = origins.shape[0] > 0
     i, j = start // w, start % w
     for k in range(start, stop):
         dx = forward[0] + x[j] * right[0] + y[i] * up[0]
         dy = forward[1] + x[j] * right[1] + y[i] * up[1]
         dz = forward[2] + x[j] * right[2] + y[i] * up[2]
         n = np.sqrt(dx * dx + dy * dy + dz * dz)
-        directions[k, 0], directions[k, 1], directions[k, 2] = dx / n, dy / n, dz / n
+        dx, dy, dz = dx / n, dy / n, dz / n
+        if rays:
+            n = np.sqrt(dx * dx + dy * dy + dz * dz)
+            dx, dy, dz = dx / n, dy / n, dz / n
+            origins[k, 0], origins[k, 1], origins[k, 2] = eye[0], eye[1], eye[2]
+        directions[k, 0], directions[k, 1], directions[k, 2] = dx, dy, dz
         i, j = (i, j + 1) if j + 1 < w else (i + 1, 0)
 
 

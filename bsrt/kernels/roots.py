@@ -54,6 +54,7 @@ import numpy as np
 from bsrt.kernels.jit import njit
 from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
 from bsrt.kernels.patches import clamp, frame, inside_patch, locate, point
+from bsrt.kernels.trim import point_kept
 
 MAX_HALVINGS = 60
 STALL_STEPS = 32  # evaluations without halving w: stagnation
@@ -206,6 +207,7 @@ def solve_items(
     start,
     stop,
     P,
+    T,
     origin,
     direction,
     ray,
@@ -217,22 +219,49 @@ def solve_items(
     max_iterations,
     stop_on_growth,
     converged,
+    trimmed,
     u,
     v,
     patch,
     t,
     residual,
     iterations,
+    patch_surface,
+    hit,
+    hit_surface,
+    failed,
 ):
-    """solve_one for items start..stop-1: item i is ray[i] (into origin, direction
-    (N, 3), unit directions), surface[i], start (u0[i], v0[i]); results into
-    the (M,) outputs. Called on slices by threads.run_chunks."""
+    """solve_one for items start..stop-1, a root kept only where its surface's trims (T) keep it.
+
+    Item i is ray ray[i] (into origin, direction (N, 3), unit directions;
+    ray (0,): ray i), surface[i] (-1: no start), start (u0[i], v0[i]).
+    Writes (M,) converged (after the trims), trimmed (converged where the
+    trims remove it), u, v, patch, t, residual, iterations; an item without
+    a start: not converged, NaN, patch -1, 0 iterations. Called on slices by
+    threads.run_chunks.
+
+    As hits (hit, hit_surface, failed (M,), not (0,): the map tracer's
+    seeds, item i pixel i): u, v, patch, t, residual are written as Hits'
+    fields instead (NaN, -1 where there is no hit), with hit (a converged
+    root with t > 0), hit_surface (patch_surface[patch], -1) and failed (a
+    start without a hit).
+    """
     tol2 = tolerance * tolerance
+    identity = ray.shape[0] == 0
+    as_hits = hit.shape[0] > 0
     for i in range(start, stop):
-        r = ray[i]
+        r = i if identity else ray[i]
+        m = surface[i]
+        if m < 0:
+            converged[i] = trimmed[i] = False
+            u[i] = v[i] = t[i] = residual[i] = np.nan
+            patch[i], iterations[i] = -1, 0
+            if as_hits:
+                hit[i], hit_surface[i], failed[i] = False, -1, False
+            continue
         ok, uu, vv, k, tt, res, its, _ = solve_one(
             P,
-            surface[i],
+            m,
             u0[i],
             v0[i],
             origin[r, 0],
@@ -246,5 +275,13 @@ def solve_items(
             max_iterations,
             stop_on_growth,
         )
-        converged[i] = ok
-        u[i], v[i], patch[i], t[i], residual[i], iterations[i] = uu, vv, k, tt, res, its
+        cut = ok and not point_kept(T, m, uu, vv)
+        ok = ok and not cut
+        converged[i], trimmed[i], iterations[i] = ok, cut, its
+        if as_hits:
+            h = ok and tt > 0
+            add = 0.0 if h else np.nan
+            hit[i], failed[i] = h, not h
+            hit_surface[i] = patch_surface[k] if h else -1
+            uu, vv, tt, res, k = uu + add, vv + add, tt + add, res + add, k if h else -1
+        u[i], v[i], patch[i], t[i], residual[i] = uu, vv, k, tt, res

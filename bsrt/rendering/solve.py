@@ -15,7 +15,6 @@ from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.prelim import normalise_rows
 from bsrt.kernels.roots import solve_items
 from bsrt.kernels.threads import run_chunks
-from bsrt.kernels.trim import kept_many
 from bsrt.methods import METHODS, REFERENCE_METHOD
 from bsrt.rendering.hits import Hits
 
@@ -129,10 +128,12 @@ def find_roots(
     out = RootResult.empty(m)
     if m == 0:
         return out
+    none = np.empty(0, dtype=np.int64)
     run_chunks(
         solve_items,
         m,
         patches.arrays,
+        patches.trims,
         rays.origin,
         rays.direction,
         np.ascontiguousarray(ray, dtype=np.int64),
@@ -144,16 +145,16 @@ def find_roots(
         int(max_iterations),
         bool(stop_on_growth),
         out.converged,
+        out.trimmed,
         out.u,
         out.v,
         out.patch,
         out.t,
         out.residual,
         out.iterations,
+        none,  # not as hits (solve_items)
+        np.empty(0, dtype=bool),
+        none,
+        np.empty(0, dtype=bool),
     )
-    if patches.trimmed:
-        done = np.flatnonzero(out.converged)
-        kept = kept_many(patches.trims, np.ascontiguousarray(surface, dtype=np.int64)[done], out.u[done], out.v[done])
-        out.trimmed[done[~kept]] = True
-        out.converged[done[~kept]] = False
     return out

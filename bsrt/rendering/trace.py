@@ -18,15 +18,16 @@ from functools import partial
 import numpy as np
 
 from bsrt.kernels.prelim import seeded_hits
+from bsrt.kernels.roots import solve_items
 from bsrt.kernels.threads import run_chunks
 from bsrt.methods import METHODS
 from bsrt.rendering import gl, gpu, gpu_map, hard_pixels
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap, render_map
-from bsrt.rendering.solve import Rays, RootResult, find_roots
+from bsrt.rendering.solve import Rays, RootResult, find_roots, seeded_kernel_id
 from bsrt.rendering.stats import Stats
-from bsrt.scene.camera import pixel_footprint, pixel_rays
+from bsrt.scene.camera import pixel_footprint, pixel_ray_arrays, pixel_rays
 
 
 class HierarchyTracer:
@@ -75,8 +76,8 @@ class MapTracer:
         first, stop = rows
         lo, hi = max(0, first - 1), min(height, stop + 1)
         camera = self.options.camera
-        directions = pixel_rays(camera, width, height, (lo, hi))
-        rays = Rays.from_arrays(camera.eye[None, :], directions)
+        rays = Rays(*pixel_ray_arrays(camera, width, height, (lo, hi)))
+        directions = rays.direction
         roots = None
         self.report("map", done)
         if prelim is not None:
@@ -108,25 +109,32 @@ class MapTracer:
         """Hits of the map's pixels: roots (covered (M,), RootResult (M,)) of its seeds when given
         (solved with the map: gpu_map.py), else solved here, then the suspects repaired."""
         patches, options, stats = self.geometry.patches, self.options, self.stats
-        if roots is None:
-            seed = prelim.surface.ravel()
-            covered = np.flatnonzero(seed >= 0)
-            _, method, tolerance, max_iterations, stop_on_growth = self._solve_arguments()
-            res = self.find_roots(
-                patches,
-                rays,
-                covered,
-                seed[covered],
-                prelim.u.ravel()[covered],
-                prelim.v.ravel()[covered],
-                method=method,
-                tolerance=tolerance,
-                max_iterations=max_iterations,
-                stop_on_growth=stop_on_growth,
-            )  # a failure is re-solved as a suspect
+        _, method, tolerance, max_iterations, stop_on_growth = self._solve_arguments()
+        # (a seed whose root fails is solved again below, as a suspect)
+        if roots is None and self.find_roots is find_roots:  # on the CPU: from the seeds to the hits in one pass
+            hits, failed, counts = _solved_seeds(
+                patches, rays, prelim, method, tolerance, max_iterations, stop_on_growth
+            )
         else:
-            covered, res = roots
-        hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
+            if roots is None:  # on the GPU, from the map read back
+                seed = prelim.surface.ravel()
+                covered = np.flatnonzero(seed >= 0)
+                res = self.find_roots(
+                    patches,
+                    rays,
+                    covered,
+                    seed[covered],
+                    prelim.u.ravel()[covered],
+                    prelim.v.ravel()[covered],
+                    method=method,
+                    tolerance=tolerance,
+                    max_iterations=max_iterations,
+                    stop_on_growth=stop_on_growth,
+                )
+            else:
+                covered, res = roots
+            hits, failed = _seeded_hits(len(rays), covered, res, patches.surface)
+            counts = (covered.size, np.count_nonzero(~res.converged), np.count_nonzero(res.trimmed))
         suspect, layer, seam = hard_pixels.suspect_pixels(
             prelim, hits, failed, footprint, self.tolerance, patches.domain, hard_pixels.MAP_QUANTUM[options.map]
         )
@@ -135,9 +143,7 @@ class MapTracer:
             self.geometry, rays, prelim, hits, suspects, self.tolerance, options.max_iterations, footprint
         )
         for key, value in (
-            ("covered_by_map", covered.size),
-            ("non_converged", (~res.converged).sum()),
-            ("trimmed_roots", res.trimmed.sum()),
+            *zip(("covered_by_map", "non_converged", "trimmed_roots"), counts),
             ("suspect", suspects.size),
             ("wrong_layer", layer.sum()),
             ("seam", seam.sum()),
@@ -146,6 +152,47 @@ class MapTracer:
         ):
             stats.add(key, value)
         return hits
+
+
+def _solved_seeds(patches, rays: Rays, prelim: PrelimMap, method, tolerance, max_iterations, stop_on_growth):
+    """The CPU's seeded solve of a map's N pixels, straight into their hits (kernels/roots.solve_items
+    with every pixel an item): (Hits (N,), failed (N,) bool: a seed without a hit, (pixels with a
+    seed, their roots not converged, their roots trimmed away)); the same as find_roots of the
+    seeded pixels, then _seeded_hits."""
+    n = len(rays)
+    hits = Hits.blank(n)
+    converged, trimmed, failed = (np.empty(n, dtype=bool) for _ in range(3))
+    seed = np.ascontiguousarray(prelim.surface).reshape(-1)
+    run_chunks(
+        solve_items,
+        n,
+        patches.arrays,
+        patches.trims,
+        rays.origin,
+        rays.direction,
+        np.empty(0, dtype=np.int64),  # pixel i is ray i
+        seed,
+        np.ascontiguousarray(prelim.u).reshape(-1),
+        np.ascontiguousarray(prelim.v).reshape(-1),
+        seeded_kernel_id(method),
+        float(tolerance),
+        int(max_iterations),
+        bool(stop_on_growth),
+        converged,
+        trimmed,
+        hits.u,
+        hits.v,
+        hits.patch,
+        hits.t,
+        hits.residual,
+        hits.iterations,
+        np.ascontiguousarray(patches.surface, dtype=np.int64),
+        hits.hit,
+        hits.surface,
+        failed,
+    )
+    covered = np.count_nonzero(seed >= 0)
+    return hits, failed, (covered, covered - np.count_nonzero(converged), np.count_nonzero(trimmed))
 
 
 def _seeded_hits(n: int, covered: np.ndarray, res: RootResult, patch_surface: np.ndarray):

@@ -4,15 +4,20 @@ from __future__ import annotations
 
 import time
 
-from bsrt.methods import METHODS
+import numpy as np
+
+from bsrt.errors import InputError, RenderError
+from bsrt.kernels.trim import kept_many
+from bsrt.methods import METHODS, REFERENCE_METHOD
 from bsrt.rendering.options import RenderOptions
-from bsrt.rendering.pipeline import render
+from bsrt.rendering.pipeline import Geometry, render
 from bsrt.scene import parse_scene
 
 
 def warm_up() -> float:
     """Compile (or load) every kernel by rendering a tiny trimmed scene with each method and a
-    shadow-casting light (GL included), and the AOVs once; returns the seconds it took."""
+    shadow-casting light (GL included), and the AOVs once, and on the GPU path where the context
+    can run it; returns the seconds it took."""
     square = [
         {"degree": 1, "knots": [0, 0, 1, 1], "points": [a, b]}
         for a, b in (
@@ -45,4 +50,10 @@ def warm_up() -> float:
     for method in METHODS:
         result = render(scene, RenderOptions.resolve(scene, method=method))
     result.aovs()  # the AOVs' frames (--aov)
+    try:  # the GPU path's own kernels (the hits of its roots, its shading), where it can run
+        render(scene, RenderOptions.resolve(scene, method=REFERENCE_METHOD, device="gpu"))
+    except (InputError, RenderError):  # no OpenGL 4.5 compute with float64 here
+        pass
+    # the trim test of points one by one: a model's automatic framing (scene/auto.py), --edges
+    kept_many(Geometry(scene).patches.trims, np.array([1]), np.array([0.5]), np.array([0.5]))
     return time.perf_counter() - clock

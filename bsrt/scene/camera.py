@@ -56,14 +56,27 @@ def pixel_rays(camera: Camera, width: int, height: int, rows=None):
     tiled render); default all. Returns (n_rows * width, 3) float64; every
     ray starts at camera.eye.
     """
+    return _pixel_rays(camera, width, height, rows, origins=False)[1]
+
+
+def pixel_ray_arrays(camera: Camera, width: int, height: int, rows=None):
+    """pixel_rays as the arrays of a ray batch (rendering/solve.Rays): (origins (N, 3), the eye in
+    each row; directions (N, 3)), the directions normalised once more as Rays.from_arrays would,
+    bit for bit, in the same pass."""
+    return _pixel_rays(camera, width, height, rows, origins=True)
+
+
+def _pixel_rays(camera: Camera, width: int, height: int, rows, origins: bool):
     first, stop = rows if rows is not None else (0, height)
     r, u, f = camera.basis()
     tx, ty = camera.half_extents(width, height)
     x = (2.0 * (np.arange(width) + 0.5) / width - 1.0) * tx
     y = (1.0 - 2.0 * (np.arange(first, stop) + 0.5) / height) * ty
-    directions = np.empty(((stop - first) * width, 3))
-    run_chunks(pixel_rays_into, directions.shape[0], f, r, u, x, y, directions)  # (f + x r + y u) / |...|
-    return directions
+    n = (stop - first) * width
+    directions, start = np.empty((n, 3)), np.empty((n if origins else 0, 3))
+    eye = np.ascontiguousarray(camera.eye, dtype=np.float64)
+    run_chunks(pixel_rays_into, n, f, r, u, x, y, eye, directions, start)  # (f + x r + y u) / |...|
+    return start, directions
 
 
 def clip_from_eye(camera: Camera, width: int, height: int, near: float, far: float, rows=None) -> np.ndarray:
