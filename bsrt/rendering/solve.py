@@ -123,38 +123,72 @@ def find_roots(
     converged. stop_on_growth: give up on an item as soon as a Newton step
     increases the residual (Martin et al.'s rule, for starts that may be far).
     """
-    kernel_id = seeded_kernel_id(method)
+    seeded_kernel_id(method)  # an unknown method is an error, items or not
     m = np.shape(ray)[0]
     out = RootResult.empty(m)
     if m == 0:
         return out
-    none = np.empty(0, dtype=np.int64)
+    fields = (out.converged, out.trimmed, out.u, out.v, out.patch, out.t, out.residual, out.iterations)
+    _solve_items(patches, rays, ray, surface, u, v, method, tolerance, max_iterations, stop_on_growth, fields)
+    return out
+
+
+def find_pixel_hits(
+    patches: PatchSet,
+    rays: Rays,
+    surface: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    method: str = REFERENCE_METHOD,
+    tolerance: float = 1e-9,
+    max_iterations: int = 64,
+    stop_on_growth: bool = False,
+):
+    """find_roots for N rays, each from its own start (surface (N,), -1: none; u, v (N,)), written
+    as hits: (Hits (N,), failed (N,) bool: a start without a hit, converged (N,), trimmed (N,) as
+    RootResult's). The same numbers as find_roots of the rays with a start, then their roots put at
+    those rays as RootResult.as_hits (no hit, 0 iterations, where there is no start)."""
+    n = len(rays)
+    hits = Hits.blank(n)
+    converged, trimmed, failed = (np.empty(n, dtype=bool) for _ in range(3))
+    fields = (converged, trimmed, hits.u, hits.v, hits.patch, hits.t, hits.residual, hits.iterations)
+    as_hits = (np.ascontiguousarray(patches.surface, dtype=np.int64), hits.hit, hits.surface, failed)
+    every = np.empty(0, dtype=np.int64)  # ray i is item i
+    _solve_items(
+        patches, rays, every, surface, u, v, method, tolerance, max_iterations, stop_on_growth, fields, as_hits
+    )
+    return hits, failed, converged, trimmed
+
+
+def _solve_items(
+    patches, rays, ray, surface, u, v, method, tolerance, max_iterations, stop_on_growth, fields, as_hits=None
+):
+    """kernels/roots.solve_items over the items (surface, u, v: M values, any shape) into fields (converged, trimmed, u, v,
+    patch, t, residual, iterations), each (M,); as_hits: (patch_surface, hit, hit_surface, failed)
+    to write them as hits (the kernel's doc)."""
+    if as_hits is None:
+        as_hits = (
+            np.empty(0, dtype=np.int64),
+            np.empty(0, dtype=bool),
+            np.empty(0, dtype=np.int64),
+            np.empty(0, dtype=bool),
+        )
+    surface = np.ascontiguousarray(surface, dtype=np.int64).reshape(-1)
     run_chunks(
         solve_items,
-        m,
+        surface.size,
         patches.arrays,
         patches.trims,
         rays.origin,
         rays.direction,
         np.ascontiguousarray(ray, dtype=np.int64),
-        np.ascontiguousarray(surface, dtype=np.int64),
-        np.ascontiguousarray(u, dtype=np.float64),
-        np.ascontiguousarray(v, dtype=np.float64),
-        kernel_id,
+        surface,
+        np.ascontiguousarray(u, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(v, dtype=np.float64).reshape(-1),
+        seeded_kernel_id(method),
         float(tolerance),
         int(max_iterations),
         bool(stop_on_growth),
-        out.converged,
-        out.trimmed,
-        out.u,
-        out.v,
-        out.patch,
-        out.t,
-        out.residual,
-        out.iterations,
-        none,  # not as hits (solve_items)
-        np.empty(0, dtype=bool),
-        none,
-        np.empty(0, dtype=bool),
+        *fields,
+        *as_hits,
     )
-    return out

@@ -18,14 +18,13 @@ from functools import partial
 import numpy as np
 
 from bsrt.kernels.prelim import seeded_hits
-from bsrt.kernels.roots import solve_items
 from bsrt.kernels.threads import run_chunks
 from bsrt.methods import METHODS
 from bsrt.rendering import gl, gpu, gpu_map, hard_pixels
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap, render_map
-from bsrt.rendering.solve import Rays, RootResult, find_roots, seeded_kernel_id
+from bsrt.rendering.solve import Rays, RootResult, find_pixel_hits, find_roots
 from bsrt.rendering.stats import Stats
 from bsrt.scene.camera import pixel_footprint, pixel_ray_arrays, pixel_rays
 
@@ -155,43 +154,14 @@ class MapTracer:
 
 
 def _solved_seeds(patches, rays: Rays, prelim: PrelimMap, method, tolerance, max_iterations, stop_on_growth):
-    """The CPU's seeded solve of a map's N pixels, straight into their hits (kernels/roots.solve_items
-    with every pixel an item): (Hits (N,), failed (N,) bool: a seed without a hit, (pixels with a
-    seed, their roots not converged, their roots trimmed away)); the same as find_roots of the
-    seeded pixels, then _seeded_hits."""
-    n = len(rays)
-    hits = Hits.blank(n)
-    converged, trimmed, failed = (np.empty(n, dtype=bool) for _ in range(3))
-    seed = np.ascontiguousarray(prelim.surface).reshape(-1)
-    run_chunks(
-        solve_items,
-        n,
-        patches.arrays,
-        patches.trims,
-        rays.origin,
-        rays.direction,
-        np.empty(0, dtype=np.int64),  # pixel i is ray i
-        seed,
-        np.ascontiguousarray(prelim.u).reshape(-1),
-        np.ascontiguousarray(prelim.v).reshape(-1),
-        seeded_kernel_id(method),
-        float(tolerance),
-        int(max_iterations),
-        bool(stop_on_growth),
-        converged,
-        trimmed,
-        hits.u,
-        hits.v,
-        hits.patch,
-        hits.t,
-        hits.residual,
-        hits.iterations,
-        np.ascontiguousarray(patches.surface, dtype=np.int64),
-        hits.hit,
-        hits.surface,
-        failed,
+    """The CPU's seeded solve of a map's N pixels, straight into their hits (solve.find_pixel_hits):
+    (Hits (N,), failed (N,) bool: a seed without a hit, (pixels with a seed, their roots not
+    converged, their roots trimmed away)); the same as find_roots of the seeded pixels, then
+    _seeded_hits."""
+    hits, failed, converged, trimmed = find_pixel_hits(
+        patches, rays, prelim.surface, prelim.u, prelim.v, method, tolerance, max_iterations, stop_on_growth
     )
-    covered = np.count_nonzero(seed >= 0)
+    covered = np.count_nonzero(prelim.surface >= 0)
     return hits, failed, (covered, covered - np.count_nonzero(converged), np.count_nonzero(trimmed))
 
 
