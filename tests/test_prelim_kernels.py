@@ -10,9 +10,7 @@ from bsrt.rendering import gl, prelim
 from bsrt.rendering.hard_pixels import (
     FOLD_PIXELS,
     LAYER_SLACK_PIXELS,
-    NEIGHBOURS_NEAREST_FIRST,
     SEAM_RATIO,
-    neighbour_starts,
     suspect_pixels,
 )
 from bsrt.rendering.hits import Hits
@@ -389,59 +387,6 @@ def test_seeded_hits_are_as_hits_put_at_the_covered_pixels():
     np.testing.assert_array_equal(np.flatnonzero(failed), covered[~candidates.hit])
     empty, none = _seeded_hits(3, np.zeros(0, dtype=np.int64), res, patch_surface)
     assert not empty.hit.any() and not none.any() and (empty.surface == -1).all() and (empty.iterations == 0).all()
-
-
-def reference_starts(prelim_map, hits, suspects, surfaces):
-    """The NumPy expression neighbour_starts replaced: the nearest neighbour's start per (pixel, surface)."""
-    h, w = prelim_map.surface.shape
-    row, col = np.divmod(suspects, w)
-    parts = []
-    for di, dj in NEIGHBOURS_NEAREST_FIRST:
-        r, c = row + di, col + dj
-        inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        src = (r * w + c)[inside]
-        solved = hits.hit[src]
-        surf = np.where(solved, hits.surface[src], prelim_map.surface.ravel()[src])
-        keep = surf >= 0
-        u = np.where(solved, hits.u[src], prelim_map.u.ravel()[src])[keep]
-        v = np.where(solved, hits.v[src], prelim_map.v.ravel()[src])[keep]
-        parts.append((suspects[inside][keep], surf[keep], u, v))
-    pixel, surface, u, v = (np.concatenate(x) for x in zip(*parts))
-    _, first = np.unique(pixel * surfaces + surface, return_index=True)
-    return pixel[first], surface[first], u[first], v[first]
-
-
-@pytest.mark.parametrize("shape", [(1, 1), (3, 7), (40, 33)])
-def test_neighbour_starts_are_the_numpy_expression(shape):
-    rng = np.random.default_rng(sum(shape))
-    h, w = shape
-    surface = rng.integers(-1, 4, size=shape)
-    seeds = prelim.PrelimMap(surface, rng.random(shape), rng.random(shape), np.ones(shape), None)
-    hits = Hits.empty(h * w)
-    hits.hit[:] = rng.random(h * w) < 0.5
-    hits.surface[hits.hit] = rng.integers(0, 4, size=int(hits.hit.sum()))
-    hits.u[hits.hit], hits.v[hits.hit] = rng.random(int(hits.hit.sum())), rng.random(int(hits.hit.sum()))
-    suspects = np.flatnonzero(rng.random(h * w) < 0.6)
-    got = neighbour_starts(seeds, hits, suspects)
-    want = reference_starts(seeds, hits, suspects, 4)
-    for a, b in zip(got, want):
-        np.testing.assert_array_equal(a, b)
-
-
-def test_neighbour_starts_of_a_hand_worked_map():
-    # 2 x 3 film; seeds: surface 0 on the left column, 1 elsewhere; pixel 4 (row 1, column 1) hit
-    # surface 2 at (0.5, 0.25); the suspect pixel 1 (row 0, column 1) takes its own seed (1) first,
-    # surface 2 from pixel 4 below, and surface 0 from pixel 0 (left, nearer than 3 diagonal)
-    surface = np.array([[0, 1, 1], [0, 1, 1]])
-    u = np.array([[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]])
-    seeds = prelim.PrelimMap(surface, u, u + 1.0, np.ones((2, 3)), None)
-    hits = Hits.empty(6)
-    hits.hit[4], hits.surface[4], hits.u[4], hits.v[4] = True, 2, 0.5, 0.25
-    pixel, surf, su, sv = neighbour_starts(seeds, hits, np.array([1]))
-    np.testing.assert_array_equal(pixel, [1, 1, 1])
-    np.testing.assert_array_equal(surf, [0, 1, 2])
-    np.testing.assert_array_equal(su, [0.1, 0.2, 0.5])
-    np.testing.assert_array_equal(sv, [1.1, 1.2, 0.25])
 
 
 # A bumpy bicubic sheet of 2 x 2 patches under a plate with a square hole (u, v in [0.3, 0.7] removed: its trim is

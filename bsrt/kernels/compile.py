@@ -53,7 +53,6 @@ ENTRY_KERNELS = (
     prelim.normalise_rows,
     prelim.map_suspects,
     prelim.seeded_hits,
-    prelim.neighbour_starts,
     trim._kept_many,
     trim._rect_states,
     trim.classify_grid,

@@ -25,18 +25,20 @@ is *suspect* when (``suspect_pixels``, pure functions of the map and hits):
   between layers the seeds jump.
 
 ``repair`` solves every suspect again with the exact intersector (the
-hierarchy). A suspect that has no root yet is first solved with Newton from
-its own and its neighbours' starts (one per surface among them), so that the
-hierarchy has a root to search nearer than. The hierarchy searches only
-nearer than the suspect's root (pieces behind it are not solved: the same
-answers, 5-19% less time on the repair) and skips the piece holding that
-root unless the ray meets it grazing (it found the same root again; the
-hierarchy's time on the column's suspects 8.8 -> 5.9 ms, the same pictures);
-the nearer root wins. The starts once ran for every suspect, but for one with
-a root they only found what the hierarchy finds (without them, on scenes/
-and 65 model files: the same pictures, and the same hits but for one pixel
-on the edge of two faces, either face's root; the column's repair 11.3 ->
-8.5 ms). A pixel
+hierarchy). The hierarchy searches only nearer than the suspect's root
+(pieces behind it are not solved: the same answers, 5-19% less time on the
+repair) and skips the piece holding that root unless the ray meets it
+grazing (it found the same root again; the hierarchy's time on the column's
+suspects 8.8 -> 5.9 ms, the same pictures); the nearer root wins. A suspect
+without a root is searched whole. Newton from its neighbours' starts once
+came first, for a root to search nearer than, and for every suspect before
+that; but they only found what the hierarchy finds, and cost more than they
+saved (without them, on scenes/ and 65 model files: the same pictures, and
+the same hits but for one pixel on the edge of two faces, either face's
+root; the column's repair 11.3 -> 8.5 ms; for the suspects without a root,
+on scenes/ and 71 model files: the same pictures and hits, t within the
+residual over |cos| at grazing roots, 1 ms less on the column and on
+water-lily). A pixel
 whose repair found a nearer root than its own start's, within the layer
 slack (the map showed the farther of two close layers), makes its 8
 neighbours suspect too, round after round until a round finds no such
@@ -49,12 +51,10 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.kernels.prelim import map_suspects
-from bsrt.kernels.prelim import neighbour_starts as starts_kernel
 from bsrt.kernels.threads import run_chunks
-from bsrt.methods import REFERENCE_METHOD
 from bsrt.rendering.hits import Hits, keep_nearest
 from bsrt.rendering.prelim import PrelimMap
-from bsrt.rendering.solve import Rays, find_roots
+from bsrt.rendering.solve import Rays
 
 # A root farther than this many pixel footprints from the map's rasterised
 # distance is on another layer (or the map missed a nearer piece).
@@ -70,9 +70,6 @@ SEAM_RATIO = 4.0
 SEAM_QUANTA = 4.0
 MAP_QUANTUM = {"float": 2.0**-22, "rgba8": 1.0 / 255.0}  # the map's (u, v) step (float32: a few ulps below 1)
 NEIGHBOURS = [(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
-# (row, column) steps, the pixel's own first, then by city-block distance (the starts' order)
-NEIGHBOURS_NEAREST_FIRST = np.array(sorted(NEIGHBOURS, key=lambda o: abs(o[0]) + abs(o[1])), dtype=np.int64)
-REPAIR_ITERATIONS = 16
 SAME_ROOT = 100.0  # tolerances: the hierarchy's search of a suspect ends this far past its root
 
 
@@ -118,23 +115,6 @@ def suspect_pixels(
     return suspect, layer, seam
 
 
-def neighbour_starts(prelim: PrelimMap, hits: Hits, suspects: np.ndarray):
-    """One Newton start per (suspect pixel, surface among its 3x3 neighbourhood), the nearest neighbour's.
-
-    A neighbour gives its converged (u, v) where it has a hit, else its map
-    seed; a second layer of the same surface (a fold) is the hierarchy's job.
-    suspects: (N,) sorted. Returns (pixel (K,), surface (K,), u (K,), v (K,)),
-    in (pixel, surface) order (kernels/prelim.py).
-    """
-    h, w = prelim.surface.shape
-    k = NEIGHBOURS_NEAREST_FIRST.shape[0] * suspects.size
-    pixel, surface, u, v = np.empty(k, dtype=np.int64), np.empty(k, dtype=np.int64), np.empty(k), np.empty(k)
-    seeds = (prelim.surface.ravel(), prelim.u.ravel(), prelim.v.ravel())
-    n = starts_kernel(suspects, w, h, NEIGHBOURS_NEAREST_FIRST, hits.hit, hits.surface, hits.u, hits.v, *seeds,
-                      pixel, surface, u, v)  # fmt: skip
-    return pixel[:n], surface[:n], u[:n], v[:n]
-
-
 def repair(
     geometry,
     rays: Rays,
@@ -142,7 +122,6 @@ def repair(
     hits: Hits,
     suspects: np.ndarray,
     tolerance: float,
-    max_iterations: int,
     footprint: float,
 ) -> tuple[np.ndarray, int]:
     """Re-solve the suspect pixels (N,) (sorted), then the neighbours of those that had a farther layer.
@@ -162,7 +141,7 @@ def repair(
     changed = 0
     while front.size:
         had, t, surface = hits.hit[front], hits.t[front], hits.surface[front]  # copies (fancy indexing)
-        _repair_once(geometry, rays, prelim, hits, front, tolerance, max_iterations)
+        _repair_once(geometry, rays, hits, front, tolerance)
         changed += int(
             np.count_nonzero(
                 (had != hits.hit[front])
@@ -186,36 +165,14 @@ def repair(
     return np.flatnonzero(visited), changed
 
 
-def _repair_once(
-    geometry, rays: Rays, prelim: PrelimMap, hits: Hits, suspects: np.ndarray, tolerance: float, max_iterations: int
-) -> None:
-    """Re-solve the suspect pixels (N,) (sorted) with the hierarchy, those without a root first from
-    their neighbours' starts.
+def _repair_once(geometry, rays: Rays, hits: Hits, suspects: np.ndarray, tolerance: float) -> None:
+    """Re-solve the suspect pixels (N,) (sorted) with the hierarchy.
 
     The nearest valid root wins, so a pixel is wrong only if the exact
     intersector misses a root nearer than the one it has.
     """
     if not suspects.size:
         return
-    patches = geometry.patches
-    rootless = suspects[~hits.hit[suspects]]  # only these need the starts: a bound for the hierarchy
-    pixel, surface, u, v = neighbour_starts(prelim, hits, rootless)
-    # Newton from a pixel away converges in a few steps or not at all.
-    res = find_roots(
-        patches,
-        rays,
-        pixel,
-        surface,
-        u,
-        v,
-        method=REFERENCE_METHOD,
-        tolerance=tolerance,
-        max_iterations=min(max_iterations, REPAIR_ITERATIONS),
-        stop_on_growth=True,
-    )
-    spent = np.bincount(np.searchsorted(rootless, pixel), weights=res.iterations, minlength=rootless.size)
-    hits.iterations[rootless] += spent.astype(np.int32)  # every start's evaluations, on its pixel
-    keep_nearest(hits, pixel, res.as_hits(patches))
     # the hierarchy only has to find what lies nearer than the suspect's root (a root within
     # SAME_ROOT tolerances of it is the same root): pieces behind it are not solved, and neither is
     # the piece holding that root unless the ray meets it grazing (bvh.py: a piece's normals lie

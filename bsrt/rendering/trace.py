@@ -138,9 +138,7 @@ class MapTracer:
             prelim, hits, failed, footprint, self.tolerance, patches.domain, hard_pixels.MAP_QUANTUM[options.map]
         )
         suspects = np.flatnonzero(suspect)
-        repaired, changed = hard_pixels.repair(
-            self.geometry, rays, prelim, hits, suspects, self.tolerance, options.max_iterations, footprint
-        )
+        repaired, changed = hard_pixels.repair(self.geometry, rays, prelim, hits, suspects, self.tolerance, footprint)
         for key, value in (
             *zip(("covered_by_map", "non_converged", "trimmed_roots"), counts),
             ("suspect", suspects.size),
