@@ -34,16 +34,27 @@ def test_run_chunks_covers_every_index_once():
 
 def test_run_chunks_last_slices_shrink_with_what_is_left():
     """Slices tile [0, n) once; toward the end each takes at most a 1/(2 x threads) share of what
-    is left (or FIRST_SLICE items), so no thread is left with a long last slice."""
-    slices = []
-
-    def kernel(start, stop, out):
-        out[start:stop] += 1
-        slices.append((start, stop))
-
-    seen = np.zeros(200_000, dtype=np.int64)
-    run_chunks(kernel, seen.size, seen, min_chunk=256)
+    is left, so no thread is left with a long last slice, but no less than TAIL_SECONDS of the
+    measured work (or FIRST_SLICE items, or what is left)."""
+    n, cost = 200_000, 2e-8  # seconds per item: the tail's floor is 5,000 items
+    floor = int(threads.TAIL_SECONDS / cost)
+    cursor = threads._Cursor(n, threads.FIRST_SLICE, n // 8, threads=2)
+    seen = np.zeros(n, dtype=np.int64)
+    sizes, lefts = [], []
+    while True:
+        start, stop = cursor.take()
+        if start >= stop:
+            break
+        seen[start:stop] += 1
+        sizes.append(stop - start)
+        lefts.append(n - start)
+        assert stop - start <= max(floor, (n - start) // 4), (start, stop)  # a quarter of what is left: 2 threads
+        cursor.measured(stop - start, (stop - start) * cost)
     assert np.all(seen == 1)
-    share = 2 * min(threads.workers(), -(-seen.size // threads.FIRST_SLICE))
-    for start, stop in slices:
-        assert stop - start <= max(threads.FIRST_SLICE, (seen.size - start) // share)
+    assert sizes[:3] == [threads.FIRST_SLICE, 8 * threads.FIRST_SLICE, 64 * threads.FIRST_SLICE]  # the ramp
+    full = sizes.index(n // 8)
+    assert all(size >= min(floor, left) for size, left in zip(sizes[full:], lefts[full:]))
+    assert sizes[-2] == floor  # the tail stopped shrinking at the floor
+    # items 100x dearer: the floor follows the measured cost down to FIRST_SLICE
+    cursor.measured(100, 100 * 1e-3)
+    assert cursor.smallest == threads.FIRST_SLICE
