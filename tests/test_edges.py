@@ -355,16 +355,3 @@ def test_a_periodic_seam_is_no_edge():
     # the top border z = 1 at the seam: the point (1, 0, 1) at row 32 - 32 / (4 tan 20) is drawn
     top = int(size / 2 - 1.0 / (4.0 * math.tan(math.radians(20.0))) * size / 2)
     assert cover[top - 1 : top + 2, 31:33].max() > 0.5
-
-
-def test_the_pixels_to_refine_are_the_same_worked_out_in_bands():
-    """disagreeing() works band by band (bounded memory on big films): any band height gives the
-    marks of the whole film at once, borders included."""
-
-    rng = np.random.default_rng(7)
-    pixels = rng.integers(0, 256, size=(41, 23, 3), dtype=np.uint8)
-    pixels[10:30, 5:15] = 128  # flat regions: unmarked inside
-    whole = disagreeing(pixels, rows=10**6)
-    assert whole.any() and not whole.all()
-    for rows in (1, 2, 7, 40):
-        assert np.array_equal(disagreeing(pixels, rows=rows), whole), rows

@@ -28,7 +28,20 @@ import sys
 import time
 from pathlib import Path
 
-from bsrt.kernels import film, flatten, lighting, patches, prelim, roots, shading, tables, traverse, trim, trim_pieces
+from bsrt.kernels import (
+    antialias,
+    film,
+    flatten,
+    lighting,
+    patches,
+    prelim,
+    roots,
+    shading,
+    tables,
+    traverse,
+    trim,
+    trim_pieces,
+)
 
 # the kernels called from Python (the rest are compiled as part of them)
 ENTRY_KERNELS = (
@@ -48,6 +61,8 @@ ENTRY_KERNELS = (
     lighting.shade_hits,
     film.add_samples,
     film.encode_rows,
+    antialias.mark_rows,
+    antialias.block_samples,
     prelim.decode_tile,
     prelim.pixel_rays_into,
     prelim.normalise_rows,

@@ -52,39 +52,20 @@ import itertools
 
 import numpy as np
 
-from bsrt.rendering.image import srgb_decode, srgb_encode
+from bsrt.kernels.antialias import SIDES, block_samples, mark_rows
+from bsrt.kernels.threads import run_chunks
+from bsrt.rendering.image import DECODED, srgb_encode
 from bsrt.rendering.screen import film_rays
 
 CONTRAST = 16  # 8-bit sRGB levels
-BAND_ROWS = 256  # pixel rows whose differences are worked out at once
 
 
-def disagreeing(pixels: np.ndarray, rows: int = BAND_ROWS) -> np.ndarray:
+def disagreeing(pixels: np.ndarray) -> np.ndarray:
     """pixels: (H, W, 3) uint8 -> (H, W) bool, True where the second difference along the row or the
-    column (the first difference at the film's border) exceeds CONTRAST levels in some channel.
-    Worked out ``rows`` pixel rows at a time (each with its neighbours above and below), so the
-    temporaries are bounded by the band, not the film."""
-    height = pixels.shape[0]
-    marked = np.zeros(pixels.shape[:2], dtype=bool)
-    for top in range(0, height, rows):
-        bottom = min(height, top + rows)
-        lo, hi = max(0, top - 1), min(height, bottom + 1)
-        marked[top:bottom] = _disagreeing(pixels[lo:hi])[top - lo : bottom - lo]
-    return marked
-
-
-def _disagreeing(pixels: np.ndarray) -> np.ndarray:
-    """disagreeing for one slab of rows (its first and last rows taken as the film's border)."""
-    p = pixels.astype(np.int16)  # second differences lie within +-510
-    marked = np.zeros(p.shape[:2], dtype=bool)
-    for axis in (0, 1):
-        q = np.moveaxis(p, axis, 0)  # (n, m, 3): differences along the first axis
-        m = np.moveaxis(marked, axis, 0)  # a view: writes go to marked
-        if q.shape[0] < 2:
-            continue
-        m[1:-1] |= _beyond(q[:-2] - 2 * q[1:-1] + q[2:])
-        m[0] |= _beyond(q[1] - q[0])
-        m[-1] |= _beyond(q[-1] - q[-2])
+    column (the first difference at the film's border) exceeds CONTRAST levels in some channel
+    (kernels/antialias.mark_rows, row by row on every core)."""
+    marked = np.empty(pixels.shape[:2], dtype=bool)
+    run_chunks(mark_rows, pixels.shape[0], np.ascontiguousarray(pixels), CONTRAST, marked, min_chunk=64)
     return marked
 
 
@@ -112,20 +93,27 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     tells its background, exact at 255, from a highlight; None: every centre counts as a hit)."""
     offset = rotated_grid(*grid)  # (n, 2)
     step = max(1, chunk_samples // offset.shape[0])
-    centres = _Centres(linear, pixels, coverage if coverage is not None else centre_hits, options.width, options.height)
+    hits = coverage if coverage is not None else centre_hits
+    centres = (
+        np.empty((0, 3)) if linear is None else linear.reshape(-1, 3),
+        pixels.reshape(-1, 3),
+        np.empty(0) if hits is None else np.ascontiguousarray(hits, dtype=np.float64).reshape(-1),
+    )
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     odd = (marked % options.width + marked // options.width) % 2 == 1
-    known = None
-    for group in (marked[~odd], marked[odd]):  # the odd pixels' four neighbours are even
+    known = _first_pass_none(offset.shape[0])
+    results = []
+    for second, group in enumerate((marked[~odd], marked[odd])):  # the odd pixels' four neighbours are even
         done = [
             _block(group[a : a + step], offset, grid, known, centres, shade, trace, options, stats)
             for a in range(0, group.size, step)
         ]
-        colour, hit, traced = (np.concatenate([d[k] for d in done]) if done else None for k in range(3))
-        if known is None:  # the even pixels' samples, for the odd ones: (indices, colour, levels)
-            first = (group, colour, hit, traced)
-            known = (group, colour, srgb_encode(colour)) if group.size else ()
-    results = [r for r in (first, (group, colour, hit, traced)) if r[0].size]
+        if not done:
+            continue
+        colour, hit, traced = (np.concatenate([d[k] for d in done]) for k in range(3))
+        results.append((group, colour, hit, traced))
+        if not second:  # the even pixels' samples, for the odd ones: (indices, colour, levels)
+            known = (group, colour, srgb_encode(colour))
     stats.add("adaptive_pixels", marked.size)
     stats.add("adaptive_full", sum(int(r[3].all(axis=1).sum()) for r in results))
     stats.add("adaptive_samples", sum(int(r[3].sum()) for r in results))
@@ -138,88 +126,15 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
         pixels.reshape(-1, 3)[group] = srgb_encode(value)
 
 
-class _Centres:
-    """The one-sample render's pixel-centre samples, read by flat pixel index (K,) (row-major)."""
-
-    def __init__(self, linear, pixels, hits, width: int, height: int):
-        """hits: (H, W), non-zero where the centre ray hit (the coverage or a hit count), or None."""
-        self.linear, self.levels = linear, pixels.reshape(-1, 3)
-        self.hits, self.width, self.height = hits, width, height
-
-    def colour(self, index) -> np.ndarray:
-        """(K, 3) linear RGB (decoded from the 8-bit pixels where the film keeps no linear RGB)."""
-        if self.linear is not None:
-            return self.linear.reshape(-1, 3).take(index, axis=0)
-        return srgb_decode(self.levels_at(index))
-
-    def levels_at(self, index) -> np.ndarray:
-        """(K, 3) uint8 sRGB levels (take: several times faster than fancy indexing of rows)."""
-        return self.levels.take(index, axis=0)
-
-    def usable(self, index) -> np.ndarray:
-        """(K,) bool: the colour can be interpolated from. A streamed film's 8-bit colour at 255 in
-        some channel may stand for more than 1 (a highlight, a light seen directly) where the centre
-        ray hit: its samples near such a centre are traced (the background's colour is exact)."""
-        if self.linear is not None:
-            return np.ones(len(index), bool)
-        levels = self.levels_at(index)
-        return (levels[:, 0] < 255) & (levels[:, 1] < 255) & (levels[:, 2] < 255) | ~self.hit(index)
-
-    def hit(self, index) -> np.ndarray:
-        """(K,) bool: the centre ray hit (True where the film counts none)."""
-        return self.hits.reshape(-1)[index] > 0 if self.hits is not None else np.ones(len(index), bool)
-
-    def neighbour(self, index, dx: int, dy: int):
-        """The pixels (dx, dy) from index: (flat index (K,), clamped to the film; inside (K,) bool)."""
-        y, x = np.divmod(index, self.width)
-        inside = (x + dx >= 0) & (x + dx < self.width) & (y + dy >= 0) & (y + dy < self.height)
-        return np.where(inside, index + dx + dy * self.width, index), inside
+def _first_pass_none(n: int):
+    """The first pass's samples before there are any: (pixels (0,), colour (0, n, 3), levels (0, n, 3))."""
+    return np.empty(0, dtype=np.int64), np.empty((0, n, 3)), np.empty((0, n, 3), dtype=np.uint8)
 
 
-def _apart(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """p, q: (K, 3) 8-bit colours -> (K,) bool, True where they differ by more than CONTRAST in some channel."""
-    return _beyond(p.astype(np.int32) - q)
-
-
-def _beyond(difference: np.ndarray) -> np.ndarray:
-    """difference: (..., 3) signed levels -> (...) bool, True where some channel's exceeds CONTRAST
-    either way (the channels compared one by one: numpy's reduction over a last axis of 3 is slow)."""
-    a = np.abs(difference)
-    return (a[..., 0] > CONTRAST) | (a[..., 1] > CONTRAST) | (a[..., 2] > CONTRAST)
-
-
-def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options, stats):
+def _block(marked, offset, grid, known, centres, shade, trace, options, stats):
     """The samples at offset (n, 2) of the marked pixels (K,) (flat indices): (colour (K, n, 3) linear
-    RGB, hit (K, n) bool, traced (K, n) bool). known: empty, or the samples of the pixels of the
-    first pass (indices (M,) sorted, colour (M, n, 3), 8-bit levels (M, n, 3)), which a
-    sample may also be interpolated from (the second pass: the marked pixels' neighbours are there)."""
-    n = offset.shape[0]
-    centre, levels, centre_usable = centres.colour(marked), centres.levels_at(marked), centres.usable(marked)
-    colour, hit = np.empty((marked.size, n, 3)), np.repeat(centres.hit(marked)[:, None], n, axis=1)
-    need = np.zeros((marked.size, n), dtype=bool)
-    # the pixel itself, then its four neighbours (SIDES), each gathered once:
-    # (index (K,), inside the film (K,), levels (K, 3), colour (K, 3), usable (K,))
-    near = [(marked, np.ones(marked.size, bool), levels, centre, centre_usable)]
-    for dx, dy in SIDES:
-        index, inside = centres.neighbour(marked, dx, dy)
-        near.append((index, inside, centres.levels_at(index), centres.colour(index), centres.usable(index)))
-    apart = [None] + [_apart(levels, m[2]) for m in near[1:]]  # each neighbour apart from the centre
-    for s, (dx, dy) in enumerate(offset - 0.5):  # from the pixel centre, in pixels
-        # the sample lies in the triangle of the centre and its neighbours on its side along the
-        # row (h) and the column (v): where those agree, it is on their side of any straight edge
-        h = 1 + SIDES.index((1 if dx > 0 else -1, 0))
-        v = 1 + SIDES.index((0, 1 if dy > 0 else -1))
-        need[:, s] = ~centre_usable
-        if dx != 0:
-            need[:, s] |= ~near[h][1] | ~near[h][4] | apart[h]
-        if dy != 0:
-            need[:, s] |= ~near[v][1] | ~near[v][4] | apart[v]
-        if dx != 0 and dy != 0:
-            need[:, s] |= _apart(near[h][2], near[v][2])  # (either neighbour outside is needed already)
-        colour[:, s] = centre + abs(dx) * (near[h][3] - centre) + abs(dy) * (near[v][3] - centre)
-    if known and need.any():  # not across a line one pixel thin (the centre apart from both neighbours)
-        wide = ~((apart[1] & apart[2]) | (apart[3] & apart[4]))
-        _from_neighbours([tuple(a[wide] for a in m) for m in near], grid, known, colour, need, wide)
+    RGB, hit (K, n) bool, traced (K, n) bool): those _decide leaves needed traced and shaded here."""
+    colour, hit, need = _decide(marked, offset, grid, known, centres, options.width, options.height)
     which, sample = np.nonzero(need)
     if which.size:
         xy = np.stack([marked[which] % options.width, marked[which] // options.width], axis=1) + offset[sample]
@@ -231,46 +146,43 @@ def _block(marked, offset, grid, known, centres: _Centres, shade, trace, options
     return colour, hit, need
 
 
-def _from_neighbours(near, grid, known, colour, need, rows) -> None:
-    """Interpolate, in place, the samples still needed of J marked pixels, rows (a (K,) mask, J
-    True) of colour (K, n, 3) and need (K, n) (cleared where done) that lie in a triangle of points
-    known around their pixel that agree within CONTRAST (the centre, the four neighbours' centres
-    and their samples, of the first pass or, for a pixel not marked, its centre's value): the mean
-    of the triangle's colours. near: the J pixels themselves, then their neighbours at SIDES, as
-    _block gathers them (index (J,), inside the film (J,), levels (J, 3), colour (J, 3), usable (J,))."""
-    points, triangles = _triangles(*grid)
-    first, first_colour, first_levels = known
-    table = {}  # point -> (levels (J, 3), colour (J, 3), inside the film and usable (J,))
-    found = {}  # side -> (where the neighbour is a first-pass pixel (J,), its row there)
-
-    def point(p):
-        if p not in table:
-            side, sample = int(points[p, 2]), int(points[p, 3])
-            index, inside, levels, col, usable = near[side + 1]
-            lv = levels.astype(np.int32)
-            if sample >= 0:  # a neighbour's sample: the first pass's where it was marked
-                if side not in found:
-                    at = np.minimum(np.searchsorted(first, index), first.size - 1)
-                    there = first[at] == index
-                    found[side] = there, at[there]
-                there, at = found[side]
-                col, usable = col.copy(), usable.copy()
-                lv[there], col[there] = first_levels[at, sample], first_colour[at, sample]
-                usable[there] = True  # traced, or interpolated from usable colours
-            table[p] = lv, col, inside & usable
-        return table[p]
-
-    rows = np.flatnonzero(rows)
-    for s in np.flatnonzero(need[rows].any(axis=0)):
-        for a, b, c in triangles[s]:  # smallest first
-            (la, ca, ia), (lb, cb, ib), (lc, cc, ic) = point(a), point(b), point(c)
-            agree = need[rows, s] & ia & ib & ic & ~_apart(la, lb) & ~_apart(lb, lc) & ~_apart(la, lc)
-            done = rows[agree]
-            colour[done, s] = ((ca + cb + cc) / 3.0)[agree]
-            need[done, s] = False
+def _decide(marked, offset, grid, known, centres, width: int, height: int):
+    """Which samples at offset (n, 2) of the marked pixels (K,) (flat indices) of a width x height
+    film must be traced, and the colour of the others: (colour (K, n, 3) linear RGB, hit (K, n)
+    bool, need (K, n) bool) by kernels/antialias.block_samples. known: the samples of the pixels
+    of the first pass (indices (M,) sorted, colour (M, n, 3), 8-bit levels (M, n, 3); M = 0 in the
+    first pass), which a sample may also be interpolated from (the second pass: the marked pixels'
+    neighbours are there). centres: the one-sample render's (linear (H W, 3) or (0, 3), levels (H
+    W, 3) uint8, hits (H W,) float64 or (0,))."""
+    n = offset.shape[0]
+    colour, hit, need = (
+        np.empty((marked.size, n, 3)),
+        np.empty((marked.size, n), bool),
+        np.empty((marked.size, n), bool),
+    )
+    points, starts, triangles = _triangles(*grid)
+    run_chunks(
+        block_samples,
+        marked.size,
+        np.ascontiguousarray(marked, dtype=np.int64),
+        offset,
+        width,
+        height,
+        *centres,
+        DECODED,
+        CONTRAST,
+        *known,
+        points,
+        starts,
+        triangles,
+        colour,
+        hit,
+        need,
+        min_chunk=256,
+    )
+    return colour, hit, need
 
 
-SIDES = ((1, 0), (-1, 0), (0, 1), (0, -1))  # a pixel's four neighbours (dx, dy)
 NEAREST = 16  # the known points nearest a sample whose triangles may hold it
 
 
@@ -278,9 +190,9 @@ NEAREST = 16  # the known points nearest a sample whose triangles may hold it
 def _triangles(columns: int, rows: int):
     """The points known around a pixel in the second pass, (P, 4): x, y from the pixel centre in
     pixels, the neighbour (index into SIDES, -1: the pixel itself) and its sample (index into
-    rotated_grid, -1: the centre); and for each sample s of rotated_grid, the triangles (T_s, 3) of
-    those points (among the NEAREST to it) that hold it strictly, no side longer than a pixel,
-    smallest first."""
+    rotated_grid, -1: the centre); and the triangles of those points (among the NEAREST to it)
+    that hold each sample s of rotated_grid strictly, no side longer than a pixel, smallest first:
+    triangles[starts[s] : starts[s + 1]] (T, 3) int64, starts (n + 1,) int64."""
     offset = rotated_grid(columns, rows) - 0.5
     listed = [(0.0, 0.0, -1, -1)]
     for k, (dx, dy) in enumerate(SIDES):
@@ -297,5 +209,6 @@ def _triangles(columns: int, rows: int):
         side = np.max([np.hypot(*(p[:, i] - p[:, (i + 1) % 3]).T) for i in range(3)], axis=0)
         keep = holds & (side <= 1.0 + 1e-9) & (t == 0).any(axis=1)  # the pixel's own centre a corner
         area = np.abs(np.sum(cross, axis=0))[keep]
-        triangles.append(t[keep][np.argsort(area, kind="stable")])
-    return points, triangles
+        triangles.append(t[keep][np.argsort(area, kind="stable")].reshape(-1, 3))
+    starts = np.concatenate([[0], np.cumsum([len(t) for t in triangles])]).astype(np.int64)
+    return points, starts, np.ascontiguousarray(np.concatenate(triangles), dtype=np.int64)

@@ -31,7 +31,7 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
 def srgb_decode(pixels: np.ndarray) -> np.ndarray:
     """8-bit sRGB (any shape, uint8) -> linear RGB float64 in [0, 1] (the curve's inverse), looked
     up in the table of its 256 values."""
-    return _DECODED[pixels]
+    return DECODED[pixels]
 
 
 def _decode(levels: np.ndarray) -> np.ndarray:
@@ -39,7 +39,7 @@ def _decode(levels: np.ndarray) -> np.ndarray:
     return np.where(s <= 0.04045, s / 12.92, np.power((s + 0.055) / 1.055, 2.4))
 
 
-_DECODED = _decode(np.arange(256, dtype=np.uint8))  # (256,) srgb_decode's values
+DECODED = _decode(np.arange(256, dtype=np.uint8))  # (256,) srgb_decode's values
 
 
 def srgb_encode16(linear: np.ndarray) -> np.ndarray:
