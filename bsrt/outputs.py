@@ -19,12 +19,13 @@ from __future__ import annotations
 import errno
 import os
 import secrets
+from contextlib import contextmanager
 from pathlib import Path
 
 from bsrt import interrupts
 from bsrt.errors import OutputError
 
-__all__ = ["OutputError", "Outputs", "write_file"]
+__all__ = ["OutputError", "Outputs", "outputs_at_safe_points", "write_file"]
 
 
 def _temporary_name(folder: Path) -> Path:
@@ -88,6 +89,7 @@ class Outputs:
 
     def __init__(self):
         self._staged: list[_Staged] = []
+        self.committed = False  # commit() has run to its end
 
     def __enter__(self) -> Outputs:
         return self
@@ -122,11 +124,28 @@ class Outputs:
             with _os_errors(folder):
                 _fsync_folder(folder)
         self._staged = []
+        self.committed = True
 
     def discard(self) -> None:
         for staged in self._staged:
             staged.discard()
         self._staged = []
+
+
+@contextmanager
+def outputs_at_safe_points():
+    """Outputs in an ``interrupts.at_safe_points`` block (the render and map commands): signals
+    wait for a safe point. One that arrives during ``commit()``, after its last safe point, is
+    taken as the block ends, when every output is in place: it came too late to stop anything,
+    and the command ends as finished (as after a signal once it has returned, bsrt/__main__.py),
+    not as interrupted with its outputs left behind."""
+    outputs = Outputs()
+    try:
+        with interrupts.at_safe_points(), outputs:
+            yield outputs
+    except KeyboardInterrupt:
+        if not outputs.committed:
+            raise
 
 
 def write_file(path, write) -> None:

@@ -57,6 +57,45 @@ def test_a_failure_before_commit_leaves_nothing_and_keeps_the_old_file(tmp_path)
     assert (tmp_path / "a.bin").read_bytes() == b"old"
 
 
+SIGNAL_AT_COMMIT = """
+import os, signal, sys
+from bsrt import interrupts
+from bsrt.outputs import outputs_at_safe_points
+interrupts.install()
+late = sys.argv[2] == "after"
+try:
+    with outputs_at_safe_points() as outputs:
+        outputs.write(sys.argv[1], lambda f: f.write(b"whole"))
+        if not late:
+            os.kill(os.getpid(), signal.SIGTERM)  # waits for the commit's safe point
+        outputs.commit()
+        if late:
+            os.kill(os.getpid(), signal.SIGTERM)  # as if it came during the commit: taken as the block ends
+    print("finished", flush=True)
+except interrupts.Interrupted as exc:
+    print("interrupted", exc.signum, flush=True)
+"""
+
+
+@pytest.mark.parametrize("when", ["before", "after"])
+def test_a_signal_during_the_commit_ends_the_command_as_finished_one_before_it_leaves_nothing(tmp_path, when):
+    """outputs_at_safe_points (the render and map commands): a signal before the commit's safe
+    point interrupts, leaving nothing; one that arrives after it (during the commit) is taken at
+    the block's end, when the outputs are whole: the command ends as finished, its file in place
+    (CI once saw ``bsrt map`` report SIGTERM and leave map.png)."""
+    out = tmp_path / "out.bin"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    run = subprocess.run(
+        [sys.executable, "-c", SIGNAL_AT_COMMIT, str(out), when], capture_output=True, text=True, env=env, timeout=120
+    )
+    if when == "before":
+        assert run.stdout.split() == ["interrupted", str(int(signal.SIGTERM))], run.stderr
+        assert sorted(os.listdir(tmp_path)) == []
+    else:
+        assert run.stdout.split() == ["finished"], run.stderr
+        assert out.read_bytes() == b"whole"
+
+
 def test_a_file_is_created_with_the_usual_mode(tmp_path):
     old = os.umask(0o022)
     try:

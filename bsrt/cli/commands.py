@@ -97,7 +97,7 @@ def _cmd_render(args) -> int:
     """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
     with interrupts.at_safe_points():  # the set-up thread and this one import at once: a signal waits
         set_up = start_set_up()
-        from bsrt.outputs import Outputs
+        from bsrt.outputs import outputs_at_safe_points
         from bsrt.rendering.image import check_image_path, image_writer, npz_writer
         from bsrt.rendering.options import RenderOptions
         from bsrt.rendering.pipeline import render
@@ -121,7 +121,7 @@ def _cmd_render(args) -> int:
             progress.clear()
         raise
     try:
-        with interrupts.at_safe_points(), Outputs() as outputs:
+        with outputs_at_safe_points() as outputs:  # signals wait for a safe point; none after the commit
             if progress:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
             # no AOVs: a streamed film; the hierarchy from the prepared-geometry cache unless --no-cache
@@ -148,7 +148,7 @@ def _cmd_render(args) -> int:
 
 def _cmd_map(args) -> int:
     with interrupts.at_safe_points():  # as render's: a signal waits for the imports' end (bsrt/interrupts.py)
-        from bsrt.outputs import Outputs
+        from bsrt.outputs import outputs_at_safe_points
         from bsrt.rendering.image import png_writer
         from bsrt.rendering.pipeline import Geometry
         from bsrt.rendering.prelim import render_map
@@ -158,7 +158,7 @@ def _cmd_map(args) -> int:
     scene = _load_input(args)
     _refuse_overwriting([out], scene)
     scene = with_settings(scene, flag_values(args, "map"))
-    with interrupts.at_safe_points(), Outputs() as outputs:  # as render: signals wait for a safe point
+    with outputs_at_safe_points() as outputs:  # as render's: signals wait for a safe point
         prelim = render_map(
             Geometry(scene).patches, scene.camera, scene.film.width, scene.film.height, scene.render.map
         )

@@ -155,12 +155,10 @@ def block_samples(
                     if not ok:
                         agree = False
                         break
-                if agree:
-                    agree = not (
-                        _apart(lv, 0, lv, 1, contrast)
-                        or _apart(lv, 1, lv, 2, contrast)
-                        or _apart(lv, 0, lv, 2, contrast)
-                    )
+                for a in range(3 if agree else 0):  # the corners pairwise: (0, 1), (1, 2), (2, 0)
+                    if _apart(lv, a, lv, (a + 1) % 3, contrast):
+                        agree = False
+                        break
                 if agree:
                     for c in range(3):
                         colour[k, s, c] = (cc[0, c] + cc[1, c] + cc[2, c]) / 3.0
