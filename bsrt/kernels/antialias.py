@@ -80,8 +80,8 @@ def block_samples(
     need,
 ):
     """The samples at offset (n, 2) of marked pixels start..stop-1 (marked (K,) flat indices):
-    colour (K, n, 3) float64 linear RGB where interpolated, hit (K, n) bool (the centre's), need
-    (K, n) bool: to be traced (rendering/antialias.py, _block's rules).
+    need (K, n) bool: to be traced; colour (K, n, 3) float64 linear RGB, interpolated (the caller
+    traces over it where need); hit (K, n) bool, the centre's (rendering/antialias.py, _decide).
 
     The centres: linear (H W, 3) float64, or (0, 3) (a streamed film: levels decoded through
     decoded (256,)); levels (H W, 3) uint8; hits (H W,) float64, > 0 where the centre ray hit, or
