@@ -44,6 +44,7 @@ from bsrt.kernels.trim import point_kept
 GRAZING_COSINE = 0.3
 RECT_SLACK = 1e-9
 STACK = 64
+INT32_MAX = np.iinfo(np.int32).max  # Hits.iterations' largest
 
 
 class Exclusion(NamedTuple):
@@ -309,6 +310,7 @@ def trace_rays(
     u,
     v,
     patch,
+    surface,
     residual,
     iterations,
     budget,
@@ -316,7 +318,8 @@ def trace_rays(
 ):
     """Nearest (or any) valid root of rays start..stop-1 of origin, direction (N, 3) (unit
     directions), with t_min, t_max (N,) and the exclusion ex (an Exclusion of (N,) arrays); results
-    (hit, t, u, v, patch, residual, iterations) into (N,) outputs. budget: each ray's work bound in
+    into (N,) outputs as Hits holds them: hit, t, u, v, patch, surface, residual (NaN, -1 where
+    there is no hit) and iterations (int32, clipped). budget: each ray's work bound in
     Newton iterations; once spent, no further piece is solved and the nearest root found so far is
     the answer (the piece being solved completes: at most its retries' work more). halt: (1,)
     uint8, read before each ray: set, the slice ends there (an interruption). Called on slices by
@@ -438,5 +441,7 @@ def trace_rays(
             elif hit2:
                 stack[top], stack_t[top] = right, n2
                 top += 1
-        hit[i], t[i], u[i], v[i], patch[i] = best_k >= 0, best_t, best_u, best_v, best_k
-        residual[i], iterations[i] = best_res, work
+        found = best_k >= 0  # else best_u, best_v, best_res are NaN and best_k -1 already
+        hit[i], t[i], u[i], v[i], patch[i] = found, best_t if found else np.nan, best_u, best_v, best_k
+        surface[i] = P.surface[best_k] if found else -1
+        residual[i], iterations[i] = best_res, min(work, INT32_MAX)

@@ -415,7 +415,6 @@ def intersect(
         ex = Exclusion(np.full(n, -1, dtype=np.int64), none, none, none, none)
     else:
         ex = Exclusion(*(np.require(a, dt, ("C", "W")) for a, dt in zip(exclude, (np.int64,) + (np.float64,) * 4)))
-    iterations = np.zeros(n, dtype=np.int64)
     run_chunks(
         trace_rays,
         n,
@@ -437,13 +436,10 @@ def intersect(
         hits.u,
         hits.v,
         hits.patch,
+        hits.surface,
         hits.residual,
-        iterations,
+        hits.iterations,
         ray_budget(max_iterations) if budget is None else int(budget),
         stoppable=True,
     )
-    miss = ~hits.hit
-    hits.t[miss], hits.u[miss], hits.v[miss], hits.residual[miss], hits.patch[miss] = np.nan, np.nan, np.nan, np.nan, -1
-    np.take(np.append(bvh.patches.surface, -1), hits.patch, out=hits.surface)  # a miss's patch -1: the -1 appended
-    hits.iterations[:] = np.minimum(iterations, np.iinfo(np.int32).max)
     return hits
