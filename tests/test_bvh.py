@@ -135,6 +135,10 @@ def test_random_rays_match_exhaustive_search(mixed_scene):
     np.testing.assert_allclose(P, origins[both] + hits.t[both, None] * d, atol=1e-7 * scale)
     assert np.all(hits.residual[both] <= 1e-9 * scale)
     assert np.all(np.isnan(hits.t[~both])) and np.all(hits.surface[~both] == -1)
+    miss = ~both  # a miss as Hits holds one (written by the kernel itself)
+    assert np.isnan(hits.u[miss]).all() and np.isnan(hits.v[miss]).all() and np.isnan(hits.residual[miss]).all()
+    assert (hits.patch[miss] == -1).all() and hits.iterations.dtype == np.int32 and (hits.iterations >= 0).all()
+    np.testing.assert_array_equal(hits.surface[both], patches.surface[hits.patch[both]])
 
     shadow = intersect(bvh, origins, directions, any_hit=True)
     np.testing.assert_array_equal(shadow.hit, hits.hit)
