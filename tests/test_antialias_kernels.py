@@ -199,11 +199,7 @@ def test_the_samples_decided_and_interpolated_are_the_numpy_expression(case, n):
     grid = sample_grid(n)
     offset = rotated_grid(*grid)
     centres = _Centres(linear, pixels, hits, options.width, options.height)
-    flat = (
-        np.empty((0, 3)) if linear is None else linear.reshape(-1, 3),
-        pixels.reshape(-1, 3),
-        np.ascontiguousarray(hits, dtype=np.float64).reshape(-1),
-    )
+    flat = antialias._centres(linear, pixels, hits)
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     assert marked.size > 100
     odd = (marked % options.width + marked // options.width) % 2 == 1
@@ -222,3 +218,20 @@ def test_the_samples_decided_and_interpolated_are_the_numpy_expression(case, n):
         np.testing.assert_array_equal(a, b)
     interpolated = ~want[2] & reference_block(marked[odd], offset, grid, None, centres)[2]
     assert interpolated.any()  # the second pass interpolated from the first pass's samples
+
+
+def test_the_centres_are_views_of_the_film_but_one_byte_a_pixel_for_the_hits():
+    """A streamed film's hit counts (uint16) or a kept film's coverage (float64) become one bool a
+    pixel, nothing larger; the colours are read in place."""
+    rng = np.random.default_rng(3)
+    pixels = rng.integers(0, 256, size=(30, 20, 3), dtype=np.uint8)
+    for linear, hits in (
+        (None, rng.integers(0, 3, size=(30, 20)).astype(np.uint16)),
+        (rng.random((30, 20, 3)), rng.random((30, 20)) * (rng.random((30, 20)) > 0.5)),
+    ):
+        got_linear, levels, hit = antialias._centres(linear, pixels, hits)
+        assert np.shares_memory(levels, pixels) and levels.shape == (600, 3)
+        assert got_linear.shape == (0, 3) if linear is None else np.shares_memory(got_linear, linear)
+        assert hit.dtype == np.bool_ and hit.itemsize == 1 and hit.shape == (600,)
+        np.testing.assert_array_equal(hit, hits.reshape(-1) > 0)
+    assert antialias._centres(None, pixels, None)[2].shape == (0,)

@@ -84,7 +84,7 @@ def block_samples(
     traces over it where need); hit (K, n) bool, the centre's (rendering/antialias.py, _decide).
 
     The centres: linear (H W, 3) float64, or (0, 3) (a streamed film: levels decoded through
-    decoded (256,)); levels (H W, 3) uint8; hits (H W,) float64, > 0 where the centre ray hit, or
+    decoded (256,)); levels (H W, 3) uint8; hits (H W,) bool, where the centre ray hit, or
     (0,) (every centre hit); neighbours in SIDES' order. The second pass (first
     (M,) not empty): the first pass's pixels (M,) sorted, their samples' colour (M, n, 3) and
     levels (M, n, 3) uint8; points (P, 4) and the triangles of sample s, triangles[triangle_start[s]
@@ -112,10 +112,10 @@ def block_samples(
             q = index[j]
             for c in range(3):
                 col[j, c] = linear[q, c] if kept else decoded[levels[q, c]]
-            centre_hit = hits.shape[0] == 0 or hits[q] > 0
+            centre_hit = hits.shape[0] == 0 or hits[q]
             usable[j] = kept or (levels[q, 0] < 255 and levels[q, 1] < 255 and levels[q, 2] < 255) or not centre_hit
             apart[j] = j > 0 and _apart(levels, p, levels, q, contrast)
-        own_hit = hits.shape[0] == 0 or hits[p] > 0
+        own_hit = hits.shape[0] == 0 or hits[p]
         for s in range(n):
             dx, dy = offset[s, 0] - 0.5, offset[s, 1] - 0.5
             h = 1 + (0 if dx > 0 else 1)  # sides: (1, 0), (-1, 0), (0, 1), (0, -1)

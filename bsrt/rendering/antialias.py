@@ -93,12 +93,7 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
     tells its background, exact at 255, from a highlight; None: every centre counts as a hit)."""
     offset = rotated_grid(*grid)  # (n, 2)
     step = max(1, chunk_samples // offset.shape[0])
-    hits = coverage if coverage is not None else centre_hits
-    centres = (
-        np.empty((0, 3)) if linear is None else linear.reshape(-1, 3),
-        pixels.reshape(-1, 3),
-        np.empty(0) if hits is None else np.ascontiguousarray(hits, dtype=np.float64).reshape(-1),
-    )
+    centres = _centres(linear, pixels, coverage if coverage is not None else centre_hits)
     marked = np.flatnonzero(disagreeing(pixels).ravel())
     odd = (marked % options.width + marked // options.width) % 2 == 1
     known = _first_pass_none(offset.shape[0])
@@ -124,6 +119,18 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
         if linear is not None:
             linear.reshape(-1, 3)[group] = value
         pixels.reshape(-1, 3)[group] = srgb_encode(value)
+
+
+def _centres(linear, pixels, hits):
+    """The one-sample render's pixel centres as block_samples reads them: (linear (H W, 3) float64
+    or (0, 3), levels (H W, 3) uint8, hit (H W,) bool or (0,)), views of the film's arrays but for
+    hit, one byte a pixel whatever hits' type (hits: (H, W) > 0 where the centre ray hit, or None; a
+    streamed 4096 x 4096 film's uint16 counts as float64 took 134 MB more at the render's peak)."""
+    return (
+        np.empty((0, 3)) if linear is None else linear.reshape(-1, 3),
+        pixels.reshape(-1, 3),
+        np.empty(0, dtype=bool) if hits is None else (hits > 0).reshape(-1),
+    )
 
 
 def _first_pass_none(n: int):
@@ -153,7 +160,7 @@ def _decide(marked, offset, grid, known, centres, width: int, height: int):
     of the first pass (indices (M,) sorted, colour (M, n, 3), 8-bit levels (M, n, 3); M = 0 in the
     first pass), which a sample may also be interpolated from (the second pass: the marked pixels'
     neighbours are there). centres: the one-sample render's (linear (H W, 3) or (0, 3), levels (H
-    W, 3) uint8, hits (H W,) float64 or (0,))."""
+    W, 3) uint8, hits (H W,) bool or (0,))."""
     n = offset.shape[0]
     colour, hit, need = (
         np.empty((marked.size, n, 3)),
