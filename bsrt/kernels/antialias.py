@@ -98,6 +98,7 @@ def block_samples(
     usable = np.empty(5, dtype=np.bool_)
     col = np.empty((5, 3))
     apart = np.empty(5, dtype=np.bool_)
+    found = np.empty(5, dtype=np.int64)
     lv = np.empty((3, 3), dtype=np.uint8)  # a triangle's corners
     cc = np.empty((3, 3))
     for k in range(start, stop):
@@ -134,6 +135,9 @@ def block_samples(
         # the second pass: not across a line one pixel thin (the centre apart from both neighbours)
         if first.shape[0] == 0 or (apart[1] and apart[2]) or (apart[3] and apart[4]):
             continue
+        for j in range(5):  # each neighbour's row among the first pass's pixels, -1: not marked there
+            at = np.searchsorted(first, index[j])
+            found[j] = at if at < first.shape[0] and first[at] == index[j] else -1
         for s in range(n):
             if not need[k, s]:
                 continue
@@ -146,12 +150,11 @@ def block_samples(
                     ok = inside[j] and usable[j]
                     for c in range(3):
                         lv[corner, c], cc[corner, c] = levels[q, c], col[j, c]
-                    if sample >= 0:  # a neighbour's sample: the first pass's where it was marked
-                        at = np.searchsorted(first, q)
-                        if at < first.shape[0] and first[at] == q:
-                            for c in range(3):
-                                lv[corner, c], cc[corner, c] = first_levels[at, sample, c], first_colour[at, sample, c]
-                            ok = inside[j]
+                    at = found[j]
+                    if sample >= 0 and at >= 0:  # a neighbour's sample: the first pass's where it was marked
+                        for c in range(3):
+                            lv[corner, c], cc[corner, c] = first_levels[at, sample, c], first_colour[at, sample, c]
+                        ok = inside[j]
                     if not ok:
                         agree = False
                         break
