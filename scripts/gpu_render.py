@@ -3,19 +3,25 @@
 shadow rays in the compute shaders; repair, mirrors and AO on the CPU), in
 process, the scene's geometry kept between renders as the preview keeps it.
 
-    python scripts/gpu_render.py [scenes/column.toml model.igs ...] [--size 512] [--repeat 3]
+    python scripts/gpu_render.py [scenes/column.toml model.igs ...] [--size 512 | --width W --height H]
+                                 [--repeat 3] [--spp N] [--adaptive-spp N] [--devices cpu,gpu] [--json FILE]
 
-Prints the GL renderer and the load average, then one row per scene: the
-median wall and CPU seconds of each device's render (the first render of
-each, compiling and uploading, not counted; the two devices interleaved),
-the GPU render's map+solve and shade seconds, and how far apart the two
-images are (the largest 8-bit difference). On llvmpipe the GPU figures are
-the shaders run on the CPU cores by Mesa's LLVM.
+Prints the GL renderer, the cores and the load average, then one row per
+scene and device: the median wall and CPU seconds of the render (the first
+render of each device, compiling and uploading, not counted; the devices
+interleaved) and the median seconds of its stages (stats["seconds"]). With
+both devices, one more row per scene says how far apart their answers are,
+by the rule of tests/test_gpu.py: pixels away from silhouettes (all 8
+neighbours with the same hit and surface on the CPU) whose hit or surface
+differs, the largest |dt| over pixels both hit in units of the scene's
+diagonal, and the largest 8-bit image difference there and anywhere. On
+llvmpipe the GPU figures are the shaders run on the CPU cores by Mesa's LLVM.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
 import sys
@@ -32,36 +38,65 @@ from bsrt.rendering.options import RenderOptions  # noqa: E402
 from bsrt.rendering.pipeline import Geometry, render  # noqa: E402
 from bsrt.scene.loading import load_input  # noqa: E402
 
-DEVICES = ("cpu", "gpu")
+
+def away_from_silhouettes(hit: np.ndarray, surface: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose 8 neighbours have the same hit and surface as they do."""
+    key = np.where(hit, surface, -1)
+    padded = np.pad(key, 1, mode="edge")
+    same = np.ones(key.shape, dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            same &= padded[1 + dy : 1 + dy + key.shape[0], 1 + dx : 1 + dx + key.shape[1]] == key
+    return same
 
 
-def compare(path, size, repeat):
-    """One scene: the row's numbers as a dict."""
-    scene = load_input(path, width=size, height=size)
+def agreement(cpu, gpu, shape, diagonal) -> dict:
+    """How far the GPU render's answers are from the CPU's (the reference)."""
+    hit_c, hit_g = cpu.hits.hit.reshape(shape), gpu.hits.hit.reshape(shape)
+    surf_c, surf_g = cpu.hits.surface.reshape(shape), gpu.hits.surface.reshape(shape)
+    inner = away_from_silhouettes(hit_c, surf_c)
+    both = (hit_c & hit_g).ravel()
+    dt = np.abs(cpu.hits.t[both] - gpu.hits.t[both])
+    diff = np.abs(cpu.pixels.astype(int) - gpu.pixels.astype(int)).max(axis=-1)
+    return {
+        "inner_pixels": int(inner.sum()),
+        "hit_differs": int((hit_c != hit_g)[inner].sum()),
+        "surface_differs": int(((surf_c != surf_g) & hit_c & hit_g)[inner].sum()),
+        "max_dt_over_diagonal": float(dt.max() / diagonal) if dt.size else 0.0,
+        "max_diff_inner": int(diff[inner].max()) if inner.any() else 0,
+        "max_diff": int(diff.max()),
+    }
+
+
+def compare(path, width, height, repeat, devices, extra) -> dict:
+    """One scene: {device: {wall, cpu, stages}} and, with both devices, the agreement."""
+    scene = load_input(path, width=width, height=height)
     geometry = Geometry(scene)
-    wall, cpu = {d: [] for d in DEVICES}, {d: [] for d in DEVICES}
-    stages = {"solve": [], "shade": []}
-    pixels = {}
+    wall = {d: [] for d in devices}
+    cpu = {d: [] for d in devices}
+    stages: dict[str, dict[str, list[float]]] = {d: {} for d in devices}
+    results = {}
     for run in range(repeat + 1):
-        for device in DEVICES:
-            options = RenderOptions.resolve(scene, width=size, height=size, device=device)
+        for device in devices:
+            options = RenderOptions.resolve(scene, width=width, height=height, device=device, **extra)
             clock, processor = time.perf_counter(), time.process_time()
             result = render(scene, options, geometry=geometry)
             if run:
                 wall[device].append(time.perf_counter() - clock)
                 cpu[device].append(time.process_time() - processor)
-                if device == "gpu":
-                    seconds = result.stats["seconds"]
-                    stages["solve"].append(seconds["map"] + seconds["solve"])
-                    stages["shade"].append(seconds["shade"])
-            pixels[device] = result.pixels
-    row = {"scene": Path(path).stem}
-    for device in DEVICES:
-        row[f"{device}_wall"] = statistics.median(wall[device])
-        row[f"{device}_cpu"] = statistics.median(cpu[device])
-    row["gpu_map_solve"] = statistics.median(stages["solve"])
-    row["gpu_shade"] = statistics.median(stages["shade"])
-    row["max_diff"] = int(np.abs(pixels["cpu"].astype(int) - pixels["gpu"].astype(int)).max())
+                for stage, seconds in result.stats["seconds"].items():
+                    stages[device].setdefault(stage, []).append(seconds)
+            results[device] = result
+    row = {"scene": Path(path).stem, "width": width, "height": height}
+    for device in devices:
+        row[device] = {
+            "wall": statistics.median(wall[device]),
+            "cpu": statistics.median(cpu[device]),
+            "stages": {k: statistics.median(v) for k, v in stages[device].items()},
+            "devices": results[device].stats["devices"],
+        }
+    if set(devices) == {"cpu", "gpu"}:
+        row["agreement"] = agreement(results["cpu"], results["gpu"], (height, width), geometry.diagonal)
     return row
 
 
@@ -70,21 +105,37 @@ def main(argv=None) -> int:
     parser.add_argument(
         "scenes", nargs="*", default=[str(ROOT / "scenes" / f"{n}.toml") for n in ("column", "water-lily")]
     )
-    parser.add_argument("--size", type=int, default=512)
+    parser.add_argument("--size", type=int, default=512, help="a square film's side (unless --width/--height)")
+    parser.add_argument("--width", type=int)
+    parser.add_argument("--height", type=int)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
+    parser.add_argument("--adaptive-spp", type=int, help="adaptive anti-aliasing's samples (default: the scene's)")
+    parser.add_argument("--devices", default="cpu,gpu", help="comma-separated, interleaved in this order")
+    parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
     args = parser.parse_args(argv)
+    width, height = args.width or args.size, args.height or args.size
+    devices = tuple(args.devices.split(","))
+    extra = {k: v for k, v in (("spp", args.spp), ("adaptive_spp", args.adaptive_spp)) if v is not None}
     caps = gl.capabilities(gl.headless_context())
     print(f"GL: {caps.renderer}, {caps.version_string}, hardware {caps.hardware}")
-    print(f"load average: {os.getloadavg()[0]:.2f}, cores: {len(os.sched_getaffinity(0))}")
-    header = ("scene", "cpu_wall", "cpu_cpu", "gpu_wall", "gpu_cpu", "gpu_map+solve", "gpu_shade", "max_diff")
-    print("  ".join(f"{h:>13}" for h in header))
+    print(
+        f"film {width}x{height}, {extra or 'the scenes own samples'}; cores: {len(os.sched_getaffinity(0))}, "
+        f"load average: {os.getloadavg()[0]:.2f}"
+    )
+    rows = []
     for path in args.scenes:
-        r = compare(path, args.size, args.repeat)
-        print(
-            f"{r['scene']:>13}  {r['cpu_wall']:>13.3f}  {r['cpu_cpu']:>13.3f}  {r['gpu_wall']:>13.3f}  "
-            f"{r['gpu_cpu']:>13.3f}  {r['gpu_map_solve']:>13.3f}  {r['gpu_shade']:>13.3f}  {r['max_diff']:>13}"
-        )
+        r = compare(path, width, height, args.repeat, devices, extra)
+        rows.append(r)
+        for device in devices:
+            d = r[device]
+            parts = "  ".join(f"{k} {v:.4f}" for k, v in d["stages"].items())
+            print(f"{r['scene']:>14} {device}: wall {d['wall']:.4f} s, cpu {d['cpu']:.3f} s;  {parts}")
+        if "agreement" in r:
+            print(f"{r['scene']:>14} agreement: {r['agreement']}")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
+    if args.json:
+        args.json.write_text(json.dumps({"renderer": caps.renderer, "rows": rows}, indent=1))
     return 0
 
 
