@@ -10,6 +10,9 @@ real GL context: Mesa's llvmpipe here and in CI, never skipped.
   most once: crossings.py, ported to anyhit.glsl).
 - mirror rays (shaders/nearest.glsl, the nearest-hit walk) from the same hits:
   the CPU's nearest hits, with the same Newton iterations.
+
+Bit for bit on llvmpipe; on a GPU, whose compiler may fuse multiply-adds, within a few
+roundings (_same_steps).
 """
 
 from __future__ import annotations
@@ -42,6 +45,25 @@ def _context():
     device, ctx = gpu.choose_device("gpu")
     assert device == "gpu"
     return ctx
+
+
+def _same_steps() -> bool:
+    """Whether the shaders take the kernels' float64 steps bit for bit on this context: on a
+    software renderer (llvmpipe: no fused multiply-add), yes; a GPU's compiler may fuse a * b + c
+    into one rounding (measured on an NVIDIA H200, 2026-11-26: normals up to 5.6e-16 apart, one
+    mirror ray of 4,088 taking one Newton iteration more, one AO render's mirror rays 630 against
+    629), so there the tests allow a few roundings' difference."""
+    with _context() as ctx:
+        return not gl.capabilities(ctx).hardware
+
+
+def _agree(got, want, err_msg: str = "", scale: float = 1.0) -> None:
+    """got equals want bit for bit where the steps are the kernels' (_same_steps), else within
+    1e-12 relative or 1e-13 * scale absolute (NaN where want is NaN)."""
+    if _same_steps():
+        np.testing.assert_array_equal(got, want, err_msg=err_msg)
+    else:
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-13 * scale, err_msg=err_msg)
 
 
 def test_a_software_renderer_runs_workgroups_of_one():
@@ -186,7 +208,9 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
         _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, on_gpu
     )
     assert _context().error == "GL_NO_ERROR"
-    for name, want, got in zip(("position", "normal", "radius", "shadow_rays", "exhausted"), cpu[1:], on_gpu[1:]):
+    for name, want, got in zip(("position", "normal", "radius"), cpu[1:4], on_gpu[1:4]):
+        _agree(got, want, name, scale=geometry.diagonal)
+    for name, want, got in zip(("shadow_rays", "exhausted"), cpu[4:], on_gpu[4:]):
         np.testing.assert_array_equal(got, want, err_msg=name)
     assert cpu[4].sum() > 1000  # shadow rays were traced
     np.testing.assert_allclose(on_gpu[0], cpu[0], rtol=1e-12, atol=1e-15)
@@ -207,9 +231,14 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     assert on_gpu.stats["devices"]["shade"] == "gpu" and cpu.stats["devices"]["shade"] == "cpu"
     assert on_gpu.stats["devices"]["secondary"] == "gpu (mirrors), cpu" and cpu.stats["devices"]["secondary"] == "cpu"
     assert on_gpu.stats["shadow_rays"] == cpu.stats["shadow_rays"] > 1000
-    assert on_gpu.stats["reflection_rays"] == cpu.stats["reflection_rays"] > 0
+    gpu_rays, cpu_rays = on_gpu.stats["reflection_rays"], cpu.stats["reflection_rays"]
+    assert cpu_rays > 0 and (gpu_rays == cpu_rays if _same_steps() else abs(gpu_rays - cpu_rays) <= 0.01 * cpu_rays)
     np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
-    assert np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max() <= 1
+    apart = np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max(axis=-1)
+    if _same_steps():
+        assert apart.max() <= 1
+    else:  # a last bit apart can turn a mirror ray grazing a reflected silhouette (H200: 1 pixel of 2,304)
+        assert (apart > 1).sum() <= 1 + apart.size // 1000
 
 
 def _strips_under_a_light():
@@ -301,7 +330,7 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
     assert reshaded == limited  # the hit whose shadow ray the shader left unsettled, shaded by the CPU kernel
     assert want[5][0] == 1  # its shadow ray spent its budget: lit
     for a, b in zip(want, got):
-        np.testing.assert_array_equal(b, a)
+        _agree(b, a, scale=geometry.diagonal)
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)
@@ -324,8 +353,13 @@ def test_mirror_rays_find_the_cpus_nearest_hits(path):
     got = gpu_shade.nearest_gpu(_context(), geometry.bvh, position, mirror, 0.0, np.inf, tolerance, exclusion)
     assert _context().error == "GL_NO_ERROR"
     assert cpu.hit.any() == (path.stem != "quad") and not cpu.hit.all()  # a plane never sees itself
-    for name in ("hit", "surface", "patch", "iterations"):
+    for name in ("hit", "surface", "patch"):
         np.testing.assert_array_equal(getattr(got, name), getattr(cpu, name), err_msg=name)
+    if _same_steps():
+        np.testing.assert_array_equal(got.iterations, cpu.iterations)
+    else:  # a last bit apart may take one Newton step more or less
+        apart = np.abs(got.iterations - cpu.iterations)
+        assert apart.max() <= 1 and (apart > 0).sum() <= 0.001 * len(apart) + 1
     both = cpu.hit
     assert (np.abs(got.t[both] - cpu.t[both]) <= 1e-12 * geometry.diagonal).all()
     np.testing.assert_allclose(got.u[both], cpu.u[both], rtol=0, atol=1e-9)
