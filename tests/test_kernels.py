@@ -35,7 +35,7 @@ def test_run_chunks_covers_every_index_once():
 def test_run_chunks_last_slices_shrink_with_what_is_left():
     """Slices tile [0, n) once; toward the end each takes at most a 1/(2 x threads) share of what
     is left, so no thread is left with a long last slice, but no less than TAIL_SECONDS of the
-    measured work (or FIRST_SLICE items, or what is left)."""
+    measured work per two threads (or FIRST_SLICE items, or what is left)."""
     n, cost = 200_000, 2e-8  # seconds per item: the tail's floor is 5,000 items
     floor = int(threads.TAIL_SECONDS / cost)
     cursor = threads._Cursor(n, threads.FIRST_SLICE, n // 8, threads=2)
@@ -58,3 +58,7 @@ def test_run_chunks_last_slices_shrink_with_what_is_left():
     # items 100x dearer: the floor follows the measured cost down to FIRST_SLICE
     cursor.measured(100, 100 * 1e-3)
     assert cursor.smallest == threads.FIRST_SLICE
+    # 16 threads: each slice's GIL-held dispatch is paid in turn by more threads; the floor is 8x
+    many = threads._Cursor(10 * n, threads.FIRST_SLICE, 10 * n // 8, threads=16)
+    many.measured(n // 2, n // 2 * cost)
+    assert many.smallest == 8 * floor

@@ -13,9 +13,14 @@ slices shrink with what is left (at most a 1/(2 x threads) share of it), so
 the threads finish together: one thread finishing a long last slice while
 the others wait cost up to half a slice of every core but one per call, and
 a render makes a dozen such calls. They shrink no further than TAIL_SECONDS
-of measured work (nor below FIRST_SLICE items): each slice costs 5-10 us of
-Python and dispatch, and a 512x512 map's slices shrank to 64 items, 30
-slices a call. The calling thread waits in steps of POLL_SECONDS and takes
+of measured work per two threads (nor below FIRST_SLICE items): each slice
+costs 5-15 us of Python and dispatch with the GIL held (the kernel's
+arguments unboxed, the cursor), which the threads take in turn, so the
+more threads the more a slice costs them all. A 512x512 map's slices had
+shrunk to 64 items, 30 slices a call; on 16 cores a 2048x2048 render made
+31,000 slices and ran no faster than on 8 (an H200 machine's 16 cores,
+2026-11-26: the floor per two threads and fewer shading calls,
+pipeline.SECONDARY_CHUNK, took it to 8,000 slices and 2.5 -> 1.2 s). The calling thread waits in steps of POLL_SECONDS and takes
 a waiting signal between them (``interrupts.safe_point``); then no further
 slice starts, and a kernel run with ``stoppable=True`` (its last argument
 is a (1,) uint8 stop flag, read between items) leaves the slice it is in at
@@ -43,7 +48,7 @@ from bsrt import interrupts
 _POOL: _Pool | None = None
 MIN_CHUNK = 2048
 SLICE_SECONDS = 0.05  # a slice's aim: the stop and the cursor are read between slices
-TAIL_SECONDS = 1e-4  # the last slices' floor, in measured work
+TAIL_SECONDS = 1e-4  # the last slices' floor, in measured work, per two threads
 FIRST_SLICE = 64  # items in a thread's first slice, before any cost was measured
 POLL_SECONDS = 0.02  # the calling thread looks for a signal this often
 
@@ -55,11 +60,12 @@ def workers() -> int:
 class _Cursor:
     """The next slice of [0, n) to take, its length adapted to the measured cost per item and
     shrinking with what is left of n among ``threads`` threads, to no less than TAIL_SECONDS of
-    work (nor below ``first`` items)."""
+    work per two threads (nor below ``first`` items)."""
 
     def __init__(self, n: int, first: int, largest: int, threads: int = 1):
         self.n, self.next, self.size, self.largest = n, 0, max(1, first), max(1, largest)
         self.share = 2 * max(1, threads)  # a slice takes at most 1 / share of what is left
+        self.tail = TAIL_SECONDS * max(1.0, threads / 2)  # the last slices' floor, in seconds
         self.first = self.smallest = max(1, first)
         self.stopped = False
         self.lock = threading.Lock()
@@ -75,11 +81,11 @@ class _Cursor:
 
     def measured(self, items: int, seconds: float) -> None:
         """Next slices: about SLICE_SECONDS at this cost per item, growing at most 8-fold a step;
-        the last ones no shorter than TAIL_SECONDS at it."""
+        the last ones no shorter than the tail's floor at it."""
         rate = items / max(seconds, 1e-7)
         with self.lock:
             self.size = max(1, min(int(rate * SLICE_SECONDS), 8 * items, self.largest))
-            self.smallest = max(self.first, min(int(rate * TAIL_SECONDS), self.size))
+            self.smallest = max(self.first, min(int(rate * self.tail), self.size))
 
 
 def _drain(kernel, cursor: _Cursor, args) -> None:

@@ -42,7 +42,7 @@ from bsrt.scene import Scene
 from bsrt.scene.camera import pixel_rays
 
 MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
-SECONDARY_CHUNK = 1 << 16  # rays (hits shaded, mirror rays) per kernel call: progress and cancellation points
+SECONDARY_CHUNK = 1 << 19  # rays (hits shaded, mirror rays) per call: progress points (run_chunks takes signals)
 SHADOW_ITERATIONS = 16  # Newton iterations of a shadow ray on one piece (bvh.intersect's default)
 
 
@@ -394,7 +394,7 @@ class _Shader:
         radius, shadow_rays, exhausted = np.empty((n, 2)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
         geometry = self.geometry
         bvh = geometry.bvh
-        for a in range(0, n, SECONDARY_CHUNK):  # progress and cancellation points
+        for a in range(0, n, SECONDARY_CHUNK):  # progress points
             part = slice(a, min(n, a + SECONDARY_CHUNK))
             outputs = (colour[part], position[part], normal[part], radius[part], shadow_rays[part], exhausted[part])
             if self.gpu is not None:
