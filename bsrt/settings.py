@@ -253,7 +253,7 @@ SETTINGS: tuple[Setting, ...] = (
         "choice",
         "auto",
         "where the seeded root finder and the direct lighting run: gpu (OpenGL 4.5 compute shaders in float64), cpu, or auto "
-        "(gpu on a hardware OpenGL context with compute shaders and float64, else cpu)",
+        "(the faster path: cpu on every machine measured so far, a GPU machine included)",
         choices=DEVICES,
     ),
 )

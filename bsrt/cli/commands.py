@@ -251,7 +251,7 @@ def _cmd_doctor(args) -> int:
         + (
             f"--device gpu cannot run (needs {', '.join(caps.missing)})"
             if caps.missing
-            else f"--device auto uses the {'GPU' if caps.hardware else 'CPU (llvmpipe is no faster)'}"
+            else "--device gpu runs here; auto uses the CPU (the faster path: docs/performance.md)"
         )
     )
     chosen = gl.chosen_device()

@@ -41,11 +41,11 @@ BENCH_DEVICES = tuple(d for d in DEVICES if d != "auto")
 
 def bench_devices(text: str | None) -> tuple[str, ...]:
     """``--devices``: a comma-separated list of BENCH_DEVICES; None: cpu, and gpu where the
-    device setting's auto takes it (a hardware context with OpenGL 4.5, compute and float64)."""
+    context is a hardware one that runs it (gpu.hardware_gpu: OpenGL 4.5, compute and float64)."""
     if text is None:
         from bsrt.rendering import gpu
 
-        return ("cpu", "gpu") if gpu.choose_device("auto")[0] == "gpu" else ("cpu",)
+        return ("cpu", "gpu") if gpu.hardware_gpu() else ("cpu",)
     named = tuple(dict.fromkeys(d.strip() for d in text.split(",") if d.strip()))
     unknown = [d for d in named if d not in BENCH_DEVICES]
     if unknown or not named:

@@ -90,27 +90,35 @@ def compute_context(ctx=None) -> moderngl.Context:
 def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]:
     """(device, context) for the ``device`` setting: ("cpu", None) or ("gpu", a context).
 
-    auto: the GPU where the context is a hardware one with OpenGL 4.5, compute
-    shaders and float64 (on llvmpipe the CPU kernels are as fast); cpu: the
-    CPU; gpu: the compute shader on any context that has them (llvmpipe
-    included), else an InputError naming what the context lacks."""
+    auto and cpu: the CPU kernels. auto takes the faster path, and that is the
+    CPU on every machine measured: on llvmpipe the kernels are as fast, and on
+    an NVIDIA H200 beside 16 cores (2026-11-26, docs/performance.md) whole
+    renders on the GPU path took 4-7x the CPU's (the lighting shader's
+    any-hit walks keep their Bezier nets in per-invocation arrays). gpu: the
+    compute shaders on any context that has them (llvmpipe included), else an
+    InputError naming what the context lacks."""
     if setting not in DEVICES:
         raise InputError(f"render.device: expected one of {', '.join(DEVICES)}, got {setting!r}")
-    if setting == "cpu":
+    if setting in ("cpu", "auto"):
         return "cpu", None
-    try:
-        context = compute_context(ctx)
-    except RenderError:  # no OpenGL here (the preview's solver process may have none): the CPU, or say why not
-        if setting == "auto":
-            return "cpu", None
-        raise
+    context = compute_context(ctx)
     with context:  # current on this thread while probed
         caps = gl.capabilities(context)
-    if setting == "auto":
-        return ("gpu", context) if caps.hardware and not caps.missing else ("cpu", None)
     if caps.missing:
         raise InputError(_missing_message(caps))
     return "gpu", context
+
+
+def hardware_gpu() -> bool:
+    """Whether this process's headless context is a hardware one that runs the GPU path
+    (OpenGL 4.5, compute shaders, float64): where bsrt bench times both devices by default."""
+    try:
+        context = gl.headless_context()
+    except RenderError:
+        return False
+    with context:
+        caps = gl.capabilities(context)
+    return caps.hardware and not caps.missing
 
 
 def check_gpu() -> None:
