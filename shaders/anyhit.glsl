@@ -37,14 +37,19 @@ uniform int off_leaf_degree, off_leaf_planar, off_leaf_kept;
 uniform int canary_turns;  // 2 (gpu_shade.hierarchy_shader): a uniform, so loops_whole's loop is not unrolled
 
 #define SCRATCH (4 * RETRY_DEPTH + 8)
-#define NET_SIZE (NET_PM * NET_QM * 4)
-#define NET(s, i, j, c) nets[(s) * NET_SIZE + ((i) * NET_QM + (j)) * 4 + (c)]
+#define NET_POINTS (NET_PM * NET_QM)
+#define NET_SIZE (NET_POINTS * 4)  // doubles per net in the hierarchy's buffer: (x, y, z, w) per control point
+#define POINT(s, i, j) nets[(s) * NET_POINTS + (i) * NET_QM + (j)]
+#define NET(s, i, j, c) POINT(s, i, j)[c]
 
 // Per invocation: the retries' nets, rectangles and depths (traverse.py's scratch) and the walk's stack.
-double nets[SCRATCH * NET_SIZE];
+// A net is held as dvec4 control points, not doubles: a GPU keeps such arrays in local memory, where
+// NVIDIA's compiler gives each double a 16-byte slot of its own and a dvec4 two (measured on an H200:
+// 26 KB an invocation as doubles; the walk's time follows the scratch's size).
+dvec4 nets[SCRATCH * NET_POINTS];
 dvec4 rects[SCRATCH];
 int depths[SCRATCH];
-double tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
+dvec4 tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
 int stack[STACK];
 
 // Have this invocation's loops all run their course? (false: llvmpipe's loop limiter ran out, the
@@ -155,30 +160,32 @@ bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double
 void load_net(int leaf, int s) {
     int row = hier_ints[off_leaf_net_row + leaf];
     int base = row >= 0 ? off_leaf_net + row * NET_SIZE : off_patch_net + (-1 - row) * NET_SIZE;
-    for (int i = 0; i < NET_SIZE; ++i) nets[s * NET_SIZE + i] = hier_reals[base + i];
+    for (int k = 0; k < NET_POINTS; ++k) {
+        int at = base + 4 * k;
+        nets[s * NET_POINTS + k] = dvec4(hier_reals[at], hier_reals[at + 1], hier_reals[at + 2], hier_reals[at + 3]);
+    }
 }
 
 void copy_net(int src, int dst) {
-    for (int i = 0; i < NET_SIZE; ++i) nets[dst * NET_SIZE + i] = nets[src * NET_SIZE + i];
+    for (int k = 0; k < NET_POINTS; ++k) nets[dst * NET_POINTS + k] = nets[src * NET_POINTS + k];
 }
 
-// de Casteljau at the midpoint of scratch net src along axis 0 (u) or 1 (v) into lo, hi (flatten.split_half).
+// de Casteljau at the midpoint of scratch net src along axis 0 (u) or 1 (v) into lo, hi (flatten.split_half;
+// the four coordinates at once, each with the kernel's steps).
 void split_half(int src, int lo, int hi, int p, int q, int axis) {
     int n = axis == 0 ? p : q, other = axis == 0 ? q : p;
     for (int j = 0; j <= other; ++j) {
-        for (int c = 0; c < 4; ++c) {
-            for (int i = 0; i <= n; ++i) tmp[i] = axis == 0 ? NET(src, i, j, c) : NET(src, j, i, c);
-            for (int r = 0; r <= n; ++r) {
-                if (r > 0) {
-                    for (int i = 0; i <= n - r; ++i) tmp[i] = 0.5LF * (tmp[i] + tmp[i + 1]);
-                }
-                if (axis == 0) {
-                    NET(lo, r, j, c) = tmp[0];
-                    NET(hi, n - r, j, c) = tmp[n - r];
-                } else {
-                    NET(lo, j, r, c) = tmp[0];
-                    NET(hi, j, n - r, c) = tmp[n - r];
-                }
+        for (int i = 0; i <= n; ++i) tmp[i] = axis == 0 ? POINT(src, i, j) : POINT(src, j, i);
+        for (int r = 0; r <= n; ++r) {
+            if (r > 0) {
+                for (int i = 0; i <= n - r; ++i) tmp[i] = 0.5LF * (tmp[i] + tmp[i + 1]);
+            }
+            if (axis == 0) {
+                POINT(lo, r, j) = tmp[0];
+                POINT(hi, n - r, j) = tmp[n - r];
+            } else {
+                POINT(lo, j, r) = tmp[0];
+                POINT(hi, j, n - r) = tmp[n - r];
             }
         }
     }
