@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
+from bsrt import interrupts
 from bsrt.errors import InputError
 from bsrt.outputs import write_file
 
@@ -99,9 +100,30 @@ def png16_bytes(pixels: np.ndarray) -> bytes:
     )
 
 
+NPZ_LEVEL = 1  # zlib level of the .npz's members: numpy's savez_compressed takes 6, 1.5x as long for 2 % fewer bytes
+NPZ_PIECE = 1 << 24  # bytes of an array written between two safe points
+
+
 def npz_writer(arrays: dict):
-    """Named arrays -> a function writing a compressed .npz to a binary file."""
-    return lambda f: np.savez_compressed(f, **arrays)
+    """Named arrays -> a function writing a compressed .npz (what numpy.load reads: one .npy member
+    per array) to a binary file. Each array goes in pieces of NPZ_PIECE bytes with a safe point
+    between (bsrt.interrupts): a 4096x4096 film's AOVs are 1.5 GB before compression, and a
+    signal must not wait for all of them (numpy.savez_compressed writes each in one call)."""
+
+    def write(f) -> None:
+        import zipfile  # (not at start-up: the image alone needs none)
+
+        with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED, compresslevel=NPZ_LEVEL) as archive:
+            for name, value in arrays.items():
+                a = np.ascontiguousarray(value)
+                raw = a.reshape(-1).view(np.uint8)
+                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(a))
+                    for start in range(0, raw.size, NPZ_PIECE):
+                        member.write(raw[start : start + NPZ_PIECE])
+                        interrupts.safe_point()
+
+    return write
 
 
 def write_png(path, pixels: np.ndarray) -> None:
