@@ -34,20 +34,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from bsrt.rendering import gl  # noqa: E402
+from bsrt.rendering.hits import away_from_silhouettes  # noqa: E402
 from bsrt.rendering.options import RenderOptions  # noqa: E402
 from bsrt.rendering.pipeline import Geometry, render  # noqa: E402
 from bsrt.scene.loading import load_input  # noqa: E402
-
-
-def away_from_silhouettes(hit: np.ndarray, surface: np.ndarray) -> np.ndarray:
-    """(H, W) bool: pixels whose 8 neighbours have the same hit and surface as they do."""
-    key = np.where(hit, surface, -1)
-    padded = np.pad(key, 1, mode="edge")
-    same = np.ones(key.shape, dtype=bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            same &= padded[1 + dy : 1 + dy + key.shape[0], 1 + dx : 1 + dx + key.shape[1]] == key
-    return same
 
 
 def agreement(cpu, gpu, shape, diagonal) -> dict:

@@ -31,6 +31,7 @@ from bsrt.geometry.bspline import make_surface
 from bsrt.geometry.patches import PatchSet
 from bsrt.methods import MAP_METHODS
 from bsrt.rendering import gl, gpu
+from bsrt.rendering.hits import away_from_silhouettes
 from bsrt.rendering.solve import Rays, find_roots
 
 pytestmark = pytest.mark.gl
@@ -179,17 +180,6 @@ def test_the_float64_trim_test_agrees_with_the_kernels(path):
     np.testing.assert_array_equal(gpu.kept_gpu(_context(), patches, m, u, v), want)
 
 
-def _away_from_silhouettes(hit: np.ndarray, surface: np.ndarray) -> np.ndarray:
-    """(H, W) bool: pixels whose 8 neighbours have the same hit and surface as they do."""
-    key = np.where(hit, surface, -1)
-    padded = np.pad(key, 1, mode="edge")
-    same = np.ones(key.shape, dtype=bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            same &= padded[1 + dy : 1 + dy + key.shape[0], 1 + dx : 1 + dx + key.shape[1]] == key
-    return same
-
-
 @pytest.mark.parametrize("source", [p.stem for p in SCENES] + ["iges-trimmed"])
 def test_device_gpu_renders_as_the_cpu(source):
     path = TRIMMED_IGES if source == "iges-trimmed" else ROOT / "scenes" / f"{source}.toml"
@@ -200,7 +190,7 @@ def test_device_gpu_renders_as_the_cpu(source):
     shape = (48, 48)
     hit_c, hit_g = cpu.hits.hit.reshape(shape), on_gpu.hits.hit.reshape(shape)
     surf_c, surf_g = cpu.hits.surface.reshape(shape), on_gpu.hits.surface.reshape(shape)
-    inner = _away_from_silhouettes(hit_c, surf_c)
+    inner = away_from_silhouettes(hit_c, surf_c)
     assert hit_c.sum() > 100  # the model fills part of the film
     assert (hit_c == hit_g)[inner].all()
     assert (surf_c == surf_g)[inner & hit_c].all()

@@ -97,3 +97,16 @@ def _nearest_of_each_run(index: np.ndarray, ray: np.ndarray, t: np.ndarray):
     least = np.flatnonzero(t == np.repeat(np.minimum.reduceat(t, starts), counts))
     first = least[np.concatenate([[True], ray[least[1:]] != ray[least[:-1]]])]
     return index[first], ray[first], t[first]
+
+
+def away_from_silhouettes(hit: np.ndarray, surface: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose 8 neighbours have the same hit and surface as they do (hit, surface:
+    (H, W)): where two renders of one scene must agree exactly, whatever their last bits (the
+    GPU path against the CPU's: tests/test_gpu.py, scripts/gpu_render.py)."""
+    key = np.where(hit, surface, -1)
+    padded = np.pad(key, 1, mode="edge")
+    same = np.ones(key.shape, dtype=bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            same &= padded[1 + dy : 1 + dy + key.shape[0], 1 + dx : 1 + dx + key.shape[1]] == key
+    return same
