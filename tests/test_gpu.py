@@ -245,7 +245,11 @@ def test_egl_devices_are_named():
     assert gl._describe_device(nvidia.get) == "NVIDIA (CUDA device)"
     named = {0x3055: b"EGL_EXT_device_query_name EGL_EXT_device_drm", 0x3053: b"NVIDIA", 0x335F: b"NVIDIA H200",
              0x3233: b"/dev/dri/card1"}  # fmt: skip
-    assert gl._describe_device(named.get) == "NVIDIA NVIDIA H200 (/dev/dri/card1)"
+    assert (
+        gl._describe_device(named.get) == "NVIDIA H200 (/dev/dri/card1)"
+    )  # the vendor once (an H200 machine said it twice)
+    other = {0x3055: b"EGL_EXT_device_query_name", 0x3053: b"AMD", 0x335F: b"Radeon RX 7900 XTX"}
+    assert gl._describe_device(other.get) == "AMD Radeon RX 7900 XTX"
     mesa = {0x3055: b"EGL_MESA_device_software"}
     assert gl._describe_device(mesa.get) == "software (Mesa llvmpipe)"
     assert gl._describe_device({}.get) == "unknown device"

@@ -136,7 +136,10 @@ def _describe_device(query) -> str:
     drm = text(egl_drm_device_file) if "EGL_EXT_device_drm" in ext else ""
     name = ""
     if "EGL_EXT_device_query_name" in ext:
-        name = " ".join(x for x in (text(egl_vendor), text(egl_renderer)) if x)
+        vendor, renderer = text(egl_vendor), text(egl_renderer)
+        if vendor and renderer.startswith(vendor):  # NVIDIA's: vendor "NVIDIA", renderer "NVIDIA H200"
+            vendor = ""
+        name = " ".join(x for x in (vendor, renderer) if x)
     if not name and "EGL_NV_device_cuda" in ext:
         name = "NVIDIA (CUDA device)"
     if not name and "EGL_MESA_device_software" in ext:
