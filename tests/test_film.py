@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bsrt.kernels.film import SRGB_BINS, srgb_byte, srgb_byte_from, srgb_table
+from bsrt.kernels.jit import njit
 from bsrt.rendering import pipeline
 from bsrt.rendering.film import Film
 from bsrt.rendering.hits import Hits
@@ -47,6 +49,36 @@ def test_encoded_bytes_equal_srgb_encode_and_the_sums_are_divided_by_spp():
     got3, linear3 = _film_bytes(values[:1000], spp=3)
     assert np.array_equal(linear3[:, 0], (values[:1000] + values[:1000] + values[:1000]) / 3.0)
     assert np.array_equal(got3[:, 0], srgb_encode(linear3[:, 0]))
+
+
+@njit(cache=False)
+def _both_bytes(values, thresholds, first):
+    """(N, 2) uint8: srgb_byte and srgb_byte_from of each value (both are compiled-only)."""
+    out = np.empty((values.shape[0], 2), dtype=np.uint8)
+    for i in range(values.shape[0]):
+        out[i, 0] = srgb_byte(values[i])
+        out[i, 1] = srgb_byte_from(values[i], thresholds, first)
+    return out
+
+
+def test_the_table_gives_the_curve_s_bytes_around_every_step():
+    thresholds, first = srgb_table()
+    steps = thresholds[1:256]
+    assert np.all(np.diff(steps) > 1.0 / SRGB_BINS) and steps[0] > 0.0 and steps[-1] < 1.0  # a step per bin at most
+    # 2,000 doubles either side of each step (positive doubles are ordered as their bits)
+    near = (steps.view(np.int64)[:, None] + np.arange(-2000, 2001)[None, :]).ravel().view(np.float64)
+    both = _both_bytes(near, thresholds, first)
+    assert np.array_equal(both[:, 0], both[:, 1])
+    # the steps are exact: the double below each gives the byte below
+    at = _both_bytes(steps, thresholds, first)[:, 0]
+    below = _both_bytes(np.nextafter(steps, 0.0), thresholds, first)[:, 0]
+    assert at.tolist() == list(range(1, 256)) and below.tolist() == list(range(0, 255))
+    rng = np.random.default_rng(3)
+    spread = np.concatenate(
+        [rng.uniform(-0.5, 1.5, 200_000), 10.0 ** rng.uniform(-12, 0, 200_000), [np.nan, np.inf, -np.inf, 0.0, 1.0]]
+    )
+    both = _both_bytes(spread, thresholds, first)
+    assert np.array_equal(both[:, 0], both[:, 1])
 
 
 @pytest.mark.parametrize("keep", [True, False])

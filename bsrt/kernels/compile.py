@@ -61,6 +61,7 @@ ENTRY_KERNELS = (
     lighting.shade_hits,
     film.add_samples,
     film.encode_rows,
+    film.srgb_table,
     antialias.mark_rows,
     antialias.block_samples,
     prelim.decode_tile,

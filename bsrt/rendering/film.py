@@ -9,9 +9,11 @@ hits (53 bytes per pixel) that RenderResult.linear, .hits and .aovs() give.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
-from bsrt.kernels.film import add_samples, encode_rows
+from bsrt.kernels.film import add_samples, encode_rows, srgb_table
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.hits import Hits
 
@@ -76,6 +78,7 @@ class Film:
             self._base,
             float(self.rows * self.columns),
             self.pixels,
+            *_srgb(),
             min_chunk=ROWS_PER_TASK,
         )
         self._complete = done
@@ -120,6 +123,12 @@ class Film:
         self.iterations_sum += int(its[spent].sum(dtype=np.int64))
         self.iterations_count += int(np.count_nonzero(spent))
         self.iterations_max = max(self.iterations_max, int(its.max()) if its.size else 0)
+
+
+@functools.cache
+def _srgb() -> tuple[np.ndarray, np.ndarray]:
+    """kernels.film.srgb_table's arrays, made once (a millisecond)."""
+    return srgb_table()
 
 
 def _add_rows(start, stop, lo, *args):
