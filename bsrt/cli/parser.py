@@ -107,8 +107,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument(
         "--devices",
         help="comma-separated, of cpu, gpu: each method timed on each, side by side (METHOD@gpu), with the cores "
-        "used (default: cpu, and gpu where --device auto takes it: a hardware OpenGL 4.5 context with compute "
-        "and float64)",
+        "used (default: cpu, and gpu where the context is a hardware one with OpenGL 4.5, compute and float64, "
+        "though --device auto takes the CPU there too)",
     )
     b.add_argument("--size", type=_positive_int, default=512, help="film width and height (default 512)")
     b.add_argument("--repeat", type=_positive_int, default=3, help="timed runs per method; the median is shown")
