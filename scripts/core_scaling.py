@@ -72,7 +72,7 @@ def main() -> int:
         "--device",
         choices=DEVICES,
         default="cpu",
-        help="the device setting (default cpu: auto would take a hardware GPU's path, which is not about cores)",
+        help="the device setting (default cpu: the CPU kernels' cores are what is measured)",
     )
     a = p.parse_args()
     if shutil.which("taskset") is None:
