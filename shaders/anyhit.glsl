@@ -5,9 +5,11 @@
 // kernels/traverse.py's _solve_piece, _root_in, _slab and _obb_slab,
 // kernels/hulls.py's straddles, and kernels/crossings.py's crosses_once
 // and holds_once (their
-// docstrings explain each step), without the hint (the
-// leaf that blocked the previous ray of a CPU slice, tried first there: it
-// changes the order pieces are tried in, not whether a ray is blocked) and,
+// docstrings explain each step), one ray at a time (the CPU walks packets of
+// nearby hits' rays together: fewer box tests, the same answer per ray),
+// without the hint (a leaf that blocked a ray of the CPU's previous packet,
+// tried first there: it changes the order pieces are tried in, not whether a
+// ray is blocked) and,
 // for shadow rays, without the final Newton step on a grazing root (it moves
 // t, not the answer; nearest.glsl's mirror rays take it). The CPU kernels are the reference the tests hold this to. The
 // loops leave by their conditions, never by return, break or continue inside

@@ -202,7 +202,8 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
     run_chunks(
         shade_hits, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch,
         hits.surface, hits.u, hits.v, directions, geometry.material, *materials, *lights, background, eps,
-        float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), *cpu,
+        float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), bvh.packet_spread,
+        *cpu,
     )  # fmt: skip
     gpu_shade.shade_hits_gpu(
         _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, on_gpu
@@ -322,7 +323,7 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
     run_chunks(
         shade_hits, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch, hits.surface,
         hits.u, hits.v, camera_rays, geometry.material, *materials, *lights, background, eps, float(tolerance), 16,
-        DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), *want,
+        DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), bvh.packet_spread, *want,
     )  # fmt: skip
     gpu_shade.shade_hits_gpu(
         _context(), bvh, hits, camera_rays, geometry.material, materials, lights, background, eps, tolerance, 16, got

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import flat_patch
@@ -169,3 +171,62 @@ def test_spp4_blends_a_high_contrast_edge_only():
     edge = four[rows][:, ~far]
     assert np.any((edge > 0.05) & (edge < 0.95))  # intermediate values at the edge
     assert set(np.unique(one[rows])) <= {0.0, 1.0}
+
+
+@pytest.mark.parametrize("name", ["column", "water-lily"])
+def test_shadow_packets_of_any_shape_give_each_ray_its_own_answer(name):
+    """kernels/lighting.py walks the shadow rays of nearby hits together (packets of up to
+    PACKET hits whose points lie within BVH.packet_spread): whatever the packets, each ray's
+    answer is its own walk's. Shaded with packets of one hit (spread 0), the default, and
+    packets of PACKET consecutive items whatever their spread (across silhouettes and row
+    ends, where the packet's interval enters most of the hierarchy): the same colours, shadow
+    rays and budgets, bit for bit. The per-ray answers themselves are held to bvh.intersect by
+    tests/test_film.py and to the GPU's one-ray walk by tests/test_gpu_shadow.py."""
+    import bsrt
+    from bsrt.kernels.lighting import PACKET, shade_hits
+    from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
+    from bsrt.rendering.shade import light_arrays
+
+    size = 80
+    path = Path(__file__).resolve().parent.parent / "scenes" / f"{name}.toml"
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=size, height=size, spp=1, adaptive_spp=0, device="cpu")
+    geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
+    directions = np.ascontiguousarray(pixel_rays(result.options.camera, size, size))
+    materials = (
+        np.array([m.color for m in scene.materials], dtype=np.float64).reshape(-1, 3),
+        np.array([m.specular for m in scene.materials], dtype=np.float64),
+        np.array([m.shininess for m in scene.materials], dtype=np.float64),
+    )
+    background = np.array(result.options.background, dtype=np.float64).reshape(3)
+    tolerance, n = result.options.tolerance * geometry.diagonal, len(hits)
+    shaded = []
+    for spread in (0.0, bvh.packet_spread, np.inf):
+        out = tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + (
+            np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64),
+        )
+        shade_hits(
+            0, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch, hits.surface,
+            hits.u, hits.v, directions, geometry.material, *materials, *light_arrays(scene.lights), background,
+            1e-6 * geometry.diagonal, float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance),
+            ray_budget(16), spread, *out,
+        )  # fmt: skip
+        shaded.append(out)
+    assert 0.0 < bvh.packet_spread < geometry.diagonal and PACKET > 1
+    assert shaded[0][4].sum() > 1000  # shadow rays were traced
+    # and many of them blocked: the hits' own shadow rays toward the first casting light, one at a time
+    hit = np.flatnonzero(hits.hit)
+    kind, position, *_ = light_arrays(scene.lights)
+    light = int(np.flatnonzero(kind == 1)[0])
+    p, normal, radius = shaded[0][1][hit], shaded[0][2][hit], shaded[0][3][hit]
+    towards = position[light] - p
+    dist = np.linalg.norm(towards, axis=1)
+    towards /= dist[:, None]
+    facing = np.einsum("ij,ij->i", normal, towards) > 0
+    exclude = (hits.surface[hit], hits.u[hit], hits.v[hit], radius[:, 0], radius[:, 1])
+    blocked = geometry.intersect(p, towards, t_max=dist, tolerance=tolerance, any_hit=True, exclude=exclude).hit
+    assert (facing & blocked).sum() > 50
+    for other in shaded[1:]:
+        for want, got in zip(shaded[0], other):
+            np.testing.assert_array_equal(got, want)

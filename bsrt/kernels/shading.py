@@ -23,7 +23,13 @@ def surface_frame(P, k, u, v, tx, ty, tz):
     flipped); where it vanishes (a pole, a collapsed edge) the limit normal is
     taken a step of 1e-7 (then 1e-5, 1e-3) of the patch toward its centre; if
     all vanish, 0."""
-    x, y, z, xu, yu, zu, xv, yv, zv = frame(P, k, u, v)
+    return surface_frame_of(P, k, u, v, frame(P, k, u, v), tx, ty, tz)
+
+
+@njit(cache=True, nogil=True, no_cpython_wrapper=True)
+def surface_frame_of(P, k, u, v, f, tx, ty, tz):
+    """surface_frame from f, patches.frame(P, k, u, v) already at hand."""
+    x, y, z, xu, yu, zu, xv, yv, zv = f
     su = np.sqrt(xu * xu + yu * yu + zu * zu)
     sv = np.sqrt(xv * xv + yv * yv + zv * zv)
     nx, ny, nz = yu * zv - zu * yv, zu * xv - xu * zv, xu * yv - yu * xv

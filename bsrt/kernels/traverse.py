@@ -90,13 +90,18 @@ def _obb_slab(obb, ox, oy, oz, dx, dy, dz):
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
-def _normal(P, k, u, v):
-    """S_u x S_v of patch k at (u, v), not normalised, and its length: (nx, ny, nz, length)."""
-    f = frame(P, k, u, v)
+def _cross(f):
+    """S_u x S_v of a frame f (patches.frame's 9 floats), not normalised, and its length: (nx, ny, nz, length)."""
     nx = f[4] * f[8] - f[5] * f[7]
     ny = f[5] * f[6] - f[3] * f[8]
     nz = f[3] * f[7] - f[4] * f[6]
     return nx, ny, nz, np.sqrt(nx * nx + ny * ny + nz * nz)
+
+
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
+def _normal(P, k, u, v):
+    """S_u x S_v of patch k at (u, v), not normalised, and its length: (nx, ny, nz, length)."""
+    return _cross(frame(P, k, u, v))
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)

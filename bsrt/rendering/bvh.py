@@ -129,6 +129,7 @@ from the corners' u direction and normal) tested per (ray, leaf) pair.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -151,6 +152,7 @@ RAY_BUDGET_PIECES = 256  # a ray's work: Newton's full iterations on this many p
 BEND = 0.02  # a leaf deviates from its bilinear patch by at most this fraction of its size
 LEAF_NET_FLOATS = 1 << 25  # the leaves' nets hold at most this many floats (256 MB) ...
 LEAVES_PER_PATCH = 4  # ... or this many nets per patch, if more (a patch is at least one leaf)
+PACKET_SPREAD = 1.0  # shade_hits' packets: hit points within this many median leaf sizes (BVH.packet_spread)
 PATCH_CHUNK, PATCH_SLICES = 16, 32  # flattening slices: patches cost very unevenly (1 to 4096 leaves)
 
 
@@ -183,6 +185,15 @@ class BVH:
         if name in BVHArrays._fields and "arrays" in self.__dict__:
             return getattr(self.__dict__["arrays"], name)
         raise AttributeError(name)
+
+    @cached_property
+    def packet_spread(self) -> float:
+        """The widest box (scene units) of hit points whose shadow rays kernels/lighting.py's
+        shade_hits walks together: PACKET_SPREAD of the median leaf's largest extent. Rays from
+        farther apart share less of their walk than the per-ray tests a looser packet adds."""
+        if not self.leaf_total:
+            return 0.0
+        return PACKET_SPREAD * 2.0 * float(np.median(self.arrays.leaf_obb[:, 12:15].max(axis=1)))
 
     @property
     def node_min(self) -> np.ndarray:

@@ -326,7 +326,7 @@ def shade_hits_gpu(
             shade_hits, redo.size, P.arrays, P.trims, bvh.arrays, hits.hit[redo], hits.patch[redo],
             hits.surface[redo], hits.u[redo], hits.v[redo], rays[redo], material_of, *materials, *lights,
             background, eps, float(tolerance), max_iterations, DEFAULT_RETRY_DEPTH,
-            bvh.padding + float(tolerance), ray_budget(max_iterations), *again,
+            bvh.padding + float(tolerance), ray_budget(max_iterations), bvh.packet_spread, *again,
         )  # fmt: skip
         for whole, part in zip(out, again):
             whole[redo] = part

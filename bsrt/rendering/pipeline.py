@@ -424,6 +424,7 @@ class _Shader:
                     DEFAULT_RETRY_DEPTH,
                     bvh.padding + float(self.tolerance),
                     ray_budget(SHADOW_ITERATIONS),
+                    bvh.packet_spread,
                     *outputs,
                     min_chunk=256,
                 )
