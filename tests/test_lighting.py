@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 from conftest import flat_patch
+from test_gpu_shadow import ROOT, _look
 from test_models import exact_sphere
 
 from bsrt.rendering.options import RenderOptions
@@ -185,20 +184,14 @@ def test_shadow_packets_of_any_shape_give_each_ray_its_own_answer(name):
     import bsrt
     from bsrt.kernels.lighting import PACKET, shade_hits
     from bsrt.rendering.bvh import DEFAULT_RETRY_DEPTH, ray_budget
-    from bsrt.rendering.shade import light_arrays
 
     size = 80
-    path = Path(__file__).resolve().parent.parent / "scenes" / f"{name}.toml"
+    path = ROOT / "scenes" / f"{name}.toml"
     scene = bsrt.load(path)
     result = bsrt.render(scene, width=size, height=size, spp=1, adaptive_spp=0, device="cpu")
     geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
     directions = np.ascontiguousarray(pixel_rays(result.options.camera, size, size))
-    materials = (
-        np.array([m.color for m in scene.materials], dtype=np.float64).reshape(-1, 3),
-        np.array([m.specular for m in scene.materials], dtype=np.float64),
-        np.array([m.shininess for m in scene.materials], dtype=np.float64),
-    )
-    background = np.array(result.options.background, dtype=np.float64).reshape(3)
+    materials, lights, background = _look(scene, result.options)
     tolerance, n = result.options.tolerance * geometry.diagonal, len(hits)
     shaded = []
     for spread in (0.0, bvh.packet_spread, np.inf):
@@ -208,7 +201,7 @@ def test_shadow_packets_of_any_shape_give_each_ray_its_own_answer(name):
         )
         shade_hits(
             0, n, geometry.patches.arrays, geometry.patches.trims, bvh.arrays, hits.hit, hits.patch, hits.surface,
-            hits.u, hits.v, directions, geometry.material, *materials, *light_arrays(scene.lights), background,
+            hits.u, hits.v, directions, geometry.material, *materials, *lights, background,
             1e-6 * geometry.diagonal, float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance),
             ray_budget(16), spread, *out,
         )  # fmt: skip
@@ -217,7 +210,7 @@ def test_shadow_packets_of_any_shape_give_each_ray_its_own_answer(name):
     assert shaded[0][4].sum() > 1000  # shadow rays were traced
     # and many of them blocked: the hits' own shadow rays toward the first casting light, one at a time
     hit = np.flatnonzero(hits.hit)
-    kind, position, *_ = light_arrays(scene.lights)
+    kind, position = lights[0], lights[1]
     light = int(np.flatnonzero(kind == 1)[0])
     p, normal, radius = shaded[0][1][hit], shaded[0][2][hit], shaded[0][3][hit]
     towards = position[light] - p
