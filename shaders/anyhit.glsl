@@ -172,7 +172,7 @@ void copy_net(int src, int dst) {
     for (int k = 0; k < NET_POINTS; ++k) nets[dst * NET_POINTS + k] = nets[src * NET_POINTS + k];
 }
 
-// de Casteljau at the midpoint of scratch net src along axis 0 (u) or 1 (v) into lo, hi (flatten.split_half;
+// de Casteljau at the midpoint of scratch net src along axis 0 (u) or 1 (v) into lo, hi (nets.split_half;
 // the four coordinates at once, each with the kernel's steps).
 void split_half(int src, int lo, int hi, int p, int q, int axis) {
     int n = axis == 0 ? p : q, other = axis == 0 ? q : p;

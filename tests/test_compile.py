@@ -33,6 +33,8 @@ INLINED = {
     "roots.solve_one",
     "prelim._decode",
     "nets.leaf_net",
+    "nets._split_cubic",
+    "hulls._point",
 }  # inline="always": copied into their callers, never compiled alone
 
 

@@ -42,8 +42,8 @@ def straddles(net, p, q, ox, oy, oz, e, dx, dy, dz, t_min, t_far, tol):
     xhi = yhi = zhi = nhi = hi0 = hi1 = hi2 = hi3 = -np.inf
     for i in range(p + 1):
         for j in range(q + 1):
-            w = net[i, j, 3]
-            px, py, pz = net[i, j, 0] / w - ox, net[i, j, 1] / w - oy, net[i, j, 2] / w - oz
+            px, py, pz = _point(net, i, j)
+            px, py, pz = px - ox, py - oy, pz - oz
             x = e[0] * px + e[1] * py + e[2] * pz
             y = e[3] * px + e[4] * py + e[5] * pz
             z = dx * px + dy * py + dz * pz
@@ -85,19 +85,28 @@ def _holds_zero(lo, hi, reach):
 )
 def _across(net, i, j, ox, oy, oz, e):
     """Control point (i, j) of a net in the ray's frame, across the ray: (x, y)."""
-    w = net[i, j, 3]
-    px, py, pz = net[i, j, 0] / w - ox, net[i, j, 1] / w - oy, net[i, j, 2] / w - oz
+    px, py, pz = _point(net, i, j)
+    px, py, pz = px - ox, py - oy, pz - oz
     return e[0] * px + e[1] * py + e[2] * pz, e[3] * px + e[4] * py + e[5] * pz
+
+
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False, inline="always")
+def _point(net, i, j):
+    """Control point (i, j) of a homogeneous net in space: (x, y, z). A weight of exactly 1 (every
+    point of a polynomial piece) divides nothing: the same numbers, without three divisions."""
+    w = net[i, j, 3]
+    if w == 1.0:
+        return net[i, j, 0], net[i, j, 1], net[i, j, 2]
+    return net[i, j, 0] / w, net[i, j, 1] / w, net[i, j, 2] / w
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _corner_normal(net, p, q):
     """The cross product of the diagonals of a net's corner points (a normal of its bilinear patch)."""
-    w00, wpq, w0q, wp0 = net[0, 0, 3], net[p, q, 3], net[0, q, 3], net[p, 0, 3]
-    ux = net[p, q, 0] / wpq - net[0, 0, 0] / w00
-    uy = net[p, q, 1] / wpq - net[0, 0, 1] / w00
-    uz = net[p, q, 2] / wpq - net[0, 0, 2] / w00
-    vx = net[0, q, 0] / w0q - net[p, 0, 0] / wp0
-    vy = net[0, q, 1] / w0q - net[p, 0, 1] / wp0
-    vz = net[0, q, 2] / w0q - net[p, 0, 2] / wp0
+    ax, ay, az = _point(net, 0, 0)
+    bx, by, bz = _point(net, p, q)
+    cx, cy, cz = _point(net, 0, q)
+    dx, dy, dz = _point(net, p, 0)
+    ux, uy, uz = bx - ax, by - ay, bz - az
+    vx, vy, vz = cx - dx, cy - dy, cz - dz
     return uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
