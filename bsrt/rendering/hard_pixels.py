@@ -140,18 +140,8 @@ def repair(
     front = suspects
     changed = 0
     while front.size:
-        had, t, surface = hits.hit[front], hits.t[front], hits.surface[front]  # copies (fancy indexing)
-        _repair_once(geometry, rays, hits, front, tolerance)
-        changed += int(
-            np.count_nonzero(
-                (had != hits.hit[front])
-                | (surface != hits.surface[front])
-                | (np.abs(np.nan_to_num(t) - np.nan_to_num(hits.t[front])) > 10 * tolerance)
-            )
-        )
-        with np.errstate(invalid="ignore"):
-            gap = np.where(had & hits.hit[front], t - hits.t[front], 0.0)
-        layer = front[(gap > 10.0 * tolerance) & (gap <= LAYER_SLACK_PIXELS * footprint * t + tolerance)]
+        layer, count = _repair_once(geometry, rays, hits, front, tolerance, footprint)
+        changed += count
         if not layer.size:
             break
         row, col = np.divmod(layer, w)
@@ -165,25 +155,41 @@ def repair(
     return np.flatnonzero(visited), changed
 
 
-def _repair_once(geometry, rays: Rays, hits: Hits, suspects: np.ndarray, tolerance: float) -> None:
-    """Re-solve the suspect pixels (N,) (sorted) with the hierarchy.
+def _repair_once(geometry, rays: Rays, hits: Hits, front: np.ndarray, tolerance: float, footprint: float):
+    """Re-solve the pixels front (N,) (sorted) with the hierarchy; the nearest valid root wins, so a
+    pixel is wrong only if the exact intersector misses a root nearer than the one it has.
 
-    The nearest valid root wins, so a pixel is wrong only if the exact
-    intersector misses a root nearer than the one it has.
+    Returns (the pixels (K,) whose hit was replaced by one nearer by more than 10 tolerances and
+    within the layer slack, how many pixels changed: a hit where there was none, another surface,
+    or t by more than 10 tolerances). The pixels' old hits are read once, into (N,) arrays (each
+    read of the film's arrays at scattered pixels misses the cache: this way 1 ms less of the
+    column's 512x512 repair than reading them again for each question).
     """
-    if not suspects.size:
-        return
-    # the hierarchy only has to find what lies nearer than the suspect's root (a root within
+    # the hierarchy only has to find what lies nearer than the pixel's root (a root within
     # SAME_ROOT tolerances of it is the same root): pieces behind it are not solved, and neither is
     # the piece holding that root unless the ray meets it grazing (bvh.py: a piece's normals lie
     # within its cone, so only a grazing ray crosses it twice), as a secondary ray its start's
-    had = hits.hit[suspects]
-    bound = np.where(had, hits.t[suspects] + SAME_ROOT * tolerance, np.inf)
-    none = np.zeros(suspects.size)
-    found = (np.where(had, hits.surface[suspects], -1), np.where(had, hits.u[suspects], 0.0),
-             np.where(had, hits.v[suspects], 0.0), none, none)  # fmt: skip
-    exact = geometry.intersect(
-        rays.origin[suspects], rays.direction[suspects], t_max=bound, tolerance=tolerance, exclude=found
+    had, t, surface = hits.hit[front], hits.t[front], hits.surface[front]
+    bound = np.where(had, t + SAME_ROOT * tolerance, np.inf)
+    none = np.zeros(front.size)
+    found = (
+        np.where(had, surface, -1),
+        np.where(had, hits.u[front], 0.0),
+        np.where(had, hits.v[front], 0.0),
+        none,
+        none,
     )
-    hits.iterations[suspects] += exact.iterations
-    keep_nearest(hits, suspects, exact)
+    exact = geometry.intersect(
+        np.take(rays.origin, front, axis=0),
+        np.take(rays.direction, front, axis=0),
+        t_max=bound,
+        tolerance=tolerance,
+        exclude=found,
+    )
+    hits.iterations[front] += exact.iterations
+    replaced = np.searchsorted(front, keep_nearest(hits, front, exact))  # positions in front
+    was, now, new_t = had[replaced], exact.surface[replaced], exact.t[replaced]
+    gap = np.where(was, t[replaced] - new_t, 0.0)
+    count = np.count_nonzero(~was | (surface[replaced] != now) | (np.abs(gap) > 10 * tolerance))
+    layer = (gap > 10.0 * tolerance) & (gap <= LAYER_SLACK_PIXELS * footprint * t[replaced] + tolerance)
+    return front[replaced[layer]], int(count)
