@@ -256,7 +256,8 @@ def test_the_tree_stays_shallower_than_the_walks_stack():
     n = 2000
     box_min = np.zeros((n, 3))
     box_min[:, 0] = 1.2 ** np.arange(n)
-    order, _, _, left, right, first, count = build_tree(box_min, box_min + 1e-3, 2)
+    order, made, _, _, left, right, first, count = build_tree(box_min, box_min + 1e-3, 2)
+    left, right, first, count = left[:made], right[:made], first[:made], count[:made]
     depth = np.zeros(left.size, dtype=np.int64)
     for k in range(left.size):  # breadth first: parents before children
         if left[k] >= 0:

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import os
 
+import numba
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bsrt.kernels import compile as kernels
 from bsrt.kernels import threads
+from bsrt.kernels.search import first_at_least
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.warm_up import warm_up
 
@@ -62,3 +66,16 @@ def test_run_chunks_last_slices_shrink_with_what_is_left():
     many = threads._Cursor(10 * n, threads.FIRST_SLICE, 10 * n // 8, threads=16)
     many.measured(n // 2, n // 2 * cost)
     assert many.smallest == 8 * floor
+
+
+@numba.njit
+def _first_at_least(a, value):  # first_at_least has no Python wrapper: called from a kernel
+    return first_at_least(a, value)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-5, 5), max_size=12), st.integers(-7, 7))
+def test_first_at_least_is_numpys_searchsorted_on_the_left(values, value):
+    """Empty arrays, runs of equal values, and values below, among and above them."""
+    a = np.sort(np.array(values, dtype=np.int64))
+    assert _first_at_least(a, value) == np.searchsorted(a, value)

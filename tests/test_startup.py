@@ -339,16 +339,23 @@ def test_a_first_render_with_an_empty_cache_announces_the_compile_and_fills_the_
     assert again.returncode == 0 and again.stderr == ""
 
 
-def test_bad_input_on_a_first_run_is_one_line_the_compile_unsaid_and_stopped(tmp_path):
-    """The compile starts before the model loads; a scene that fails to load is its one message
-    (the compile's notice comes only once the load is done), exit 2, nothing written."""
+@pytest.mark.parametrize("bad", ["scene", "output folder"])
+def test_bad_input_on_a_first_run_is_one_line_the_compile_unsaid_and_stopped(tmp_path, bad):
+    """The compile starts before the renderer's imports; a scene that fails to load, or an output
+    in a folder that does not exist, is its one message (the compile's notice comes only once the
+    load is done), exit 2, nothing written. The workers share stderr's pipe, so the run returns
+    only once they have ended: stopped, they have cached far from every kernel."""
     env = _env(XDG_CACHE_HOME=tmp_path / "xdg", NUMBA_CACHE_DIR=None)
-    scene = tmp_path / "bad.toml"
-    scene.write_text(COLUMN.read_text().replace("[camera]", "[camera]\nzoom = 2", 1))
-    argv = [sys.executable, "-m", "bsrt", "render", str(scene), "-o", str(tmp_path / "c.png")]
+    scene, out = tmp_path / "bad.toml", tmp_path / ("c.png" if bad == "scene" else "none/c.png")
+    scene.write_text(COLUMN.read_text().replace("[camera]", "[camera]\nzoom = 2", 1) if bad == "scene" else "")
+    argv = [sys.executable, "-m", "bsrt", "render", str(scene if bad == "scene" else COLUMN), "-o", str(out)]
     run = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=600)
-    assert (run.returncode, run.stderr) == (2, "bsrt: error: bad.toml: camera.zoom: unknown key\n")
-    assert not (tmp_path / "c.png").exists()
+    expected = (
+        "bad.toml: camera.zoom: unknown key" if bad == "scene" else f"{out}: the folder '{out.parent}' does not exist"
+    )
+    assert (run.returncode, run.stderr) == (2, f"bsrt: error: {expected}\n")
+    assert not out.exists()
+    assert len(list(_folder(env).glob("*.nbi"))) < len(kernels.ENTRY_KERNELS) // 2
 
 
 @pytest.mark.gl

@@ -95,23 +95,25 @@ def _progress(args):
 
 def _cmd_render(args) -> int:
     """Render to ``--output`` (and ``--aov``, and ``--stats`` on stdout): all of them or none."""
-    with interrupts.at_safe_points():  # the set-up thread and this one import at once: a signal waits
-        set_up = start_set_up()
-        from bsrt.outputs import outputs_at_safe_points
-        from bsrt.rendering.image import check_image_path, image_writer, npz_writer
-        from bsrt.rendering.options import RenderOptions
-        from bsrt.rendering.pipeline import render
-        from bsrt.scene import loading  # noqa: F401  (imported here, not while the model loads)
-
-        set_up.join(1.0)  # its imports too are over before a signal can raise (a stuck driver: 1 s at most)
-
-    out = _check_output(args.output or default_output(args.scene), None)
-    given = flag_values(args, "render")
-    check_image_path(out, bool(given.get("transparent")), given.get("bit_depth", 8), "--")
-    aov = _check_output(args.aov, ".npz") if args.aov else None
     progress = _progress(args)
     try:
-        with compiling_if_cold(progress):  # the first run: the kernels compile while the model loads
+        # the first run: the kernels compile while the renderer imports and the model loads
+        with compiling_if_cold(progress) as start_compiling:
+            with interrupts.at_safe_points():  # the set-up thread and this one import at once: a signal waits
+                set_up = start_set_up()
+                start_compiling()
+                from bsrt.outputs import outputs_at_safe_points
+                from bsrt.rendering.image import check_image_path, image_writer, npz_writer
+                from bsrt.rendering.options import RenderOptions
+                from bsrt.rendering.pipeline import render
+                from bsrt.scene import loading  # noqa: F401  (imported here, not while the model loads)
+
+                set_up.join(1.0)  # its imports too are over before a signal can raise (a stuck driver: 1 s at most)
+
+            out = _check_output(args.output or default_output(args.scene), None)
+            given = flag_values(args, "render")
+            check_image_path(out, bool(given.get("transparent")), given.get("bit_depth", 8), "--")
+            aov = _check_output(args.aov, ".npz") if args.aov else None
             scene = _load_input(args, progress)
             _refuse_overwriting([out] + ([aov] if aov else []), scene)
             options = RenderOptions.resolve(scene, **given)

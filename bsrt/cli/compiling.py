@@ -34,26 +34,38 @@ def start_set_up():
 @contextmanager
 def compiling_if_cold(progress=None):
     """The first render on a machine: the kernels compile in worker processes while the block
-    runs (the model's load and the checks before the render), and are waited for after it, said
-    on stderr then with the time left (an error in the block ends the workers and is the only
-    message: bad input stays one line); nothing is done where they are cached. The render then
-    loads the kernels it uses from the cache (those the workers could not compile it compiles
-    itself). progress: shown the stage "compile" (bsrt/progress.py keeps it out of the render's
-    time left)."""
+    runs (the render's imports, the model's load and the checks before the render), and are
+    waited for after it, said on stderr then with the time left (an error in the block ends the
+    workers and is the only message: bad input stays one line); nothing is done where they are
+    cached. The block is given ``start()``: the workers begin when it is called (as early as the
+    block may: they need bsrt.kernels imported), else at the block's end. The render then loads
+    the kernels it uses from the cache (those the workers could not compile it compiles itself).
+    progress: shown the stage "compile" (bsrt/progress.py keeps it out of the render's time
+    left)."""
+    started: dict = {}
+
+    def start() -> None:
+        from bsrt.kernels import compile as kernels
+
+        if not started and not kernels.is_cached():
+            started["clock"], started["workers"] = time.perf_counter(), kernels.start()
+        started.setdefault("clock", None)
+
+    try:
+        yield start
+    except BaseException:
+        if started.get("workers"):
+            from bsrt.kernels import compile as kernels
+
+            kernels.finish(started["workers"], stop=True)
+        raise
+    start()
+    if started["clock"] is None:
+        return
     from bsrt.kernels import compile as kernels
 
-    if kernels.is_cached():
-        yield
-        return
-    clock = time.perf_counter()
-    workers = kernels.start()
-    try:
-        yield
-    except BaseException:
-        kernels.finish(workers, stop=True)
-        raise
-    _announce(progress, max(1.0, kernels.estimate_seconds() - (time.perf_counter() - clock)))
-    kernels.finish(workers)
+    _announce(progress, max(1.0, kernels.estimate_seconds() - (time.perf_counter() - started["clock"])))
+    kernels.finish(started["workers"])
 
 
 def compile_if_cold(progress=None, warm: bool = True) -> None:

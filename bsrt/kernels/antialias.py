@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.kernels.jit import njit
+from bsrt.kernels.search import first_at_least
 
 SIDES = ((1, 0), (-1, 0), (0, 1), (0, -1))  # a pixel's four neighbours (dx, dy), in block_samples' order
 
@@ -136,7 +137,7 @@ def block_samples(
         if first.shape[0] == 0 or (apart[1] and apart[2]) or (apart[3] and apart[4]):
             continue
         for j in range(5):  # each neighbour's row among the first pass's pixels, -1: not marked there
-            at = np.searchsorted(first, index[j])
+            at = first_at_least(first, index[j])
             found[j] = at if at < first.shape[0] and first[at] == index[j] else -1
         for s in range(n):
             if not need[k, s]:

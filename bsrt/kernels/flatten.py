@@ -332,18 +332,22 @@ def build_tree(box_min, box_max, leaf_size):
     (Long: one compiled loop; binning, the sweep and the split share its
     scratch arrays, which a helper would have to take a dozen arguments for.)
 
-    Returns (order (L,): the boxes in tree order, node_min, node_max (K, 3),
-    node_left, node_right, node_first, node_count (K,)); node 0 is the root,
-    a node's boxes are order[first:first + count], children -1 for a tree
-    leaf (count <= leaf_size). Each inner node is cut at the best of 15 bin
+    Returns (order (L,): the boxes in tree order, K: the nodes made, node_min, node_max (C, 3),
+    node_left, node_right, node_first, node_count (C,)), of which the first K rows are the tree
+    (C = 2 L + 1 rows allocated; the caller keeps the K); node 0 is the root, a node's boxes are
+    order[first:first + count], children -1 for a tree leaf (count <= leaf_size). Each inner node is cut at the best of 15 bin
     planes along the longest axis of its boxes' centres (cost: count x
     surface area on each side); where all centres coincide, or below depth
     SAH_DEPTH, at the median, by _median_split (the walks' stacks hold 64 nodes: a chain of
     one-box splits could otherwise go deeper; measured depths are 17-22).
     """
     n = box_min.shape[0]
-    centre = 0.5 * (box_min + box_max)
-    order = np.arange(n)
+    centre = np.empty((n, 3))
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[i] = i
+        for k in range(3):
+            centre[i, k] = 0.5 * (box_min[i, k] + box_max[i, k])
     cap = 2 * n + 1
     node_min, node_max = np.empty((cap, 3)), np.empty((cap, 3))
     left, right = np.full(cap, -1, dtype=np.int64), np.full(cap, -1, dtype=np.int64)
@@ -424,15 +428,7 @@ def build_tree(box_min, box_max, leaf_size):
             first[made + 1], count[made + 1] = f + half, c - half
             made += 2
         node += 1
-    return (
-        order,
-        node_min[:made].copy(),
-        node_max[:made].copy(),
-        left[:made].copy(),
-        right[:made].copy(),
-        first[:made].copy(),
-        count[:made].copy(),
-    )
+    return order, made, node_min, node_max, left, right, first, count
 
 
 @njit(cache=True, nogil=True)

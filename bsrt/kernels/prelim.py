@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from bsrt.kernels.jit import njit
+from bsrt.kernels.search import first_at_least
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -248,7 +249,7 @@ def seeded_hits(
     RootResult.as_hits), else no hit (NaN, -1, 0 iterations for an uncovered
     pixel); failed (N,) bool: covered without a hit.
     """
-    m = np.searchsorted(covered, start)
+    m = first_at_least(covered, start)
     for p in range(start, stop):
         if m < covered.shape[0] and covered[m] == p:
             hit = converged[m] and t[m] > 0

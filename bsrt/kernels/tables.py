@@ -58,19 +58,22 @@ def permute_rows(a, order):
     array; order (N,) int64 is a permutation of 0..N-1. (a[:] = a[order] in
     NumPy would build the reordered copy first; following the permutation's
     cycles needs one row of scratch.)"""
-    n = a.shape[0]
+    n, k = a.shape
     done = np.zeros(n, dtype=np.bool_)
-    row = np.empty(a.shape[1], dtype=a.dtype)
+    row = np.empty(k, dtype=a.dtype)
     for first in range(n):
         if done[first]:
             continue
-        row[:] = a[first]
+        for c in range(k):
+            row[c] = a[first, c]
         i = first
         while True:
             done[i] = True
             j = order[i]
             if j == first:
-                a[i] = row
+                for c in range(k):
+                    a[i, c] = row[c]
                 break
-            a[i] = a[j]
+            for c in range(k):
+                a[i, c] = a[j, c]
             i = j

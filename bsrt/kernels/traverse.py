@@ -141,6 +141,15 @@ def _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, e
 
 
 @njit(cache=True, no_cpython_wrapper=True, _nrt=False)
+def _newton(P, m, u, v, ox, oy, oz, dx, dy, dz, tol2, max_iterations):
+    """solve_one's NEWTON from (u, v) on surface m, stopping on growth, compiled once: the piece
+    solver's retries and last step call it, its first solve has solve_one inlined. (Each inlined
+    copy costs about a second of the first run's compile; the retries and the last step are rare
+    enough that the call costs nothing measurable.)"""
+    return solve_one(P, m, u, v, ox, oy, oz, dx, dy, dz, NEWTON, tol2, max_iterations, True)
+
+
+@njit(cache=True, no_cpython_wrapper=True, _nrt=False)
 def _solve_piece(
     P,
     T,
@@ -178,20 +187,7 @@ def _solve_piece(
     u0, u1, v0, v1 = rect[0], rect[1], rect[2], rect[3]
     tol2 = tol * tol
     ok, u, v, k, t, res, its, c = solve_one(
-        P,
-        m,
-        0.5 * (u0 + u1),
-        0.5 * (v0 + v1),
-        ox,
-        oy,
-        oz,
-        dx,
-        dy,
-        dz,
-        NEWTON,
-        tol2,
-        max_iterations,
-        True,
+        P, m, 0.5 * (u0 + u1), 0.5 * (v0 + v1), ox, oy, oz, dx, dy, dz, NEWTON, tol2, max_iterations, True
     )
     iterations = its
     state = _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv) if ok else 0
@@ -240,21 +236,8 @@ def _solve_piece(
             sr = rects[s]
             if m == ex_m and holds_once(nets[s], p, q, sr, ex_u, ex_v, ox, oy, oz, e, nets[size - 1]):
                 continue  # its one crossing is the start, excluded
-            ok, u, v, k, t, res, its, c = solve_one(
-                P,
-                m,
-                0.5 * (sr[0] + sr[1]),
-                0.5 * (sr[2] + sr[3]),
-                ox,
-                oy,
-                oz,
-                dx,
-                dy,
-                dz,
-                NEWTON,
-                tol2,
-                max_iterations,
-                True,
+            ok, u, v, k, t, res, its, c = _newton(
+                P, m, 0.5 * (sr[0] + sr[1]), 0.5 * (sr[2] + sr[3]), ox, oy, oz, dx, dy, dz, tol2, max_iterations
             )
             iterations += its
             state = (
@@ -284,7 +267,7 @@ def _solve_piece(
     if cosine < GRAZING_COSINE:
         # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
         # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
-        ok, u, v, k, t, res, its, _ = solve_one(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, NEWTON, 0.0, 2, True)
+        ok, u, v, k, t, res, its, _ = _newton(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, 0.0, np.int64(2))
         iterations += its
         if res < best_res and abs(t - best_t) * cosine <= 4.0 * best_res:
             state = _root_in(u0, u1, v0, v1, kept, m, u, v, t, t_min, t_max, ex_m, ex_u, ex_v, ex_ru, ex_rv)

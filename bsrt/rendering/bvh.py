@@ -333,17 +333,17 @@ def build_bvh(
         kept = state[keep] == INSIDE
     box_min, box_max, obb = np.empty((patch.size, 3)), np.empty((patch.size, 3)), np.empty((patch.size, 15))
     run_chunks(leaf_boxes, patch.size, patch_net, piece_net, row, degree, float(padding), box_min, box_max, obb)
-    order, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
+    order, made, n_min, n_max, n_left, n_right, n_first, n_count = build_tree(box_min, box_max, leaf_size)
     permute_rows(obb, order)  # into tree order in place: no second copy of the largest per-leaf table
     rect = rect[order]
     return BVH(
         patches=patches,
         arrays=BVHArrays(
-            node_bounds=np.ascontiguousarray(np.concatenate([n_min, n_max], axis=1)),
-            node_left=n_left,
-            node_right=n_right,
-            node_first=n_first,
-            node_count=n_count,
+            node_bounds=np.concatenate([n_min[:made], n_max[:made]], axis=1),
+            node_left=n_left[:made].copy(),
+            node_right=n_right[:made].copy(),
+            node_first=n_first[:made].copy(),
+            node_count=n_count[:made].copy(),
             leaf_surface=patches.surface[patch[order]],
             leaf_rect=rect,
             leaf_obb=obb,
