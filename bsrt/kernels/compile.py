@@ -76,7 +76,7 @@ ENTRY_KERNELS = (
     trim_pieces.monotone_pieces,
 )
 SIGNATURES = Path(__file__).with_name("signatures.pickle")
-DEFAULT_SECONDS = 45.0  # one core's cold compile of everything (2-core machine, measured), before a record exists
+DEFAULT_SECONDS = 35.0  # one core's cold compile of everything (2-core machine, measured: 32-35 s), without a record
 
 
 def name_of(kernel) -> str:
@@ -199,7 +199,7 @@ def finish(children: list[subprocess.Popen], stop: bool = False) -> None:
 
 # kernels of one family share heavy callees (compiled once per process that needs them): dealt together
 # while that is quickest. lighting's shadow rays run traverse's piece solver: shade_hits compiles in
-# 13.5 s of CPU alone, 5.1 s after trace_rays (signatures.pickle).
+# 11.8 s of CPU alone, 5.2 s after trace_rays (signatures.pickle).
 FAMILIES = {"traverse": "hits", "lighting": "hits", "roots": "hits", "patches": "hits", "shading": "hits"}
 FAMILIES |= {"trim": "trims", "trim_pieces": "trims", "flatten": "tree", "prelim": "map", "tables": "map"}
 
@@ -214,7 +214,7 @@ def _plan(record: dict, workers: int) -> tuple[list[list[str]], float]:
     into its kernels, each costing its seconds compiled alone (record["solo"]: its callees
     compiled again in each process that needs them). On two cores that never pays (the shared
     callees would be compiled twice on the same two cores); with more, the family of the tracing
-    and shading kernels (18.7 s of one core in a row) is the first run's floor unless it is split."""
+    and shading kernels (16.7 s of one core in a row) is the first run's floor unless it is split."""
     seconds, solo = record["seconds"], record.get("solo", {})
     families: dict[str, list[str]] = {}
     for name in seconds:
