@@ -335,9 +335,10 @@ def build_tree(box_min, box_max, leaf_size):
     Returns (order (L,): the boxes in tree order, K: the nodes made, node_min, node_max (C, 3),
     node_left, node_right, node_first, node_count (C,)), of which the first K rows are the tree
     (C = 2 L + 1 rows allocated; the caller keeps the K); node 0 is the root, a node's boxes are
-    order[first:first + count], children -1 for a tree leaf (count <= leaf_size). Each inner node is cut at the best of 15 bin
-    planes along the longest axis of its boxes' centres (cost: count x
-    surface area on each side); where all centres coincide, or below depth
+    order[first:first + count], children -1 for a tree leaf (count <= leaf_size).
+    Each inner node is cut at the best of 15 bin planes along the longest axis
+    of its boxes' centres (cost: count x surface area on each side); where all
+    centres coincide, or below depth
     SAH_DEPTH, at the median, by _median_split (the walks' stacks hold 64 nodes: a chain of
     one-box splits could otherwise go deeper; measured depths are 17-22).
     """

@@ -267,6 +267,7 @@ def _solve_piece(
     if cosine < GRAZING_COSINE:
         # t of a grazing root is off by up to its residual / |cos|: one more Newton step takes the
         # residual (up to tol) down to rounding; kept if it is a valid root of this piece that near
+        # np.int64(2), not a literal 2: numba would compile _newton again for Literal[int](2)
         ok, u, v, k, t, res, its, _ = _newton(P, m, best_u, best_v, ox, oy, oz, dx, dy, dz, 0.0, np.int64(2))
         iterations += its
         if res < best_res and abs(t - best_t) * cosine <= 4.0 * best_res:
