@@ -79,7 +79,7 @@ class Outputs:
 
     with Outputs() as outputs:
         outputs.write("out.png", lambda f: image.save(f, format="PNG"))
-        outputs.write("out.npz", lambda f: numpy.savez_compressed(f, **arrays))
+        outputs.write("out.npz", npz.writer(arrays))
         ...                       # anything that can still fail (printing stats)
         outputs.commit()          # all renamed into place; before this, nothing exists
 

@@ -164,7 +164,10 @@ def write_ply(f, result) -> None:
 
 def write_npz(f, result, rays: SensorRays | None = None) -> None:
     """Every array of ``result`` (and of the rays: origins, directions, range (rows, columns) and
-    for a pinhole depth (rows, columns)) into the binary file f as .npz; names: (S,) str."""
+    for a pinhole depth (rows, columns)) into the binary file f as a compressed .npz (bsrt/npz.py);
+    names: (S,) str."""
+    from bsrt import npz
+
     arrays = {
         name: getattr(result, name)
         for name in ("hit", "t", "point", "normal", "front_facing", "u", "v", "surface", "residual")
@@ -176,4 +179,4 @@ def write_npz(f, result, rays: SensorRays | None = None) -> None:
         arrays["range"] = rays.range_image(result)
         if rays.kind == "pinhole":
             arrays["depth"] = rays.depth_image(result)
-    np.savez(f, **arrays)
+    npz.write(f, arrays)

@@ -16,7 +16,7 @@ FLOORS = (
     ("kernels",),  # numba loops over flat arrays
     ("methods", "geometry"),
     ("validate",),
-    ("settings", "outputs"),
+    ("settings", "outputs", "npz"),
     ("io",),  # the model readers
     ("scene",),
     ("adapters", "parts", "sensors"),

@@ -96,34 +96,6 @@ def test_a_signal_during_the_commit_ends_the_command_as_finished_one_before_it_l
         assert out.read_bytes() == b"whole"
 
 
-def test_the_aov_archive_is_what_numpy_load_reads_written_in_pieces(monkeypatch):
-    """image.npz_writer: one .npy member per array, numpy.load gives each back exactly (bool,
-    int32, float64 (H, W, 3), empty), written in pieces of NPZ_PIECE bytes."""
-    import io
-
-    from bsrt.rendering import image
-
-    rng = np.random.default_rng(4)
-    arrays = {
-        "hit": rng.random((37, 41)) > 0.5,
-        "surface": rng.integers(-1, 9, (37, 41)).astype(np.int32),
-        "position": rng.random((37, 41, 3)),
-        "none": np.zeros((0, 3)),
-    }
-    monkeypatch.setattr(image, "NPZ_PIECE", 1000)
-    pieces = []
-    monkeypatch.setattr(image.interrupts, "safe_point", lambda: pieces.append(1))
-    buffer = io.BytesIO()
-    image.npz_writer(arrays)(buffer)
-    buffer.seek(0)
-    with np.load(buffer) as got:
-        assert sorted(got.files) == sorted(arrays)
-        for name, want in arrays.items():
-            assert got[name].dtype == want.dtype and got[name].shape == want.shape, name
-            np.testing.assert_array_equal(got[name], want, err_msg=name)
-    assert len(pieces) == sum(-(-a.nbytes // 1000) for a in arrays.values())  # 2 + 7 + 37 + 0
-
-
 SIGNAL_DURING_AOVS = """
 import os, signal, sys
 from bsrt import interrupts
@@ -131,8 +103,8 @@ interrupts.install()
 with interrupts.at_safe_points():  # as bsrt/__main__.py: numpy's threads start with the signals blocked
     import numpy as np
     from bsrt.outputs import outputs_at_safe_points
-    from bsrt.rendering import image
-image.NPZ_PIECE = 1 << 12
+    from bsrt import npz
+npz.PIECE = 1 << 12
 
 class SignalOnSecond(dict):
     def items(self):
@@ -146,7 +118,7 @@ class SignalOnSecond(dict):
 try:
     with outputs_at_safe_points() as outputs:
         arrays = SignalOnSecond(a=np.zeros(10), b=np.ones((64, 64, 3)), c=np.zeros(10))
-        outputs.write(sys.argv[1], image.npz_writer(arrays))
+        outputs.write(sys.argv[1], npz.writer(arrays))
         outputs.commit()
     print("finished", flush=True)
 except interrupts.Interrupted as exc:

@@ -260,13 +260,13 @@ def render_job(job: Job) -> dict:
 
 
 def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
-    from bsrt.rendering.image import npz_writer, png_writer
-    from bsrt.rendering.options import RenderOptions
+    from bsrt import npz
+    from bsrt.rendering.image import png_writer
     from bsrt.rendering.pipeline import render
 
-    options = RenderOptions.resolve(scene)  # the job's settings are in the scene (load_job)
-    result = render(scene, options, keep=bool(job.aov))  # no AOVs: a streamed film
-    return _encoded(png_writer(result.image)), _encoded(npz_writer(result.aovs())) if job.aov else None
+    # the job's settings are in the scene (load_job); no AOVs: a streamed film
+    result = render(scene, keep=bool(job.aov))
+    return _encoded(png_writer(result.image)), _encoded(npz.writer(result.aovs())) if job.aov else None
 
 
 def _encoded(write) -> bytes:

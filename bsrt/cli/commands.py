@@ -103,7 +103,7 @@ def _cmd_render(args) -> int:
                 set_up = start_set_up()
                 start_compiling()
                 from bsrt.outputs import outputs_at_safe_points
-                from bsrt.rendering.image import check_image_path, image_writer, npz_writer
+                from bsrt.rendering.image import check_image_path, image_writer
                 from bsrt.rendering.options import RenderOptions
                 from bsrt.rendering.pipeline import render
                 from bsrt.scene import loading  # noqa: F401  (imported here, not while the model loads)
@@ -131,7 +131,9 @@ def _cmd_render(args) -> int:
             clock = time.perf_counter()
             outputs.write(out, image_writer(out, result.image))
             if aov:
-                outputs.write(aov, npz_writer(result.aovs()))
+                from bsrt import npz  # (its thread pool's imports only when there is an archive to write)
+
+                outputs.write(aov, npz.writer(result.aovs()))
             result.stats["seconds"]["write"] = time.perf_counter() - clock
             if args.stats:
                 _print_stdout(json.dumps(result.stats, indent=2))

@@ -1,4 +1,5 @@
-"""Writing results: sRGB-encoded PNG (8 or 16 bits, RGB or RGBA), JPEG, WebP and AOV archives, atomically.
+"""Writing results: sRGB-encoded PNG (8 or 16 bits, RGB or RGBA), JPEG and WebP, atomically (the AOV
+archives: bsrt/npz.py).
 
 Each file is written all or nothing (bsrt/outputs.py): a failure never
 leaves a half-written output behind.
@@ -9,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
-from bsrt import interrupts
 from bsrt.errors import InputError
 from bsrt.outputs import write_file
 
@@ -100,32 +100,6 @@ def png16_bytes(pixels: np.ndarray) -> bytes:
     )
 
 
-NPZ_LEVEL = 1  # zlib level of the .npz's members: numpy's savez_compressed takes 6, 1.5x as long for 2 % fewer bytes
-NPZ_PIECE = 1 << 24  # bytes of an array written between two safe points
-
-
-def npz_writer(arrays: dict):
-    """Named arrays -> a function writing a compressed .npz (what numpy.load reads: one .npy member
-    per array) to a binary file. Each array goes in pieces of NPZ_PIECE bytes with a safe point
-    between (bsrt.interrupts): a 4096x4096 film's AOVs are 1.5 GB before compression, and a
-    signal must not wait for all of them (numpy.savez_compressed writes each in one call)."""
-
-    def write(f) -> None:
-        import zipfile  # (not at start-up: the image alone needs none)
-
-        with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED, compresslevel=NPZ_LEVEL) as archive:
-            for name, value in arrays.items():
-                a = np.ascontiguousarray(value)
-                raw = a.reshape(-1).view(np.uint8)
-                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
-                    np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(a))
-                    for start in range(0, raw.size, NPZ_PIECE):
-                        member.write(raw[start : start + NPZ_PIECE])
-                        interrupts.safe_point()
-
-    return write
-
-
 def write_png(path, pixels: np.ndarray) -> None:
     """pixels: (H, W, 3) uint8 -> PNG at path, all or nothing."""
     write_file(path, png_writer(pixels))
@@ -170,8 +144,3 @@ def write_image(path, pixels: np.ndarray) -> None:
 def write_text(path, text: str) -> None:
     """UTF-8 text (e.g. JSON results) at path, all or nothing."""
     write_file(path, lambda f: f.write(text.encode("utf-8")))
-
-
-def write_npz(path, arrays: dict) -> None:
-    """Arrays -> compressed .npz at path (the name is kept exactly), all or nothing."""
-    write_file(path, npz_writer(arrays))
