@@ -208,3 +208,26 @@ def test_a_plane_of_the_highest_allowed_degree_is_exact(ctx, degree, method):
     assert hit.sum() == 44 * 44 and hit[10:54, 10:54].all()
     d = pixel_rays(scene.camera, 64, 64).reshape(64, 64, 3)
     np.testing.assert_allclose(res.hits.t.reshape(64, 64)[hit], (4.0 / d[..., 1])[hit], rtol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "keys",
+    [
+        dict(spp=1, adaptive_spp=4),  # the adaptive samples rewrite marked pixels
+        dict(spp=1, adaptive_spp=4, edges=True, edge_width=2.0),  # lines drawn over both
+        dict(spp=4, adaptive_spp=0),  # the film's sums divided and encoded band by band
+    ],
+    ids=["adaptive", "edges", "spp4"],
+)
+def test_an_opaque_pictures_bytes_are_the_linear_images_srgb(ctx, keys):
+    """RenderResult.image of an opaque 8-bit picture is the film's pixels, not encoded again: every
+    path that writes the linear image writes their sRGB bytes with it, the same bytes as
+    srgb_encode of the linear image (the water-lily: mirrors, shadows, petals' edges)."""
+    from bsrt.rendering.image import encode_picture, srgb_encode
+
+    scene = load_scene(SCENES / "water-lily.toml")
+    res = render(scene, RenderOptions.resolve(scene, width=64, height=48, **keys), ctx=ctx)
+    assert res.image is res.pixels
+    np.testing.assert_array_equal(res.pixels, srgb_encode(res.linear))
+    np.testing.assert_array_equal(res.image, encode_picture(res.linear, res.coverage, res.options.background, False, 8))
+    assert (res.pixels > 0).any() and res.stats["hits"] > 0
