@@ -3,7 +3,8 @@
 ``Progress`` is the ``progress(stage, fraction)`` callback of
 :func:`bsrt.rendering.pipeline.render` (stage "map", "solve", "shade", "aov" or "done";
 fraction 0..1 of the whole render; its callers report "setup" at 0 before
-it starts, since loading the kernels can take a while). Before that, the
+it starts, since loading the kernels can take a while, and ``bsrt render``
+"write" at 1 while it writes the outputs). Before that, the
 model load reports stage "load" with its own fraction, the faces converted
 (:func:`load_reporter` adapts ``bsrt.io.load_model``'s ``progress(done,
 total)``); the render's stages then start again from 0, and the time left

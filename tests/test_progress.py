@@ -277,10 +277,11 @@ def test_progress_on_a_pipe_writes_lines(tmp_path):
     assert "\r" not in done.stderr and done.stderr.endswith("\n")
     assert re.fullmatch(r"bsrt:   0% setup, \d\.\d s", lines[0])  # the clock runs from before the scene's load
     assert all(
-        re.fullmatch(r"bsrt: +\d+% (setup|map|solve|shade|aov), \d+(\.\d)? s(, about .* left)?", line)
+        re.fullmatch(r"bsrt: +\d+% (setup|map|solve|shade|aov|write), \d+(\.\d)? s(, about .* left)?", line)
         for line in lines[:-1]
     ), lines
     assert {"map", "solve", "shade"} <= {line.split()[2].rstrip(",") for line in lines[:-1]}
+    assert re.fullmatch(r"bsrt: 100% write, \d+\.\d s", lines[-2])  # the outputs, last
     assert SUMMARY.match(lines[-1]) and SUMMARY.match(lines[-1]).group(1) == str(out)
 
 
