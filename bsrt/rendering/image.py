@@ -11,6 +11,7 @@ import numpy as np
 from PIL import Image
 
 from bsrt.errors import InputError
+from bsrt.kernels.threads import run_chunks
 from bsrt.outputs import write_file
 
 #: extension -> (Pillow's format name, its options): what RenderResult.save writes
@@ -50,22 +51,37 @@ def srgb_encode16(linear: np.ndarray) -> np.ndarray:
     return np.rint(s * 65535.0).astype(np.uint16)
 
 
+ENCODE_ROWS = 16  # picture rows encoded at once at least (a task of run_chunks)
+
+
 def encode_picture(linear: np.ndarray, coverage: np.ndarray, background, transparent: bool, bits: int) -> np.ndarray:
     """The picture to write. linear: (H, W, 3) float64, the pixels' mean colour (background
     samples included); coverage: (H, W) float64 in [0, 1], the fraction of samples that hit.
 
     Opaque: (H, W, 3) sRGB. Transparent: (H, W, 4), alpha = coverage, and the colour the
     surfaces alone give (straight alpha: linear = a * colour + (1 - a) * background, solved for
-    colour; 0 where a = 0). uint8 for bits = 8, uint16 for 16."""
+    colour; 0 where a = 0). uint8 for bits = 8, uint16 for 16. Encoded in bands of rows on every
+    core (NumPy's loops release the GIL; a band's temporaries are small enough to be reused
+    rather than mapped afresh: a 2048 x 2048 picture took 0.7-1.9 s of one core in one piece)."""
+    h, w = linear.shape[:2]
+    out = np.empty((h, w, 4 if transparent else 3), dtype=np.uint8 if bits == 8 else np.uint16)
+    background = np.asarray(background, dtype=np.float64)
+    run_chunks(_encode_rows, h, linear, coverage, background, transparent, bits, out, min_chunk=ENCODE_ROWS)
+    return out
+
+
+def _encode_rows(start, stop, linear, coverage, background, transparent, bits, out) -> None:
+    """encode_picture's rows start..stop-1 into out."""
     encode = srgb_encode if bits == 8 else srgb_encode16
     if not transparent:
-        return encode(linear)
-    a = coverage[..., None]
+        out[start:stop] = encode(linear[start:stop])
+        return
+    a = coverage[start:stop, :, None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        colour = np.where(a > 0, (linear - (1.0 - a) * np.asarray(background, dtype=np.float64)) / a, 0.0)
+        colour = np.where(a > 0, (linear[start:stop] - (1.0 - a) * background) / a, 0.0)
     scale = 255.0 if bits == 8 else 65535.0
-    alpha = np.rint(np.clip(coverage, 0.0, 1.0) * scale).astype(np.uint8 if bits == 8 else np.uint16)
-    return np.concatenate([encode(colour), alpha[..., None]], axis=2)
+    out[start:stop, :, :3] = encode(colour)
+    out[start:stop, :, 3] = np.rint(np.clip(coverage[start:stop], 0.0, 1.0) * scale)
 
 
 def png_writer(pixels: np.ndarray):
