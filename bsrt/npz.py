@@ -98,7 +98,7 @@ def write(f, arrays) -> None:
                 0,
                 0o644 << 16,
                 _MASK32,
-            )  # fmt: skip
+            )
             + name
             + extra
         )
