@@ -231,3 +231,24 @@ def test_an_opaque_pictures_bytes_are_the_linear_images_srgb(ctx, keys):
     np.testing.assert_array_equal(res.pixels, srgb_encode(res.linear))
     np.testing.assert_array_equal(res.image, encode_picture(res.linear, res.coverage, res.options.background, False, 8))
     assert (res.pixels > 0).any() and res.stats["hits"] > 0
+
+
+@pytest.mark.parametrize("scene_name, spp", [("water-lily", 1), ("column", 1), ("column", 4)])
+def test_the_aovs_of_a_render_that_kept_the_shadings_frames_are_the_same(ctx, monkeypatch, scene_name, spp):
+    """render(aovs=True) keeps the shading's positions and normals of the pixel-centre hits (one
+    sample a pixel): aovs() then evaluates no frame (facing_frames is not called) and gives every
+    array as a render that evaluates them from its hits; with spp 4 nothing is kept."""
+    from bsrt.rendering import pipeline
+
+    scene = load_scene(SCENES / f"{scene_name}.toml")
+    options = RenderOptions.resolve(scene, width=48, height=40, spp=spp)
+    want = render(scene, options, ctx=ctx).aovs()
+    kept = render(scene, options, ctx=ctx, keep=False, aovs=True)
+    assert (kept.frames is not None) == (spp == 1) and kept.hits is not None
+    if spp == 1:
+        monkeypatch.setattr(pipeline, "facing_frames", None)  # calling it would raise
+    got = kept.aovs()
+    assert list(got) == list(want)
+    for name in want:
+        np.testing.assert_array_equal(got[name], want[name], err_msg=name)
+    assert np.isfinite(got["normal"][got["hit"]]).all() and np.isnan(got["normal"][~got["hit"]]).all()

@@ -265,7 +265,7 @@ def _render(scene, job: Job) -> tuple[bytes, bytes | None]:
     from bsrt.rendering.pipeline import render
 
     # the job's settings are in the scene (load_job); no AOVs: a streamed film
-    result = render(scene, keep=bool(job.aov))
+    result = render(scene, keep=False, aovs=bool(job.aov))
     return _encoded(png_writer(result.image)), _encoded(npz.writer(result.aovs())) if job.aov else None
 
 

@@ -127,7 +127,7 @@ def _cmd_render(args) -> int:
             if progress:
                 progress("setup", 0.0)  # at once: the setup (kernels, hierarchy) comes before the first stage
             # no AOVs: a streamed film; the hierarchy from the prepared-geometry cache unless --no-cache
-            result = render(scene, options, progress=progress, keep=bool(aov), cache=args.cache)
+            result = render(scene, options, progress=progress, keep=False, aovs=bool(aov), cache=args.cache)
             clock = time.perf_counter()
             if progress:
                 progress("write", 1.0)  # the picture and the AOVs (seconds at 2048 x 2048 with --aov)

@@ -27,6 +27,8 @@ class Film:
     pixels: (H, W, 3) uint8 sRGB, rows final as their samples are all in.
     linear: (H, W, 3) float64 linear RGB when kept (None when streaming).
     hits: Hits of the H * W pixel-centre rays when kept (None when streaming).
+    frames: with ``frames=True`` (one sample a pixel), the (position, normal) (H * W, 3) float64
+      of the pixel-centre hits, which the shading writes into (frame_rows); else None.
     coverage: (H, W) float64, the fraction of each pixel's samples that hit a surface
       (counted in 2 bytes a pixel, kept or not: the alpha of a transparent picture).
     hit_count, iterations_sum, iterations_count, iterations_max: the
@@ -34,8 +36,13 @@ class Film:
       counted as they come, kept or not.
     """
 
-    def __init__(self, width: int, height: int, columns: int, rows: int, band: int, keep: bool = True):
+    def __init__(
+        self, width: int, height: int, columns: int, rows: int, band: int, keep: bool = True, frames: bool = False
+    ):
         self.width, self.height, self.columns, self.rows, self.keep = width, height, columns, rows, keep
+        if frames and columns * rows != 1:
+            raise ValueError("a film keeps the shading's frames only with one sample a pixel")
+        self.frames = (np.empty((width * height, 3)), np.empty((width * height, 3))) if frames else None
         self.pixels = np.zeros((height, width, 3), dtype=np.uint8)
         # the pixel rows a band touches: band // rows + 2 (a band may start and end inside a row)
         self._sums = np.zeros((height if keep else min(height, band // rows + 2), width, 3))
@@ -104,6 +111,12 @@ class Film:
     def hit_samples(self) -> np.ndarray:
         """(H, W) uint16: each pixel's samples that hit (held, not copied)."""
         return self._hit_samples
+
+    def frame_rows(self, first: int, stop: int):
+        """The (position, normal) rows of sample rows first..stop-1 (views), or None."""
+        if self.frames is None:
+            return None
+        return tuple(a[first * self.width : stop * self.width] for a in self.frames)
 
     def put_hits(self, start: int, hits: Hits) -> None:
         """The pixel-centre rays start .. start + len(hits) - 1 found ``hits``. A film traced in one

@@ -52,8 +52,8 @@ class RenderResult:
     hits: Hits for the H * W pixel-centre rays (row-major).
     linear and hits are None for a render with ``keep=False`` (a streamed
     film: memory bounded by the band; no AOVs).
-    position, normal: (H * W, 3) float64, NaN where no hit, computed from the
-      hits on first use (a large film keeps only its hits).
+    position, normal: (H * W, 3) float64, NaN where no hit: the shading's own for a render with
+      ``aovs=True`` and one sample a pixel, else computed from the hits on first use.
     prelim: the preliminary map of the last band traced, the whole film's
       when it fits in one band (None for method "martin").
     stats: timings (seconds) and counters, JSON-serialisable.
@@ -69,6 +69,7 @@ class RenderResult:
     options: RenderOptions
     geometry: Geometry
     coverage: np.ndarray | None = None
+    frames: tuple[np.ndarray, np.ndarray] | None = None  # (position, normal) the shading kept (render's aovs)
 
     @property
     def image(self) -> np.ndarray:
@@ -86,6 +87,8 @@ class RenderResult:
     def _frames(self):
         if self.hits is None:
             raise ValueError("this render kept no hits (keep=False): no positions, normals or AOVs")
+        if self.frames is not None:
+            return self.frames
         h, w = self.pixels.shape[:2]
         directions = pixel_rays(self.options.camera, w, h)
         return facing_frames(self.geometry.patches, self.hits, directions)[:2]
@@ -220,6 +223,7 @@ def render(
     progress=None,
     keep: bool = True,
     cache: bool = False,
+    aovs: bool = False,
 ) -> RenderResult:
     """Render a scene with ``options`` (default: the scene's own settings).
 
@@ -236,6 +240,9 @@ def render(
     memory bounded by the band whatever the film's size, pixels and stats only.
     cache: without ``geometry``, take the scene's patch table and hierarchy from the
     prepared-geometry cache (rendering/prepared.py), storing them there if absent.
+    aovs: the caller will ask for the result's AOVs (implies keep): with one sample a pixel,
+    shaded on the CPU, the shading's positions and normals of the pixel-centre hits are kept
+    (48 bytes a pixel more) rather than evaluated again from the hits (the same values).
 
     Anti-aliasing: spp samples per pixel sit at the centres of a stratified
     columns x rows grid (sample_grid), which is exactly the pixel-centre grid
@@ -266,15 +273,15 @@ def render(
     if prelim is not None and (spp != 1 or prelim.surface.shape != (height, width)):
         raise ValueError(f"a precomputed map needs spp = 1 and the film's size {width}x{height}")
     # a transparent or 16-bit picture is encoded from the linear image; edges read the pixel-centre hits
-    keep = keep or opts.transparent or opts.bit_depth != 8 or opts.edges
-    film = Film(width, height, cols, rows, band, keep)
+    keep = keep or aovs or opts.transparent or opts.bit_depth != 8 or opts.edges
+    film = Film(width, height, cols, rows, band, keep, frames=aovs and spp == 1 and shader.gpu is None)
     total = sample_h + (height if spp > 1 else 0)  # the AOV pass counts as one more sample
     for first in range(0, sample_h, band):
         stop = min(sample_h, first + band)
         hits, directions = tracer.trace(sample_w, sample_h, (first, stop), prelim, first / total)
         shader.begin_band(hits, (first / total, stop / total))
         with stats.timer("shade"):
-            colour = shader.shade(hits, directions)
+            colour = shader.shade(hits, directions, frames=film.frame_rows(first, stop))
             film.add(colour, first, stop)
         film.count_hits(hits.hit, first, stop)
         del colour, directions
@@ -300,7 +307,9 @@ def render(
         iterations_max=film.iterations_max,
     )
     stats.add("out_of_budget", geometry.out_of_budget - spent_before)
-    return RenderResult(film.pixels, film.linear, film.hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage)
+    return RenderResult(
+        film.pixels, film.linear, film.hits, tracer.last_map, stats.as_dict(), opts, geometry, coverage, film.frames
+    )
 
 
 def _adaptive(
@@ -386,11 +395,13 @@ class _Shader:
         self.shown = max(self.shown, lo + (hi - lo) * min(0.99, self.traced / self.expected))
         self.report("shade", self.shown)
 
-    def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0):
-        """Linear RGB (K, 3) seen along each ray (ending at ``hits``); directions: (K, 3) unit."""
+    def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0, frames=None):
+        """Linear RGB (K, 3) seen along each ray (ending at ``hits``); directions: (K, 3) unit.
+        frames: (position, normal) (K, 3) arrays the hits' frames are written into (else made here)."""
         n = len(hits)
         directions = np.ascontiguousarray(directions, dtype=np.float64)
-        colour, position, normal = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        position, normal = frames if frames is not None else (np.empty((n, 3)), np.empty((n, 3)))
+        colour = np.empty((n, 3))
         radius, shadow_rays, exhausted = np.empty((n, 2)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
         geometry = self.geometry
         bvh = geometry.bvh
