@@ -453,3 +453,22 @@ def draw(linear: np.ndarray, coverage: np.ndarray, color) -> np.ndarray:
     """linear: (H, W, 3) float64 linear RGB; coverage: (H, W) in [0, 1] -> the blend, (H, W, 3)."""
     c = coverage[..., None]
     return linear * (1.0 - c) + np.asarray(color, dtype=np.float64) * c
+
+
+def draw_over(linear, pixels, coverage, hits: Hits, options, geometry, stats):
+    """The edges drawn over a render's image, in place: pixels (H, W, 3) uint8 and, when kept,
+    linear (H, W, 3) float64 (else the 8-bit pixels under a line are decoded to blend with; both
+    get the same bytes, as the film writes them). Returns the coverage (H, W): a line adds to it
+    (the alpha) as it covers the pixel, ``a + e (1 - a)``, so a transparent picture keeps the lines
+    drawn over the background (None stays None). hits: the H * W pixel-centre hits."""
+    from bsrt.rendering.image import srgb_decode, srgb_encode
+
+    with stats.timer("edges"):
+        lines = edge_coverage(geometry, options, hits, stats)
+        under = lines > 0
+        base = linear[under] if linear is not None else srgb_decode(pixels[under])
+        blended = draw(base, lines[under], options.edge_color)
+        if linear is not None:
+            linear[under] = blended
+        pixels[under] = srgb_encode(blended)
+    return None if coverage is None else coverage + lines * (1.0 - coverage)

@@ -298,7 +298,9 @@ def render(
     if spp == 1 and opts.adaptive_spp > 1:
         _adaptive(film.linear, film.pixels, coverage, film.hit_samples, tracer, shader, opts, geometry, stats)
     if opts.edges:
-        coverage = _edges(film.linear, film.pixels, coverage, film.hits, opts, geometry, stats)
+        from bsrt.rendering.edges import draw_over
+
+        coverage = draw_over(film.linear, film.pixels, coverage, film.hits, opts, geometry, stats)
     report("done", 1.0)
     stats.fields.update(
         pixels=width * height,
@@ -329,26 +331,6 @@ def _adaptive(
 
     grid = sample_grid(opts.adaptive_spp)
     refine(linear, pixels, coverage, grid, shade, trace, opts, stats, MAX_BAND_SAMPLES, centre_hits)
-
-
-def _edges(linear, pixels, coverage, hits: Hits, opts: RenderOptions, geometry: Geometry, stats: Stats):
-    """The edges drawn over the image (rendering/edges.py), in place: pixels (H, W, 3) uint8 and,
-    when kept, linear (H, W, 3) float64 (else the 8-bit pixels under a line are decoded to blend
-    with). Returns the coverage (H, W): a line adds to it (the alpha) as it covers the pixel,
-    ``a + e (1 - a)``, so a transparent picture keeps the lines drawn over the background (None
-    stays None)."""
-    from bsrt.rendering.edges import draw, edge_coverage
-    from bsrt.rendering.image import srgb_decode, srgb_encode
-
-    with stats.timer("edges"):
-        lines = edge_coverage(geometry, opts, hits, stats)
-        under = lines > 0
-        base = linear[under] if linear is not None else srgb_decode(pixels[under])
-        blended = draw(base, lines[under], opts.edge_color)
-        if linear is not None:
-            linear[under] = blended
-        pixels[under] = srgb_encode(blended)
-    return None if coverage is None else coverage + lines * (1.0 - coverage)
 
 
 class _Shader:
