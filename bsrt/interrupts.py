@@ -26,11 +26,12 @@ class Interrupted(KeyboardInterrupt):
 
 
 _handling = False
+_finished = False
 
 
 def _raise_interrupted(signum, frame) -> None:
     global _handling
-    if _handling:
+    if _handling or _finished:
         return
     _handling = True
     raise Interrupted(signum)
@@ -38,9 +39,21 @@ def _raise_interrupted(signum, frame) -> None:
 
 def install() -> None:
     """Route SIGINT, SIGTERM and SIGHUP to Interrupted (call from the main thread)."""
+    global _finished
+    _finished = False
     for sig in SIGNALS:
         if signal.getsignal(sig) is not signal.SIG_IGN:
             signal.signal(sig, _raise_interrupted)
+
+
+def finished() -> None:
+    """The run's outputs are in place (bsrt/outputs.py, once committed): a signal from now on is
+    too late to stop anything, and the handlers installed here take it without raising, so the
+    run ends as finished, not as interrupted with its outputs left behind. (Between the outputs'
+    block and the program's end there are still frames to return from and arrays to free: a
+    signal there ended a run with exit 143 and its outputs in place.)"""
+    global _finished
+    _finished = True
 
 
 def ignore() -> None:

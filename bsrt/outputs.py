@@ -135,14 +135,17 @@ class Outputs:
 @contextmanager
 def outputs_at_safe_points():
     """Outputs in an ``interrupts.at_safe_points`` block (the render and map commands): signals
-    wait for a safe point. One that arrives during ``commit()``, after its last safe point, is
-    taken as the block ends, when every output is in place: it came too late to stop anything,
-    and the command ends as finished (as after a signal once it has returned, bsrt/__main__.py),
-    not as interrupted with its outputs left behind."""
+    wait for a safe point. One that arrives during ``commit()``, after its last safe point, or at
+    any moment once the body has committed (``interrupts.finished``: the command's frames still
+    return and free their arrays) came too late to stop anything: the command ends as finished
+    (as after a signal once it has returned, bsrt/__main__.py), not as interrupted with its
+    outputs left behind."""
     outputs = Outputs()
     try:
         with interrupts.at_safe_points(), outputs:
             yield outputs
+            if outputs.committed:
+                interrupts.finished()  # a signal after this is too late, wherever it lands
     except KeyboardInterrupt:
         if not outputs.committed:
             raise

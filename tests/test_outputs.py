@@ -62,27 +62,31 @@ import os, signal, sys
 from bsrt import interrupts
 from bsrt.outputs import outputs_at_safe_points
 interrupts.install()
-late = sys.argv[2] == "after"
+when = sys.argv[2]
 try:
     with outputs_at_safe_points() as outputs:
         outputs.write(sys.argv[1], lambda f: f.write(b"whole"))
-        if not late:
+        if when == "before":
             os.kill(os.getpid(), signal.SIGTERM)  # waits for the commit's safe point
         outputs.commit()
-        if late:
+        if when == "after":
             os.kill(os.getpid(), signal.SIGTERM)  # as if it came during the commit: taken as the block ends
+    if when == "later":
+        os.kill(os.getpid(), signal.SIGTERM)  # on the way out: the command's frames, arrays freed
+    sum(range(1000))
     print("finished", flush=True)
 except interrupts.Interrupted as exc:
     print("interrupted", exc.signum, flush=True)
 """
 
 
-@pytest.mark.parametrize("when", ["before", "after"])
+@pytest.mark.parametrize("when", ["before", "after", "later"])
 def test_a_signal_during_the_commit_ends_the_command_as_finished_one_before_it_leaves_nothing(tmp_path, when):
     """outputs_at_safe_points (the render and map commands): a signal before the commit's safe
     point interrupts, leaving nothing; one that arrives after it (during the commit) is taken at
-    the block's end, when the outputs are whole: the command ends as finished, its file in place
-    (CI once saw ``bsrt map`` report SIGTERM and leave map.png)."""
+    the block's end, when the outputs are whole, and one after the block (the command returning)
+    is too late as well: the command ends as finished, its file in place (CI once saw ``bsrt map``
+    report SIGTERM and leave map.png; this project's README run saw it again after the block)."""
     out = tmp_path / "out.bin"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     run = subprocess.run(
