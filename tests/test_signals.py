@@ -68,6 +68,17 @@ def _before_the_handlers(code: int, err: str, left: list, signum: int, delay: fl
     return True
 
 
+def _moments(rng: random.Random, count: int, whole: float) -> list[float]:
+    """count random moments over a run of ``whole`` seconds and a little past it, one in each of count
+    equal strata of [0.05, 1.05 whole], in a shuffled order: every part of the run is covered
+    whatever the seed (drawn uniformly, the 5 moments of one seed fell twice in the first 70 ms and
+    twice past the end, and a run as fast as the timing left none inside it)."""
+    edges = [0.05 + (whole * 1.05 - 0.05) * k / count for k in range(count + 1)]
+    moments = [rng.uniform(lo, hi) for lo, hi in zip(edges[:-1], edges[1:])]
+    rng.shuffle(moments)
+    return moments
+
+
 def _run_and_signal(folder: Path, signum: int, delay: float):
     proc = subprocess.Popen(COMMAND, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(delay)
@@ -80,10 +91,10 @@ def _run_and_signal(folder: Path, signum: int, delay: float):
 def test_a_signal_at_any_moment_leaves_all_outputs_or_none(tmp_path, whole_run_seconds, signum):
     rng = random.Random(signum)
     interrupted = 0
-    for i in range(RENDERS if signum == signal.SIGTERM else RENDERS // 4):
+    count = RENDERS if signum == signal.SIGTERM else RENDERS // 4
+    for i, delay in enumerate(_moments(rng, count, whole_run_seconds)):
         folder = tmp_path / str(i)
         folder.mkdir()
-        delay = rng.uniform(0.05, whole_run_seconds * 1.05)
         code, err, left = _run_and_signal(folder, signum, delay)
         where = f"signal {signum.name} after {delay:.3f} s"
         if code == 0:  # the render was over before the signal came
@@ -100,10 +111,9 @@ def test_a_signal_at_any_moment_leaves_all_outputs_or_none(tmp_path, whole_run_s
 
 def test_sigkill_at_any_moment_leaves_no_lone_output(tmp_path, whole_run_seconds):
     rng = random.Random(9)
-    for i in range(RENDERS):
+    for i, delay in enumerate(_moments(rng, RENDERS, whole_run_seconds)):
         folder = tmp_path / str(i)
         folder.mkdir()
-        delay = rng.uniform(0.05, whole_run_seconds * 1.05)
         code, err, left = _run_and_signal(folder, signal.SIGKILL, delay)
         outputs = [name for name in left if not TEMPORARY.fullmatch(name)]
         assert outputs in ([], ["out.npz", "out.png"]), f"SIGKILL after {delay:.3f} s: left {left}"
@@ -129,11 +139,10 @@ def test_a_signal_during_bsrt_map_leaves_the_map_or_nothing(tmp_path):
     (tmp_path / "map.png").unlink()
     rng = random.Random(5)
     interrupted = 0
-    for i in range(8):
+    for i, delay in enumerate(_moments(rng, 8, whole)):
         folder = tmp_path / str(i)
         folder.mkdir()
         proc = subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        delay = rng.uniform(0.05, whole * 1.05)
         time.sleep(delay)
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=600)
