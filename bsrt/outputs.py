@@ -135,11 +135,11 @@ class Outputs:
 @contextmanager
 def outputs_at_safe_points():
     """Outputs in an ``interrupts.at_safe_points`` block (the render and map commands: a run's
-    last outputs, once committed the run counts as finished): signals wait for a safe point. One that arrives during ``commit()``, after its last safe point, or at
-    any moment once the body has committed (``interrupts.finished``: the command's frames still
-    return and free their arrays) came too late to stop anything: the command ends as finished
-    (as after a signal once it has returned, bsrt/__main__.py), not as interrupted with its
-    outputs left behind."""
+    last outputs; once they are committed the run counts as finished): signals wait for a safe
+    point. One that arrives during ``commit()``, after its last safe point, or at any moment once
+    the body has committed (``interrupts.finished``: the command's frames still return and free
+    their arrays) came too late to stop anything: the command ends as finished (as after a signal
+    once it has returned, bsrt/__main__.py), not as interrupted with its outputs left behind."""
     outputs = Outputs()
     try:
         with interrupts.at_safe_points(), outputs:
