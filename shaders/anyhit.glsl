@@ -38,19 +38,27 @@ uniform int off_node_left, off_node_right, off_node_first, off_node_count, off_l
 uniform int off_leaf_degree, off_leaf_planar, off_leaf_kept;
 uniform int canary_turns;  // 2 (gpu_shade.hierarchy_shader): a uniform, so loops_whole's loop is not unrolled
 
-#define SCRATCH (4 * RETRY_DEPTH + 8)
+#define SCRATCH (4 * RETRY_DEPTH + 8)  // the retries' rectangles (traverse.py's scratch: the same cap)
+#define CHAIN (RETRY_DEPTH > 0 ? RETRY_DEPTH : 1)  // nets 0 .. CHAIN - 1: the piece cut at each depth (0: the leaf)
+#define HALF CHAIN  // the u half of the quarter being tried
+#define QUARTER (CHAIN + 1)  // the quarter being tried
 #define NET_POINTS (NET_PM * NET_QM)
 #define NET_SIZE (NET_POINTS * 4)  // doubles per net in the hierarchy's buffer: (x, y, z, w) per control point
 #define POINT(s, i, j) nets[(s) * NET_POINTS + (i) * NET_QM + (j)]
 #define NET(s, i, j, c) POINT(s, i, j)[c]
 
-// Per invocation: the retries' nets, rectangles and depths (traverse.py's scratch) and the walk's stack.
-// A net is held as dvec4 control points, not doubles: a GPU keeps such arrays in local memory, where
-// NVIDIA's compiler gives each double a 16-byte slot of its own and a dvec4 two (measured on an H200:
-// 26 KB an invocation as doubles; the walk's time follows the scratch's size).
-dvec4 nets[SCRATCH * NET_POINTS];
+// Per invocation: the nets of the pieces being cut (one per depth, the leaf's first), the quarter being
+// tried and its u half, the retries' rectangles, depths and quarter codes, and the walk's stack. A GPU
+// keeps such arrays in local memory, and the walk's time follows their size (measured on an H200: 26 KB
+// an invocation when the retries' 24 nets were arrays of doubles, each double in a 16-byte slot of its
+// own). So a net is held as dvec4 control points, and the retries keep rectangles, not nets: a quarter
+// waiting on the stack is cut again from its parent's net when its turn comes, with the same de
+// Casteljau steps, so its net has the same bits as the kernels' (traverse.py keeps and copies nets).
+dvec4 nets[(CHAIN + 2) * NET_POINTS];
+dvec2 projected[NET_POINTS];  // crosses_once's coefficients across the ray
 dvec4 rects[SCRATCH];
 int depths[SCRATCH];
+int codes[SCRATCH];  // which quarter of its parent: 2 x the u half + the v half (0: lower, 1: upper)
 dvec4 tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
 int stack[STACK];
 
@@ -168,13 +176,9 @@ void load_net(int leaf, int s) {
     }
 }
 
-void copy_net(int src, int dst) {
-    for (int k = 0; k < NET_POINTS; ++k) nets[dst * NET_POINTS + k] = nets[src * NET_POINTS + k];
-}
-
-// de Casteljau at the midpoint of scratch net src along axis 0 (u) or 1 (v) into lo, hi (nets.split_half;
-// the four coordinates at once, each with the kernel's steps).
-void split_half(int src, int lo, int hi, int p, int q, int axis) {
+// One half (which 0: the lower, 1: the upper) of net src cut at its midpoint along axis 0 (u) or 1 (v)
+// into dst: nets.split_half's de Casteljau steps, the four coordinates at once, the other half dropped.
+void half_net(int src, int dst, int p, int q, int axis, int which) {
     int n = axis == 0 ? p : q, other = axis == 0 ? q : p;
     for (int j = 0; j <= other; ++j) {
         for (int i = 0; i <= n; ++i) tmp[i] = axis == 0 ? POINT(src, i, j) : POINT(src, j, i);
@@ -182,23 +186,28 @@ void split_half(int src, int lo, int hi, int p, int q, int axis) {
             if (r > 0) {
                 for (int i = 0; i <= n - r; ++i) tmp[i] = 0.5LF * (tmp[i] + tmp[i + 1]);
             }
+            int at = which == 0 ? r : n - r;
             if (axis == 0) {
-                POINT(lo, r, j) = tmp[0];
-                POINT(hi, n - r, j) = tmp[n - r];
+                POINT(dst, at, j) = tmp[which == 0 ? 0 : n - r];
             } else {
-                POINT(lo, j, r) = tmp[0];
-                POINT(hi, j, n - r) = tmp[n - r];
+                POINT(dst, j, at) = tmp[which == 0 ? 0 : n - r];
             }
         }
     }
 }
 
+// Quarter code (2 x the u half + the v half) of net src into dst, through HALF (the four quarters' cut of
+// traverse._solve_piece: u first, then v). half_too false: HALF already holds src's u half.
+void quarter_net(int src, int dst, int p, int q, int code, bool half_too) {
+    if (half_too) half_net(src, HALF, p, q, 0, code >> 1);
+    half_net(HALF, dst, p, q, 1, code & 1);
+}
+
 // Does the ray from o (frame e1, e2) meet the piece with scratch net s at most once along its whole
 // line? (crossings.crosses_once: the same arithmetic and rounding bound; the projected coefficients
-// go to the scratch's last slot, which the retries never use.) One flat loop over the pairs of
-// differences, left by its condition (the file's head says why).
+// go to projected.) One flat loop over the pairs of differences, left by its condition (the file's
+// head says why).
 bool crosses_once(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2) {
-    int g = SCRATCH - 1;
     double reach = 0.0LF;  // a bound on the coefficients' terms, for their rounding
     double ro = abs(o.x) + abs(o.y) + abs(o.z);
     for (int i = 0; i <= p; ++i) {
@@ -206,8 +215,7 @@ bool crosses_once(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2) {
             double w = NET(s, i, j, 3);
             precise double x = NET(s, i, j, 0) - o.x * w, y = NET(s, i, j, 1) - o.y * w, z = NET(s, i, j, 2) - o.z * w;
             precise double gx = e1.x * x + e1.y * y + e1.z * z, gy = e2.x * x + e2.y * y + e2.z * z;
-            NET(g, i, j, 0) = gx;
-            NET(g, i, j, 1) = gy;
+            projected[i * NET_QM + j] = dvec2(gx, gy);
             reach = max(reach, abs(NET(s, i, j, 0)) + abs(NET(s, i, j, 1)) + abs(NET(s, i, j, 2)));
             reach = max(reach, ro * abs(w));
         }
@@ -221,8 +229,10 @@ bool crosses_once(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2) {
     for (int n = 0; once && n < along_u * along_v; ++n) {
         int a = n / along_v, b = n - a * along_v;  // the difference a along u, b along v
         int i = a / (q + 1), j = a - i * (q + 1), k = b / q, m = b - k * q;
-        precise double ax = NET(g, i + 1, j, 0) - NET(g, i, j, 0), ay = NET(g, i + 1, j, 1) - NET(g, i, j, 1);
-        precise double bx = NET(g, k, m + 1, 0) - NET(g, k, m, 0), by = NET(g, k, m + 1, 1) - NET(g, k, m, 1);
+        dvec2 g0 = projected[i * NET_QM + j], gu = projected[(i + 1) * NET_QM + j];
+        dvec2 g1 = projected[k * NET_QM + m], gv = projected[k * NET_QM + m + 1];
+        precise double ax = gu.x - g0.x, ay = gu.y - g0.y;
+        precise double bx = gv.x - g1.x, by = gv.y - g1.y;
         precise double d = ax * by - ay * bx;
         precise double margin = slack * (abs(ax) + abs(ay) + abs(bx) + abs(by) + 2.0LF * slack);
         if (sign == 0.0LF) sign = d > 0.0LF ? 1.0LF : -1.0LF;
@@ -252,7 +262,7 @@ int root_in(int m, dvec4 rect, bool kept, double u, double v, double t, double t
     return 1;
 }
 
-// The valid root of piece leaf (its net in scratch slot 0, p, q its degrees) with t_min < t < t_far
+// The valid root of piece leaf (its net in nets' slot 0, p, q its degrees) with t_min < t < t_far
 // nearest the ray's origin, or with any_hit the first found (traverse._solve_piece: Newton from the
 // centre, quarters where it found nothing or a grazing root, culled where their hull misses the ray
 // or their one crossing is the start; a grazing nearest root takes one more Newton step, not with
@@ -278,19 +288,24 @@ bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, do
     best = found ? root : dvec4(0.0LF, 0.0LF, packDouble2x32(uvec2(0u, 0x7ff00000u)), 0.0LF);
     best_k = found ? k : -1;
     double best_c = c;  // |cos| at the best root
-    // the retries on quarters, depth-first, in the scratch (slot 0 holds the leaf's net); none after a root
-    // that is not grazing, a planar piece's only when its centre start found nothing
+    // the retries on quarters, depth-first (rectangles in rects, the nets of the pieces cut at each depth
+    // in nets' slots 0 .. CHAIN - 1, the leaf's in 0); none after a root that is not grazing, a planar
+    // piece's only when its centre start found nothing
     rects[0] = rect;
     depths[0] = 0;
+    codes[0] = 0;
     bool retry = RETRY_DEPTH > 0 && !(found && any_hit) && (state == 0 || c < GRAZING_COSINE);
     int top = retry && (state == 0 || hier_ints[off_leaf_planar + leaf] == 0) ? 1 : 0;
-    int s = 4, first = 0, dnext = 0;  // the quarter tried next (of first .. first + 3; none yet) and their depth
+    // the quarter tried next (of first .. first + 3; none yet), their depth, and their parent's net
+    int s = 4, first = 0, dnext = 0, parent = 0;
     while (!(found && any_hit) && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
         if (s < first + 4) {
+            int code = s - first;
+            quarter_net(parent, QUARTER, p, q, code, (code & 1) == 0);
             dvec4 sr = rects[s];
             // culled where the hull misses the ray, or where the quarter's one crossing is the start, excluded
-            if (straddles(s, p, q, o, e1, e2, d, t_min, min(t_far, best.z), cull_tol) &&
-                !(m == ex_m && holds_once(s, p, q, sr, ex.x, ex.y, o, e1, e2))) {
+            if (straddles(QUARTER, p, q, o, e1, e2, d, t_min, min(t_far, best.z), cull_tol) &&
+                !(m == ex_m && holds_once(QUARTER, p, q, sr, ex.x, ex.y, o, e1, e2))) {
                 solve_one(o, d, m, 0.5LF * (sr.x + sr.y), 0.5LF * (sr.z + sr.w), NEWTON, tol2, max_iter, true, root,
                           k, ok, its, c);
                 iterations += its;
@@ -303,13 +318,11 @@ bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, do
                 }
                 // a root of this quarter: cut further only if it is grazing, not after a root that is not
                 // a hit and is the quarter's only one
-                bool again = state == 0 || (c < GRAZING_COSINE && !(state != 1 && holds_once(s, p, q, sr, root.x,
-                                                                                           root.y, o, e1, e2)));
+                bool again = state == 0 || (c < GRAZING_COSINE && !(state != 1 && holds_once(QUARTER, p, q, sr,
+                                                                                           root.x, root.y, o, e1, e2)));
                 if (again && dnext < RETRY_DEPTH) {  // keep it: move it down to the stack's top
-                    if (s != top) {
-                        copy_net(s, top);
-                        rects[top] = rects[s];
-                    }
+                    rects[top] = sr;
+                    codes[top] = code;
                     depths[top] = dnext;
                     top += 1;
                 }
@@ -317,11 +330,13 @@ bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, do
             s += 1;
         } else {
             top -= 1;
-            if (depths[top] < RETRY_DEPTH && top + 7 <= SCRATCH) {  // quarters in slots top .. top + 3 (the last: crosses_once's)
-                int a = top + 4, b2 = top + 5;
-                split_half(top, a, b2, p, q, 0);
-                split_half(a, top, top + 1, p, q, 1);
-                split_half(b2, top + 2, top + 3, p, q, 1);
+            // quarters in slots top .. top + 3 (the kernels' cap: their nets in the scratch, two spare, one
+            // for crosses_once)
+            if (depths[top] < RETRY_DEPTH && top + 7 <= SCRATCH) {
+                // its net, cut from its parent's (still in the slot of the depth above: the stack pops all
+                // of a piece's quarters before anything pushed earlier); the leaf's is in slot 0
+                parent = depths[top];
+                if (parent > 0) quarter_net(parent - 1, parent, p, q, codes[top], true);
                 dvec4 r = rects[top];
                 double um = 0.5LF * (r.x + r.y), vm = 0.5LF * (r.z + r.w);
                 dnext = depths[top] + 1;
