@@ -9,7 +9,8 @@
 // nearby hits' rays together: fewer box tests, the same answer per ray),
 // without the hint (a leaf that blocked a ray of the CPU's previous packet,
 // tried first there: it changes the order pieces are tried in, not whether a
-// ray is blocked) and,
+// ray is blocked), with the retries' nets made where the kernels copy them
+// (the same nets, the same order: below) and,
 // for shadow rays, without the final Newton step on a grazing root (it moves
 // t, not the answer; nearest.glsl's mirror rays take it). The CPU kernels are the reference the tests hold this to. The
 // loops leave by their conditions, never by return, break or continue inside
@@ -39,21 +40,23 @@ uniform int off_leaf_degree, off_leaf_planar, off_leaf_kept;
 uniform int canary_turns;  // 2 (gpu_shade.hierarchy_shader): a uniform, so loops_whole's loop is not unrolled
 
 #define SCRATCH (4 * RETRY_DEPTH + 8)  // the retries' rectangles (traverse.py's scratch: the same cap)
-#define CHAIN (RETRY_DEPTH > 0 ? RETRY_DEPTH : 1)  // nets 0 .. CHAIN - 1: the piece cut at each depth (0: the leaf)
+#define CHAIN (RETRY_DEPTH > 1 ? RETRY_DEPTH - 1 : 1)  // nets 0 .. CHAIN - 1: the piece cut at depth 1, 2, ...
 #define HALF CHAIN  // the u half of the quarter being tried
 #define QUARTER (CHAIN + 1)  // the quarter being tried
 #define NET_POINTS (NET_PM * NET_QM)
 #define NET_SIZE (NET_POINTS * 4)  // doubles per net in the hierarchy's buffer: (x, y, z, w) per control point
-#define POINT(s, i, j) nets[(s) * NET_POINTS + (i) * NET_QM + (j)]
-#define NET(s, i, j, c) POINT(s, i, j)[c]
+#define POINT(s, i, j) net_point4(s, (i) * NET_QM + (j))  // control point (i, j) of net s (read)
+#define SLOT(s, i, j) nets[(s) * NET_POINTS + (i) * NET_QM + (j)]  // of slot s of nets (written)
 
-// Per invocation: the nets of the pieces being cut (one per depth, the leaf's first), the quarter being
-// tried and its u half, the retries' rectangles, depths and quarter codes, and the walk's stack. A GPU
-// keeps such arrays in local memory, and the walk's time follows their size (measured on an H200: 26 KB
-// an invocation when the retries' 24 nets were arrays of doubles, each double in a 16-byte slot of its
-// own). So a net is held as dvec4 control points, and the retries keep rectangles, not nets: a quarter
-// waiting on the stack is cut again from its parent's net when its turn comes, with the same de
-// Casteljau steps, so its net has the same bits as the kernels' (traverse.py keeps and copies nets).
+// Per invocation: the nets of the quarters being cut (one per depth below the leaf, whose net is read
+// where it lies, in the hierarchy's buffer), the quarter being tried and its u half, the retries'
+// rectangles, depths and quarter codes, and the walk's stack. A GPU keeps such arrays in local memory,
+// and the walk's time follows the traffic to them (measured on an H200: 26 KB an invocation when the
+// retries' 24 nets were arrays of doubles, each double in a 16-byte slot of its own). So a net is held
+// as dvec4 control points; a ray that needs no retry touches none of them; and the retries keep
+// rectangles, not nets: a quarter waiting on the stack is cut again from its parent's net when its turn
+// comes, with the same de Casteljau steps, so its net has the same bits as the kernels' (traverse.py
+// keeps and copies nets).
 dvec4 nets[(CHAIN + 2) * NET_POINTS];
 dvec2 projected[NET_POINTS];  // crosses_once's coefficients across the ray
 dvec4 rects[SCRATCH];
@@ -61,6 +64,25 @@ int depths[SCRATCH];
 int codes[SCRATCH];  // which quarter of its parent: 2 x the u half + the v half (0: lower, 1: upper)
 dvec4 tmp[NET_PM > NET_QM ? NET_PM : NET_QM];
 int stack[STACK];
+
+// The net of leaf as a net source: -1 - its offset in the hierarchy's buffer (flatten.leaf_net: its own
+// row, or its patch's). A net source s >= 0 is slot s of nets.
+int leaf_source(int leaf) {
+    int row = hier_ints[off_leaf_net_row + leaf];
+    return -1 - (row >= 0 ? off_leaf_net + row * NET_SIZE : off_patch_net + (-1 - row) * NET_SIZE);
+}
+
+// Control point k (= i NET_QM + j) of net source s, homogeneous.
+dvec4 net_point4(int s, int k) {
+    dvec4 point;
+    if (s >= 0) {
+        point = nets[s * NET_POINTS + k];
+    } else {
+        int at = -1 - s + 4 * k;
+        point = dvec4(hier_reals[at], hier_reals[at + 1], hier_reals[at + 2], hier_reals[at + 3]);
+    }
+    return point;
+}
 
 // Have this invocation's loops all run their course? (false: llvmpipe's loop limiter ran out, the
 // file's head) A loop of canary_turns turns that ends after one tells.
@@ -113,10 +135,11 @@ bool grazing(int k, double u, double v, dvec3 d) {
 }
 
 dvec3 net_point(int s, int i, int j) {
-    return dvec3(NET(s, i, j, 0), NET(s, i, j, 1), NET(s, i, j, 2)) / NET(s, i, j, 3);
+    dvec4 point = POINT(s, i, j);
+    return point.xyz / point.w;
 }
 
-// Control point (i, j) of scratch net s across the ray (e1, e2), from o.
+// Control point (i, j) of net source s across the ray (e1, e2), from o.
 dvec2 across(int s, int i, int j, dvec3 o, dvec3 e1, dvec3 e2) {
     dvec3 r = net_point(s, i, j) - o;
     return dvec2(dot(e1, r), dot(e2, r));
@@ -127,7 +150,7 @@ bool holds_zero(double lo, double hi, double reach) {
     return lo <= reach && hi >= -reach;
 }
 
-// Can the ray meet the piece with scratch net s before t_far? Its control points in the ray's frame
+// Can the ray meet the piece with net source s before t_far? Its control points in the ray's frame
 // (e1, e2 across, d along) surround the ray within tol along e1, e2, the corners' normal seen across
 // the ray and across each border chord (kernels/hulls.py, which says why).
 bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double t_min, double t_far, double tol) {
@@ -142,8 +165,9 @@ bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double
     dvec4 clo = dvec4(INF), chi = dvec4(-INF);
     for (int i = 0; i <= p; ++i) {
         for (int j = 0; j <= q; ++j) {
-            double w = NET(s, i, j, 3);
-            double px = NET(s, i, j, 0) / w - o.x, py = NET(s, i, j, 1) / w - o.y, pz = NET(s, i, j, 2) / w - o.z;
+            dvec4 point = POINT(s, i, j);
+            double w = point.w;
+            double px = point.x / w - o.x, py = point.y / w - o.y, pz = point.z / w - o.z;
             double x = e1.x * px + e1.y * py + e1.z * pz;
             double y = e2.x * px + e2.y * py + e2.z * pz;
             double z = d.x * px + d.y * py + d.z * pz;
@@ -166,18 +190,8 @@ bool straddles(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2, dvec3 d, double
            holds_zero(clo.w, chi.w, tol * length(n3));
 }
 
-// leaf's net (flatten.leaf_net) into scratch slot s.
-void load_net(int leaf, int s) {
-    int row = hier_ints[off_leaf_net_row + leaf];
-    int base = row >= 0 ? off_leaf_net + row * NET_SIZE : off_patch_net + (-1 - row) * NET_SIZE;
-    for (int k = 0; k < NET_POINTS; ++k) {
-        int at = base + 4 * k;
-        nets[s * NET_POINTS + k] = dvec4(hier_reals[at], hier_reals[at + 1], hier_reals[at + 2], hier_reals[at + 3]);
-    }
-}
-
-// One half (which 0: the lower, 1: the upper) of net src cut at its midpoint along axis 0 (u) or 1 (v)
-// into dst: nets.split_half's de Casteljau steps, the four coordinates at once, the other half dropped.
+// One half (which 0: the lower, 1: the upper) of net source src cut at its midpoint along axis 0 (u)
+// or 1 (v) into slot dst: nets.split_half's de Casteljau steps, the four coordinates at once, the other half dropped.
 void half_net(int src, int dst, int p, int q, int axis, int which) {
     int n = axis == 0 ? p : q, other = axis == 0 ? q : p;
     for (int j = 0; j <= other; ++j) {
@@ -188,22 +202,22 @@ void half_net(int src, int dst, int p, int q, int axis, int which) {
             }
             int at = which == 0 ? r : n - r;
             if (axis == 0) {
-                POINT(dst, at, j) = tmp[which == 0 ? 0 : n - r];
+                SLOT(dst, at, j) = tmp[which == 0 ? 0 : n - r];
             } else {
-                POINT(dst, j, at) = tmp[which == 0 ? 0 : n - r];
+                SLOT(dst, j, at) = tmp[which == 0 ? 0 : n - r];
             }
         }
     }
 }
 
-// Quarter code (2 x the u half + the v half) of net src into dst, through HALF (the four quarters' cut of
+// Quarter code (2 x the u half + the v half) of net source src into slot dst, through HALF (the four quarters' cut of
 // traverse._solve_piece: u first, then v). half_too false: HALF already holds src's u half.
 void quarter_net(int src, int dst, int p, int q, int code, bool half_too) {
     if (half_too) half_net(src, HALF, p, q, 0, code >> 1);
     half_net(HALF, dst, p, q, 1, code & 1);
 }
 
-// Does the ray from o (frame e1, e2) meet the piece with scratch net s at most once along its whole
+// Does the ray from o (frame e1, e2) meet the piece with net source s at most once along its whole
 // line? (crossings.crosses_once: the same arithmetic and rounding bound; the projected coefficients
 // go to projected.) One flat loop over the pairs of differences, left by its condition (the file's
 // head says why).
@@ -212,11 +226,12 @@ bool crosses_once(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2) {
     double ro = abs(o.x) + abs(o.y) + abs(o.z);
     for (int i = 0; i <= p; ++i) {
         for (int j = 0; j <= q; ++j) {
-            double w = NET(s, i, j, 3);
-            precise double x = NET(s, i, j, 0) - o.x * w, y = NET(s, i, j, 1) - o.y * w, z = NET(s, i, j, 2) - o.z * w;
+            dvec4 point = POINT(s, i, j);
+            double w = point.w;
+            precise double x = point.x - o.x * w, y = point.y - o.y * w, z = point.z - o.z * w;
             precise double gx = e1.x * x + e1.y * y + e1.z * z, gy = e2.x * x + e2.y * y + e2.z * z;
             projected[i * NET_QM + j] = dvec2(gx, gy);
-            reach = max(reach, abs(NET(s, i, j, 0)) + abs(NET(s, i, j, 1)) + abs(NET(s, i, j, 2)));
+            reach = max(reach, abs(point.x) + abs(point.y) + abs(point.z));
             reach = max(reach, ro * abs(w));
         }
     }
@@ -241,7 +256,7 @@ bool crosses_once(int s, int p, int q, dvec3 o, dvec3 e1, dvec3 e2) {
     return once && sign != 0.0LF;
 }
 
-// Does the piece in scratch net s with parameter rectangle r hold (u, v), and does the ray's line cross
+// Does the piece with net source s and parameter rectangle r hold (u, v), and does the ray's line cross
 // it at most once? Then a root at (u, v) is the piece's only one (crossings.holds_once).
 bool holds_once(int s, int p, int q, dvec4 r, double u, double v, dvec3 o, dvec3 e1, dvec3 e2) {
     return r.x <= u && u <= r.y && r.z <= v && v <= r.w && crosses_once(s, p, q, o, e1, e2);
@@ -262,13 +277,13 @@ int root_in(int m, dvec4 rect, bool kept, double u, double v, double t, double t
     return 1;
 }
 
-// The valid root of piece leaf (its net in nets' slot 0, p, q its degrees) with t_min < t < t_far
+// The valid root of piece leaf (net: its net's source, leaf_source; p, q its degrees) with t_min < t < t_far
 // nearest the ray's origin, or with any_hit the first found (traverse._solve_piece: Newton from the
 // centre, quarters where it found nothing or a grazing root, culled where their hull misses the ray
 // or their one crossing is the start; a grazing nearest root takes one more Newton step, not with
 // any_hit: it moves t, not the answer): found, best = (u, v, t, residual), best_k its patch.
 // iterations: Newton's, added to.
-bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_min, double t_far,
+bool piece_root(int leaf, int net, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_min, double t_far,
                 double tol, int max_iter, double cull_tol, int ex_m, dvec4 ex, bool any_hit, inout int iterations,
                 out dvec4 best, out int best_k) {
     int m = hier_ints[off_leaf_surface + leaf];
@@ -288,16 +303,16 @@ bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, do
     best = found ? root : dvec4(0.0LF, 0.0LF, packDouble2x32(uvec2(0u, 0x7ff00000u)), 0.0LF);
     best_k = found ? k : -1;
     double best_c = c;  // |cos| at the best root
-    // the retries on quarters, depth-first (rectangles in rects, the nets of the pieces cut at each depth
-    // in nets' slots 0 .. CHAIN - 1, the leaf's in 0); none after a root that is not grazing, a planar
-    // piece's only when its centre start found nothing
+    // the retries on quarters, depth-first (rectangles in rects, the net of the piece cut at depth d > 0
+    // in slot d - 1 of nets); none after a root that is not grazing, a planar piece's only when its
+    // centre start found nothing
     rects[0] = rect;
     depths[0] = 0;
     codes[0] = 0;
     bool retry = RETRY_DEPTH > 0 && !(found && any_hit) && (state == 0 || c < GRAZING_COSINE);
     int top = retry && (state == 0 || hier_ints[off_leaf_planar + leaf] == 0) ? 1 : 0;
     // the quarter tried next (of first .. first + 3; none yet), their depth, and their parent's net
-    int s = 4, first = 0, dnext = 0, parent = 0;
+    int s = 4, first = 0, dnext = 0, parent = net;
     while (!(found && any_hit) && (s < first + 4 || top > 0)) {  // one quarter, or one piece cut, per turn
         if (s < first + 4) {
             int code = s - first;
@@ -334,9 +349,10 @@ bool piece_root(int leaf, int p, int q, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, do
             // for crosses_once)
             if (depths[top] < RETRY_DEPTH && top + 7 <= SCRATCH) {
                 // its net, cut from its parent's (still in the slot of the depth above: the stack pops all
-                // of a piece's quarters before anything pushed earlier); the leaf's is in slot 0
-                parent = depths[top];
-                if (parent > 0) quarter_net(parent - 1, parent, p, q, codes[top], true);
+                // of a piece's quarters before anything pushed earlier; the leaf's in the buffer)
+                int depth = depths[top];
+                if (depth > 0) quarter_net(depth == 1 ? net : depth - 2, depth - 1, p, q, codes[top], true);
+                parent = depth == 0 ? net : depth - 1;
                 dvec4 r = rects[top];
                 double um = 0.5LF * (r.x + r.y), vm = 0.5LF * (r.z + r.w);
                 dnext = depths[top] + 1;
@@ -370,11 +386,11 @@ bool leaf_blocks(int leaf, dvec3 o, dvec3 d, dvec3 e1, dvec3 e2, double t_max, d
     dvec2 span = obb_slab(leaf, o, d);
     if (!(span.x <= span.y && span.y >= 0.0LF && span.x <= t_max)) return false;
     int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
-    load_net(leaf, 0);
-    if (!straddles(0, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
+    int net = leaf_source(leaf);
+    if (!straddles(net, p, q, o, e1, e2, d, 0.0LF, t_max, cull_tol)) return false;
     dvec4 root;
     int k;
-    return piece_root(leaf, p, q, o, d, e1, e2, 0.0LF, t_max, tol, max_iter, cull_tol, ex_m, ex, true, iterations,
+    return piece_root(leaf, net, p, q, o, d, e1, e2, 0.0LF, t_max, tol, max_iter, cull_tol, ex_m, ex, true, iterations,
                       root, k);
 }
 
@@ -411,8 +427,7 @@ int occluded(dvec3 o, dvec3 d, double t_max, double tol, int max_iter, double cu
                         ex.y <= hier_reals[at + 3];
             }
             if (start && !skip_start) {
-                load_net(leaf, 0);
-                start = crosses_once(0, hier_ints[off_leaf_degree + 2 * leaf], hier_ints[off_leaf_degree + 2 * leaf + 1],
+                start = crosses_once(leaf_source(leaf), hier_ints[off_leaf_degree + 2 * leaf], hier_ints[off_leaf_degree + 2 * leaf + 1],
                                      o, e1, e2);
             }
             if (!start) {

@@ -71,11 +71,11 @@ int nearest(dvec3 o, dvec3 d, double t_min, double t_max, int ex_m, dvec4 ex, ou
             if (!spent && !start && span.x <= span.y && span.y >= t_min && span.x <= t_max && span.x < best.z) {
                 int p = hier_ints[off_leaf_degree + 2 * leaf], q = hier_ints[off_leaf_degree + 2 * leaf + 1];
                 double t_far = min(t_max, best.z);
-                load_net(leaf, 0);
-                if (straddles(0, p, q, o, e1, e2, d, t_min, t_far, cull_tol)) {
+                int net = leaf_source(leaf);
+                if (straddles(net, p, q, o, e1, e2, d, t_min, t_far, cull_tol)) {
                     dvec4 root;
                     int k;
-                    bool found = piece_root(leaf, p, q, o, d, e1, e2, t_min, t_far, shadow_tol, shadow_iterations,
+                    bool found = piece_root(leaf, net, p, q, o, d, e1, e2, t_min, t_far, shadow_tol, shadow_iterations,
                                             cull_tol, ex_m, ex, false, iterations, root, k);
                     if (found && root.z < best.z) {
                         best = root;
