@@ -6,7 +6,7 @@ import pytest
 
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.prelim import decode_tile, map_suspects, normalise_rows
-from bsrt.rendering import gl, prelim
+from bsrt.rendering import gl, gpu, gpu_map, prelim
 from bsrt.rendering.hard_pixels import (
     FOLD_PIXELS,
     LAYER_SLACK_PIXELS,
@@ -112,6 +112,52 @@ def test_decode_tile_leaves_empty_pixels_unseeded():
     surface, u, v, distance, picture = run_decode(empty, dist, empty, dist, "rgba8", (2, 2))
     assert (surface == -1).all() and np.isnan(u).all() and np.isnan(v).all() and np.isinf(distance).all()
     assert (picture == 0).all()
+
+
+@pytest.mark.parametrize("mode", ["float", "rgba8"])
+def test_the_gpu_merged_map_decodes_as_the_numpy_decode(mode):
+    """gpu_map.decode_record (kernels/prelim.py's decode_merged on the pool) on map_solve.glsl's
+    merged record: the NumPy decode of the same pixels bit for bit (no line pass: the merge is
+    the shader's), in film order, on more pixels than one slice."""
+    rng = np.random.default_rng(7)
+    h, w = 37, 151
+    tri, tri_dist = random_pass(rng, h, w, mode)
+    none, none_dist = np.zeros_like(tri), np.zeros_like(tri_dist)
+    record = np.empty((h * w, 4), dtype=np.float32)
+    record[:, :3] = tri[::-1, :, :3].reshape(-1, 3)  # the film's row 0 first, as the shader writes it
+    record[:, 3] = tri_dist[::-1].reshape(-1)
+    got = gpu_map.decode_record(record, mode, DOMAIN, (h, w))
+    want = reference_decode(tri, tri_dist, none, none_dist, mode)
+    for name, b in zip(("surface", "u", "v", "distance", "picture"), want):
+        a = getattr(got, name)
+        assert a.dtype == b.dtype and a.shape == b.shape, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    assert (got.surface >= 0).any() and (got.surface < 0).any()
+
+
+def test_the_gpu_roots_are_gathered_field_by_field():
+    """gpu.decode_roots: item items[k] of solve_core.glsl's root buffers into RootResult's fields."""
+    rng = np.random.default_rng(8)
+    n = 5000
+    reals = rng.random((n, 4))
+    ints = np.stack([rng.integers(0, 2, n), rng.integers(0, 90, n), rng.integers(0, 64, n), rng.integers(0, 2, n)], 1)
+    ints = ints.astype(np.int32)
+    items = np.sort(rng.choice(n, 3001, replace=False))
+    got = gpu.decode_roots(reals, ints, items)
+    want = {
+        "converged": ints[items, 0] != 0,
+        "trimmed": ints[items, 3] != 0,
+        "u": reals[items, 0],
+        "v": reals[items, 1],
+        "patch": ints[items, 1].astype(np.int64),
+        "t": reals[items, 2],
+        "residual": reals[items, 3],
+        "iterations": ints[items, 2],
+    }
+    for name, b in want.items():
+        a = getattr(got, name)
+        assert a.dtype == b.dtype, name
+        np.testing.assert_array_equal(a, b, err_msg=name)
 
 
 CAMERA = Camera(

@@ -65,6 +65,8 @@ ENTRY_KERNELS = (
     antialias.mark_rows,
     antialias.block_samples,
     prelim.decode_tile,
+    prelim.decode_merged,
+    prelim.gather_roots,
     prelim.pixel_rays_into,
     prelim.normalise_rows,
     prelim.map_suspects,

@@ -75,6 +75,42 @@ def _decode(red, green, blue, float_map):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def decode_merged(start, stop, record, float_map, domain, surface, u, v, distance, picture):
+    """map_solve.glsl's merged map (the passes merged on the GPU) into the map's arrays, as decode_tile
+    writes them: record (N, 4) float32 per pixel red, green, blue as drawn (float map: index + 1 and u,
+    v in [0, 1]; 8-bit map: the bytes) and the eye distance; surface (N,) int64, u, v, distance (N,)
+    float64 and picture (N, 3) uint8: the PrelimMap's arrays, flat."""
+    for k in range(start, stop):
+        ident, g, b, p0, p1, p2 = _decode(record[k, 0], record[k, 1], record[k, 2], float_map)
+        picture[k, 0], picture[k, 1], picture[k, 2] = p0, p1, p2
+        if ident >= 0:
+            surface[k] = ident
+            u[k] = domain[ident, 0] + (domain[ident, 1] - domain[ident, 0]) * g  # eq. 6
+            v[k] = domain[ident, 2] + (domain[ident, 3] - domain[ident, 2]) * b
+            distance[k] = np.float64(record[k, 3])
+        else:
+            surface[k] = -1
+            u[k] = np.nan
+            v[k] = np.nan
+            distance[k] = np.inf
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def gather_roots(start, stop, items, reals, ints, converged, trimmed, u, v, patch, t, residual, iterations):
+    """Roots k = start .. stop - 1 of solve_core.glsl's buffers (solve_into) into RootResult's arrays:
+    item items[k] of reals (N, 4) float64 (u, v, t, residual) and ints (N, 4) int32 (converged, patch,
+    iterations, trimmed); converged, trimmed (M,) bool, u, v, t, residual (M,) float64, patch (M,)
+    int64, iterations (M,) int32."""
+    for k in range(start, stop):
+        i = items[k]
+        converged[k] = ints[i, 0] != 0
+        trimmed[k] = ints[i, 3] != 0
+        u[k], v[k], t[k], residual[k] = reals[i, 0], reals[i, 1], reals[i, 2], reals[i, 3]
+        patch[k] = ints[i, 1]
+        iterations[k] = ints[i, 2]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def pixel_rays_into(start, stop, forward, right, up, x, y, eye, directions, origins):
     """Unit ray directions of pixels k = i * W + j: forward + x[j] right + y[i] up,
     normalised, into directions (N, 3) float64 (x: (W,), y: (rows,) tangents).

@@ -22,7 +22,9 @@ from bsrt import interrupts
 from bsrt.errors import InputError, RenderError
 from bsrt.geometry.patches import PatchSet
 from bsrt.kernels.method_ids import FAST, GRADIENT, NEWTON
+from bsrt.kernels.prelim import gather_roots
 from bsrt.kernels.roots import MAX_HALVINGS, STALL_STEPS
+from bsrt.kernels.threads import run_chunks
 from bsrt.methods import REFERENCE_METHOD
 from bsrt.rendering import gl
 from bsrt.rendering.solve import Rays, RootResult, seeded_kernel_id
@@ -306,7 +308,8 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
         for binding, buffer in enumerate(buffers, start=2):
             buffer.bind_to_storage_buffer(binding)
         run(ctx, shader, n)
-        roots = decode_roots(buffers[2].read(), buffers[3].read(), n)
+        reals, ints = read_array(buffers[2], (n, 4), np.float64), read_array(buffers[3], (n, 4), np.int32)
+        roots = decode_roots(reals, ints, np.arange(n))
     finally:
         for buffer in buffers:
             buffer.release()
@@ -314,22 +317,30 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
         getattr(out, field.name)[part] = getattr(roots, field.name)
 
 
-def decode_roots(reals: bytes, ints: bytes, n: int, items=slice(None)) -> RootResult:
-    """The RootResult of items (an index into n, all by default) from solve_core.glsl's
-    root buffers (solve_into): reals, 4 float64 per item (u, v, t, residual); ints, 4 int32
-    per item (converged, patch, iterations, trimmed), n items each."""
-    r = np.frombuffer(reals, dtype=np.float64, count=4 * n).reshape(n, 4)[items]
-    i = np.frombuffer(ints, dtype=np.int32, count=4 * n).reshape(n, 4)[items]
-    return RootResult(
-        converged=i[:, 0] != 0,
-        trimmed=i[:, 3] != 0,
-        u=r[:, 0].copy(),
-        v=r[:, 1].copy(),
-        patch=i[:, 1].astype(np.int64),
-        t=r[:, 2].copy(),
-        residual=r[:, 3].copy(),
-        iterations=i[:, 2].copy(),
+def decode_roots(reals: np.ndarray, ints: np.ndarray, items: np.ndarray) -> RootResult:
+    """The RootResult of items (M,) int64 (indices into N) from solve_core.glsl's root buffers
+    (solve_into) read back: reals (N, 4) float64 (u, v, t, residual), ints (N, 4) int32
+    (converged, patch, iterations, trimmed)."""
+    m = items.size
+    out = RootResult(
+        converged=np.empty(m, dtype=bool),
+        trimmed=np.empty(m, dtype=bool),
+        u=np.empty(m),
+        v=np.empty(m),
+        patch=np.empty(m, dtype=np.int64),
+        t=np.empty(m),
+        residual=np.empty(m),
+        iterations=np.empty(m, dtype=np.int32),
     )
+    run_chunks(gather_roots, m, items, reals, ints, *(getattr(out, f.name) for f in dataclasses.fields(out)))
+    return out
+
+
+def read_array(buffer: moderngl.Buffer, shape: tuple[int, ...], dtype) -> np.ndarray:
+    """The first bytes of buffer as a new array of shape and dtype (read straight into it)."""
+    out = np.empty(shape, dtype=dtype)
+    buffer.read_into(out, size=out.nbytes)
+    return out
 
 
 def set_uniform(shader, name: str, value) -> None:

@@ -24,6 +24,8 @@ import numpy as np
 
 from bsrt import interrupts
 from bsrt.geometry.patches import PatchSet
+from bsrt.kernels.prelim import decode_merged
+from bsrt.kernels.threads import run_chunks
 from bsrt.rendering import gpu
 from bsrt.rendering.gpu import set_uniform, solver
 from bsrt.rendering.prelim import PrelimMap, drawn_tiles
@@ -93,40 +95,34 @@ def map_roots_gpu(
                     gpu.run(ctx, shader, count)
                     interrupts.safe_point()
                 ctx.memory_barrier()  # the textures are drawn again for the next tile; the buffers are read
-            record = np.frombuffer(buffers[1].read(size=n * 16), dtype=np.float32).reshape(n, 4)
-            reals, ints = buffers[2].read(size=n * 32), buffers[3].read(size=n * 16)
+            record = gpu.read_array(buffers[1], (n, 4), np.float32)
+            reals, ints = gpu.read_array(buffers[2], (n, 4), np.float64), gpu.read_array(buffers[3], (n, 4), np.int32)
         finally:
             for buffer in buffers:
                 buffer.release()
     prelim = decode_record(record, mode, patches.domain, (stop - first, width))
     covered = np.flatnonzero(prelim.surface.ravel() >= 0)
-    return prelim, covered, gpu.decode_roots(reals, ints, n, covered)
+    return prelim, covered, gpu.decode_roots(reals, ints, covered)
 
 
 def decode_record(record: np.ndarray, mode: str, domain: np.ndarray, shape: tuple[int, int]) -> PrelimMap:
-    """The PrelimMap of shape (H, W) from map_solve.glsl's merged map:
-    record (H * W, 4) float32, per pixel red (surface index + 1, 0 where
-    empty), green, blue (u, v over the surface's domain: in [0, 1] for the
-    float map, the bytes 0..255 of the 8-bit one) and the eye distance;
-    domain (S, 4) float64. The same operations as kernels/prelim.py's _decode
-    and decode_tile, so the same arrays as render_map's."""
-    red, green, blue, dist = (record[:, c].astype(np.float64) for c in range(4))
-    if mode == "float":
-        ident = np.rint(red).astype(np.int64) - 1
-        picture = (np.clip(ident + 1, 0, 255), np.rint(green * 255), np.rint(blue * 255))
-    else:
-        ident = red.astype(np.int64) - 1
-        picture = (red, green, blue)
-        green, blue = green / 255.0, blue / 255.0
-    hit = ident >= 0
-    s = ident[hit]
-    u, v = np.full(ident.shape, np.nan), np.full(ident.shape, np.nan)
-    u[hit] = domain[s, 0] + (domain[s, 1] - domain[s, 0]) * green[hit]  # eq. 6
-    v[hit] = domain[s, 2] + (domain[s, 3] - domain[s, 2]) * blue[hit]
-    return PrelimMap(
-        np.where(hit, ident, -1).reshape(shape),
-        u.reshape(shape),
-        v.reshape(shape),
-        np.where(hit, dist, np.inf).reshape(shape),
-        np.stack(picture, axis=-1).astype(np.uint8).reshape(shape + (3,)),
+    """The PrelimMap of shape (H, W) from map_solve.glsl's merged map: record
+    (H * W, 4) float32, per pixel red (surface index + 1, 0 where empty),
+    green, blue (u, v over the surface's domain: in [0, 1] for the float map,
+    the bytes 0..255 of the 8-bit one) and the eye distance; domain (S, 4)
+    float64. kernels/prelim.py's decode_merged, on every core: the same
+    arrays as render_map's."""
+    out = PrelimMap(
+        np.empty(shape, dtype=np.int64),
+        np.empty(shape),
+        np.empty(shape),
+        np.empty(shape),
+        np.empty(shape + (3,), dtype=np.uint8),
     )
+    n = shape[0] * shape[1]
+    flat = (out.surface.reshape(n), out.u.reshape(n), out.v.reshape(n), out.distance.reshape(n))
+    run_chunks(
+        decode_merged, n, record, mode == "float", np.ascontiguousarray(domain, dtype=np.float64), *flat,
+        out.picture.reshape(n, 3),
+    )  # fmt: skip
+    return out
