@@ -29,10 +29,12 @@ layout(std430, binding = 3) readonly buffer HitInts { int hit_ints[]; };       /
 // kind (L,) ints (rendering/shade.py's light_arrays).
 layout(std430, binding = 4) readonly buffer LookReals { double look_reals[]; };
 layout(std430, binding = 5) readonly buffer LookInts { int look_ints[]; };
-// 11 per hit: colour (3, linear RGB, the lights before this one's added up), position (3), normal (3,
-// facing the ray's origin), radius (2)
+// One block after the other, each hit_count long, so that each is read back straight into its array:
+// colour (3 per hit, linear RGB, the lights before this one's added up), position (3), normal (3, facing
+// the ray's origin), radius (2)
 layout(std430, binding = 8) buffer OutReals { double out_reals[]; };
-// 3 per hit, so far: shadow rays, out of budget, not settled (occluded's -3: the hit is shaded again on the CPU)
+// Blocks as out_reals', 1 per hit, so far: shadow rays, out of budget, not settled (occluded's -3: the hit
+// is shaded again on the CPU)
 layout(std430, binding = 9) buffer OutInts { int out_ints[]; };
 
 uniform int off_material_of, off_albedo, off_specular, off_shininess, off_kind;
@@ -95,15 +97,21 @@ void main() {
     if (i >= hit_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
     double NaN = packDouble2x32(uvec2(0u, 0x7ff80000u));
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
+    int n3 = 3 * hit_count;  // out_reals: colour at 3 i, position at n3 + 3 i, normal at 2 n3 + 3 i, radius at 3 n3 + 2 i
     if (hit_ints[3 * i] == 0) {
         dvec3 bg = look3(off_background, 0);
-        out_reals[11 * i] = bg.x;
-        out_reals[11 * i + 1] = bg.y;
-        out_reals[11 * i + 2] = bg.z;
-        for (int c = 3; c < 11; ++c) out_reals[11 * i + c] = NaN;
-        out_ints[3 * i] = 0;
-        out_ints[3 * i + 1] = 0;
-        out_ints[3 * i + 2] = 0;
+        out_reals[3 * i] = bg.x;
+        out_reals[3 * i + 1] = bg.y;
+        out_reals[3 * i + 2] = bg.z;
+        for (int c = 0; c < 3; ++c) {
+            out_reals[n3 + 3 * i + c] = NaN;
+            out_reals[2 * n3 + 3 * i + c] = NaN;
+        }
+        out_reals[3 * n3 + 2 * i] = NaN;
+        out_reals[3 * n3 + 2 * i + 1] = NaN;
+        out_ints[i] = 0;
+        out_ints[hit_count + i] = 0;
+        out_ints[2 * hit_count + i] = 0;
         return;
     }
     int k = hit_ints[3 * i + 1], surface = hit_ints[3 * i + 2];
@@ -118,9 +126,9 @@ void main() {
     int m = look_ints[off_material_of + surface];
     dvec3 albedo = look3(off_albedo, m);
     bool first = light <= 0;
-    dvec3 colour = first ? dvec3(0.0LF) : dvec3(out_reals[11 * i], out_reals[11 * i + 1], out_reals[11 * i + 2]);
-    int rays = first ? 0 : out_ints[3 * i], exhausted = first ? 0 : out_ints[3 * i + 1];
-    int unsettled = first ? 0 : out_ints[3 * i + 2];
+    dvec3 colour = first ? dvec3(0.0LF) : dvec3(out_reals[3 * i], out_reals[3 * i + 1], out_reals[3 * i + 2]);
+    int rays = first ? 0 : out_ints[i], exhausted = first ? 0 : out_ints[hit_count + i];
+    int unsettled = first ? 0 : out_ints[2 * hit_count + i];
     int kind = light < 0 ? -1 : look_ints[off_kind + light];  // light -1: a scene without lights
     dvec3 strength = light < 0 ? dvec3(0.0LF) : look3(off_strength, light);
     if (kind == LIGHT_AMBIENT) {
@@ -158,18 +166,18 @@ void main() {
             }
         }
     }
-    out_reals[11 * i] = colour.x;
-    out_reals[11 * i + 1] = colour.y;
-    out_reals[11 * i + 2] = colour.z;
-    out_reals[11 * i + 3] = p.x;
-    out_reals[11 * i + 4] = p.y;
-    out_reals[11 * i + 5] = p.z;
-    out_reals[11 * i + 6] = n.x;
-    out_reals[11 * i + 7] = n.y;
-    out_reals[11 * i + 8] = n.z;
-    out_reals[11 * i + 9] = ru;
-    out_reals[11 * i + 10] = rv;
-    out_ints[3 * i] = rays;
-    out_ints[3 * i + 1] = exhausted;
-    out_ints[3 * i + 2] = unsettled;
+    out_reals[3 * i] = colour.x;
+    out_reals[3 * i + 1] = colour.y;
+    out_reals[3 * i + 2] = colour.z;
+    out_reals[n3 + 3 * i] = p.x;
+    out_reals[n3 + 3 * i + 1] = p.y;
+    out_reals[n3 + 3 * i + 2] = p.z;
+    out_reals[2 * n3 + 3 * i] = n.x;
+    out_reals[2 * n3 + 3 * i + 1] = n.y;
+    out_reals[2 * n3 + 3 * i + 2] = n.z;
+    out_reals[3 * n3 + 2 * i] = ru;
+    out_reals[3 * n3 + 2 * i + 1] = rv;
+    out_ints[i] = rays;
+    out_ints[hit_count + i] = exhausted;
+    out_ints[2 * hit_count + i] = unsettled;
 }

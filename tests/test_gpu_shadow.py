@@ -218,6 +218,40 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
     assert np.abs(srgb_encode(on_gpu[0]).astype(int) - srgb_encode(cpu[0]).astype(int)).max() <= 1
 
 
+def test_dispatch_slices_change_nothing(monkeypatch):
+    """Shading, shadow rays and mirror rays dispatched in slices of 1,000 (the last one shorter; the
+    slices' buffers written and read again, the outputs read straight into their rows): the same
+    outputs bit for bit as in one dispatch."""
+    path = ROOT / "scenes" / "water-lily.toml"
+    scene = bsrt.load(path)
+    result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
+    geometry, hits, bvh = result.geometry, result.hits, result.geometry.bvh
+    directions = np.ascontiguousarray(pixel_rays(result.options.camera, 64, 64))
+    materials, lights, background = _look(scene, result.options)
+    tolerance, eps, n = result.options.tolerance * geometry.diagonal, 1e-6 * geometry.diagonal, len(hits)
+    origins, rays, t_max, exclusion = next(_shadow_rays(geometry, hits, directions, scene.lights))
+
+    def everything():
+        out = tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + (
+            np.empty(n, dtype=np.int64),
+            np.empty(n, dtype=np.int64),
+        )
+        gpu_shade.shade_hits_gpu(
+            _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, out
+        )
+        shadow = gpu_shade.occluded_gpu(_context(), bvh, origins, rays, t_max, tolerance, exclusion)
+        mirror = gpu_shade.nearest_gpu(_context(), bvh, origins, rays, 0.0, np.inf, tolerance, exclusion)
+        return out + shadow + tuple(getattr(mirror, f) for f in ("hit", "t", "u", "v", "patch", "iterations"))
+
+    whole = everything()
+    monkeypatch.setattr(gpu, "SLICE", 1000)
+    assert gpu.dispatch_size(_context()) == 1000 and n > 4000 and origins.shape[0] > 1000
+    sliced = everything()
+    for a, b in zip(whole, sliced):
+        np.testing.assert_array_equal(a, b)
+    assert _context().error == "GL_NO_ERROR"
+
+
 @pytest.mark.parametrize("extra", [{}, {"ao": True, "ground": True}], ids=["mirrors", "ao-ground"])
 def test_a_gpu_render_shades_as_the_cpu(extra):
     """The column (a mirror among its materials) rendered with device = "gpu": the

@@ -301,8 +301,8 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
     set_uniform(shader, "item_count", n)
     buffers = []
     try:
-        buffers.append(ctx.buffer(items.tobytes()))
-        buffers.append(ctx.buffer(np.ascontiguousarray(surface[part], dtype=np.int32).tobytes()))
+        buffers.append(ctx.buffer(items))
+        buffers.append(ctx.buffer(np.ascontiguousarray(surface[part], dtype=np.int32)))
         buffers.append(ctx.buffer(reserve=n * 4 * 8))
         buffers.append(ctx.buffer(reserve=n * 4 * 4))
         for binding, buffer in enumerate(buffers, start=2):
@@ -336,10 +336,18 @@ def decode_roots(reals: np.ndarray, ints: np.ndarray, items: np.ndarray) -> Root
     return out
 
 
-def read_array(buffer: moderngl.Buffer, shape: tuple[int, ...], dtype) -> np.ndarray:
-    """The first bytes of buffer as a new array of shape and dtype (read straight into it)."""
-    out = np.empty(shape, dtype=dtype)
-    buffer.read_into(out, size=out.nbytes)
+def read_array(buffer: moderngl.Buffer, shape: tuple[int, ...], dtype, offset: int = 0) -> np.ndarray:
+    """Bytes of buffer from offset as a new array of shape and dtype (read straight into it)."""
+    return read_rows(buffer, np.empty(shape, dtype=dtype), offset)
+
+
+def read_rows(buffer: moderngl.Buffer, out: np.ndarray, offset: int = 0) -> np.ndarray:
+    """Bytes of buffer from offset into the array out, in its own dtype and shape (straight into it
+    where it is contiguous); returns out."""
+    if out.flags.c_contiguous and out.flags.writeable:
+        buffer.read_into(out, size=out.nbytes, offset=offset)
+    else:
+        out[...] = np.frombuffer(buffer.read(size=out.nbytes, offset=offset), dtype=out.dtype).reshape(out.shape)
     return out
 
 

@@ -65,7 +65,7 @@ def map_roots_gpu(
     with drawn_tiles(patches, camera, width, height, mode, ctx, rows) as drawn:  # ctx current from here
         try:
             for make in (
-                lambda: ctx.buffer(directions.tobytes()),
+                lambda: ctx.buffer(directions),
                 lambda: ctx.buffer(reserve=max(n, 1) * 16),
                 lambda: ctx.buffer(reserve=max(n, 1) * 32),
                 lambda: ctx.buffer(reserve=max(n, 1) * 16),

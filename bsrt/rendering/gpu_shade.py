@@ -134,14 +134,14 @@ def occluded_gpu(
             count = min(step, n - first)
             buffers = []
             try:
-                buffers.append(ctx.buffer(rays[first : first + count].tobytes()))
+                buffers.append(ctx.buffer(rays[first : first + count]))
                 buffers.append(ctx.buffer(reserve=8 * count))
                 buffers[0].bind_to_storage_buffer(2)
                 buffers[1].bind_to_storage_buffer(3)
                 set_uniform(shader, "ray_count", count)
                 gpu.run(ctx, shader, count)
                 ctx.memory_barrier()
-                answer[first : first + count] = np.frombuffer(buffers[1].read(), dtype=np.int32).reshape(count, 2)
+                gpu.read_rows(buffers[1], answer[first : first + count])
             finally:
                 for buffer in buffers:
                     buffer.release()
@@ -203,7 +203,7 @@ def nearest_gpu(
             count = part.stop - part.start
             buffers = []
             try:
-                buffers.append(ctx.buffer(rays[part].tobytes()))
+                buffers.append(ctx.buffer(rays[part]))
                 buffers.append(ctx.buffer(reserve=32 * count))
                 buffers.append(ctx.buffer(reserve=12 * count))
                 for binding, buffer in enumerate(buffers, start=2):
@@ -211,8 +211,8 @@ def nearest_gpu(
                 set_uniform(shader, "ray_count", count)
                 gpu.run(ctx, shader, count)
                 ctx.memory_barrier()
-                reals[part] = np.frombuffer(buffers[1].read(), dtype=np.float64).reshape(count, 4)
-                ints[part] = np.frombuffer(buffers[2].read(), dtype=np.int32).reshape(count, 3)
+                gpu.read_rows(buffers[1], reals[part])
+                gpu.read_rows(buffers[2], ints[part])
             finally:
                 for buffer in buffers:
                     buffer.release()
@@ -290,33 +290,44 @@ def shade_hits_gpu(
     hit_reals = np.column_stack([hits.u, hits.v, np.asarray(directions, dtype=np.float64).reshape(-1, 3)])
     hit_ints = np.column_stack([hits.hit, hits.patch, hits.surface]).astype(np.int32)
     unsettled = np.zeros(n, dtype=bool)
+    step = min(n, gpu.dispatch_size(ctx))
     with ctx:
         shader = hierarchy_shader(ctx, "shade", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
         for key, offset in look_offsets.items():
             set_uniform(shader, f"off_{key}", offset)
         set_uniform(shader, "eps", float(eps))
-        tables = []
-        try:
-            for array in (look_reals, look_ints):
-                tables.append(ctx.buffer(array.tobytes()))
-            tables[0].bind_to_storage_buffer(4)
-            tables[1].bind_to_storage_buffer(5)
-            step = gpu.dispatch_size(ctx)
+        buffers = []
+        try:  # the tables, then one slice's hits and outputs, written and read again for each slice
+            for make in (
+                lambda: ctx.buffer(look_reals),
+                lambda: ctx.buffer(look_ints),
+                lambda: ctx.buffer(reserve=step * 5 * 8),
+                lambda: ctx.buffer(reserve=step * 3 * 4),
+                lambda: ctx.buffer(reserve=step * 11 * 8),
+                lambda: ctx.buffer(reserve=step * 3 * 4),
+            ):
+                buffers.append(make())
+            for buffer, binding in zip(buffers, (4, 5, 2, 3, 8, 9)):
+                buffer.bind_to_storage_buffer(binding)
             for first in range(0, n, step):
                 part = slice(first, min(n, first + step))
                 count = part.stop - part.start
-                reals, ints = _shade_slice(ctx, shader, hit_reals[part], hit_ints[part], count, kind.shape[0])
-                colour[part], position[part], normal[part], radius[part] = (
-                    reals[:, 0:3],
-                    reals[:, 3:6],
-                    reals[:, 6:9],
-                    reals[:, 9:11],
-                )
-                shadow_rays[part], exhausted[part], unsettled[part] = ints[:, 0], ints[:, 1], ints[:, 2] != 0
+                buffers[2].write(hit_reals[part])
+                buffers[3].write(hit_ints[part])
+                set_uniform(shader, "hit_count", count)
+                for light in range(kind.shape[0]) if kind.shape[0] else (-1,):  # no light: colour 0 (a sum over none)
+                    set_uniform(shader, "light", light)
+                    gpu.run(ctx, shader, count)
+                    ctx.memory_barrier()
+                at = 0
+                for array in (colour, position, normal, radius):  # out_reals' blocks, straight into the outputs
+                    at += gpu.read_rows(buffers[4], array[part], at).nbytes
+                ints = gpu.read_array(buffers[5], (3, count), np.int32)  # out_ints' blocks
+                shadow_rays[part], exhausted[part], unsettled[part] = ints[0], ints[1], ints[2] != 0
                 interrupts.safe_point()
         finally:
-            for buffer in tables:
+            for buffer in buffers:
                 buffer.release()
     redo = np.flatnonzero(unsettled)
     if redo.size:
@@ -330,26 +341,3 @@ def shade_hits_gpu(
         )  # fmt: skip
         for whole, part in zip(out, again):
             whole[redo] = part
-
-
-def _shade_slice(ctx, shader, hit_reals, hit_ints, count, lights):
-    """shade.glsl over count hits, one dispatch per light: (reals (count, 11), ints (count, 3))."""
-    buffers = []
-    try:
-        buffers.append(ctx.buffer(np.ascontiguousarray(hit_reals).tobytes()))
-        buffers.append(ctx.buffer(np.ascontiguousarray(hit_ints).tobytes()))
-        buffers.append(ctx.buffer(reserve=count * 11 * 8))
-        buffers.append(ctx.buffer(reserve=count * 3 * 4))
-        for buffer, binding in zip(buffers, (2, 3, 8, 9)):
-            buffer.bind_to_storage_buffer(binding)
-        set_uniform(shader, "hit_count", count)
-        for light in range(lights) if lights else (-1,):  # no light: the colour is 0 (the kernel's sum over none)
-            set_uniform(shader, "light", light)
-            gpu.run(ctx, shader, count)
-            ctx.memory_barrier()
-        reals = np.frombuffer(buffers[2].read(), dtype=np.float64).reshape(count, 11)
-        ints = np.frombuffer(buffers[3].read(), dtype=np.int32).reshape(count, 3)
-        return reals, ints
-    finally:
-        for buffer in buffers:
-            buffer.release()
