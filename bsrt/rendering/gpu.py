@@ -95,8 +95,9 @@ def choose_device(setting: str, ctx=None) -> tuple[str, moderngl.Context | None]
     auto and cpu: the CPU kernels. auto takes the faster path, and that is the
     CPU on every machine measured: on llvmpipe the kernels are as fast, and on
     an NVIDIA H200 beside 16 cores (2026-11-26, docs/performance.md) whole
-    renders on the GPU path took 4-7x the CPU's (the lighting shader's
-    any-hit walks keep their Bezier nets in per-invocation arrays). gpu: the
+    renders on the GPU path took 4-7x the CPU's (then the any-hit walks
+    copied Bezier nets into per-invocation arrays, since changed and not yet
+    measured there). gpu: the
     compute shaders on any context that has them (llvmpipe included), else an
     InputError naming what the context lacks."""
     if setting not in DEVICES:
