@@ -103,7 +103,13 @@ def test_a_gpu_render_solves_the_map_in_place():
     size = dict(width=40, height=40, spp=1, adaptive_spp=0)
     cpu = bsrt.render(ROOT / "scenes" / "column.toml", device="cpu", **size)
     on_gpu = bsrt.render(ROOT / "scenes" / "column.toml", device="gpu", **size)
-    expected = {"map": "gl", "solve": "gpu", "repair": "cpu", "shade": "gpu", "secondary": "gpu (mirrors), cpu"}
+    expected = {
+        "map": "gl",
+        "solve": "gpu",
+        "repair": "cpu",
+        "shade": "gpu",
+        "secondary": "gpu (mirrors, occlusion), cpu",
+    }
     assert on_gpu.stats["devices"] == expected
     assert cpu.stats["devices"]["solve"] == "cpu"
     assert on_gpu.stats["seconds"]["map"] == 0.0 < cpu.stats["seconds"]["map"]

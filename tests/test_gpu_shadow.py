@@ -255,16 +255,19 @@ def test_dispatch_slices_change_nothing(monkeypatch):
 @pytest.mark.parametrize("extra", [{}, {"ao": True, "ground": True}], ids=["mirrors", "ao-ground"])
 def test_a_gpu_render_shades_as_the_cpu(extra):
     """The column (a mirror among its materials) rendered with device = "gpu": the
-    direct lighting and the mirror rays on the GPU, ambient occlusion and the ground's
-    contact shadow on the CPU from its positions, normals and exclusion boxes: the same
-    image within 1/255 (the same hits everywhere away from silhouettes:
-    test_gpu.py)."""
+    direct lighting, the mirror rays and the rays of ambient occlusion and the ground's
+    contact shadow on the GPU (those sent by the CPU from its positions, normals and
+    exclusion boxes): the same image within 1/255 (the same hits everywhere away from
+    silhouettes: test_gpu.py)."""
     size = dict(width=48, height=48, spp=1, adaptive_spp=0, **extra)
     path = ROOT / "scenes" / "column.toml"
     cpu = bsrt.render(path, device="cpu", **size)
     on_gpu = bsrt.render(path, device="gpu", **size)
     assert on_gpu.stats["devices"]["shade"] == "gpu" and cpu.stats["devices"]["shade"] == "cpu"
-    assert on_gpu.stats["devices"]["secondary"] == "gpu (mirrors), cpu" and cpu.stats["devices"]["secondary"] == "cpu"
+    assert (
+        on_gpu.stats["devices"]["secondary"] == "gpu (mirrors, occlusion), cpu"
+        and cpu.stats["devices"]["secondary"] == "cpu"
+    )
     assert on_gpu.stats["shadow_rays"] == cpu.stats["shadow_rays"] > 1000
     gpu_rays, cpu_rays = on_gpu.stats["reflection_rays"], cpu.stats["reflection_rays"]
     assert cpu_rays > 0 and (gpu_rays == cpu_rays if _same_steps() else abs(gpu_rays - cpu_rays) <= 0.01 * cpu_rays)

@@ -8,7 +8,8 @@ the Newton iterations each took.
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
 per hierarchy beside the patch table (gpu.uploaded). ``shade_hits_gpu`` is
 kernels/lighting.py's shade_hits by ``shaders/shade.glsl``; ``nearest_gpu``
-the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``. The rays a
+the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``; ``trace_gpu``
+a render's mirror and occlusion rays by those two walks. The rays a
 software renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's
 head) are traced, and their hits shaded, by those CPU kernels instead.
 """
@@ -32,6 +33,7 @@ from bsrt.rendering import gl, gpu
 from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, intersect, ray_budget
 from bsrt.rendering.gpu import Uploaded, bind_patch_table, pack_tables, set_uniform, uploaded
 from bsrt.rendering.hits import Hits
+from bsrt.rendering.solve import Rays
 
 
 def hierarchy_arrays(arrays: BVHArrays) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -238,6 +240,20 @@ def nearest_gpu(
         for field in dataclasses.fields(Hits):
             getattr(hits, field.name)[redo] = getattr(cpu, field.name)
     return hits
+
+
+def trace_gpu(ctx: moderngl.Context, bvh, origins, directions, t_max, tolerance: float, exclude, any_hit: bool) -> Hits:
+    """Secondary rays on ctx as bvh.intersect traces them from t = 0 (origins, directions: (N, 3);
+    t_max: (N,); exclude: bvh.intersect's): nearest hits (mirror rays, nearest_gpu), or with
+    any_hit (occlusion rays) the any-hit walk's answer (occluded_gpu): Hits (N,) with hit (blocked)
+    and iterations set, the rest as Hits.empty's."""
+    if not any_hit:
+        return nearest_gpu(ctx, bvh, origins, directions, 0.0, t_max, tolerance, exclude)
+    rays = Rays.from_arrays(origins, directions)  # unit, as intersect has them
+    blocked, _, iterations = occluded_gpu(ctx, bvh, rays.origin, rays.direction, t_max, tolerance, exclude)
+    found = Hits.empty(len(rays))
+    found.hit[:], found.iterations[:] = blocked, iterations
+    return found
 
 
 LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")

@@ -31,7 +31,7 @@ from bsrt.rendering.bvh import (
     ray_budget,
 )
 from bsrt.rendering.film import Film
-from bsrt.rendering.gpu_shade import nearest_gpu, shade_hits_gpu
+from bsrt.rendering.gpu_shade import shade_hits_gpu, trace_gpu
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap
@@ -42,6 +42,8 @@ from bsrt.scene import Scene
 from bsrt.scene.camera import pixel_rays
 
 MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
+# --stats' devices of the secondary rays on the GPU path: their walks there, their set-up on the CPU
+GPU_SECONDARY = "gpu (mirrors, occlusion), cpu"
 SECONDARY_CHUNK = 1 << 19  # rays (hits shaded, mirror rays) per call: progress points (run_chunks takes signals)
 SHADOW_ITERATIONS = 16  # Newton iterations of a shadow ray on one piece (bvh.intersect's default)
 
@@ -340,9 +342,9 @@ class _Shader:
 
     def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius, gpu_ctx):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
-        self.gpu = gpu_ctx  # a context: the direct lighting and mirror rays run there (gpu_shade.py); AO on the CPU
+        self.gpu = gpu_ctx  # a context: the direct lighting, mirror and occlusion rays run there (gpu_shade.py)
         stats.fields.setdefault("devices", {}).update(
-            shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu" if gpu_ctx is None else "gpu (mirrors), cpu"
+            shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu" if gpu_ctx is None else GPU_SECONDARY
         )
         grounded = options.ground and scene.surfaces and scene.surfaces[-1].name == "ground" and radius is not None
         self.ground = len(scene.surfaces) - 1 if grounded else -1  # the ground plane's surface index
@@ -477,8 +479,10 @@ class _Shader:
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
                 o, d, far, ex = origins[part], directions[part], t_max[part], tuple(x[part] for x in exclude)
-                if self.gpu is not None and not any_hit:  # mirror rays: the nearest-hit walk on the GPU
-                    hits.put(part, nearest_gpu(self.gpu, self.geometry.bvh, o, d, 0.0, far, float(self.tolerance), ex))
+                if self.gpu is not None:
+                    found = trace_gpu(self.gpu, self.geometry.bvh, o, d, far, float(self.tolerance), ex, any_hit)
+                    hits.put(part, found)
+                    self.geometry.out_of_budget += out_of_budget(found, ray_budget(DEFAULT_MAX_ITERATIONS))
                 else:
                     kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit)
                     self.geometry.intersect(o, d, out=hits.take(part), **kw)  # written in place
