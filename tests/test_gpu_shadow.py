@@ -221,7 +221,7 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
 def test_dispatch_slices_change_nothing(monkeypatch):
     """Shading, shadow rays and mirror rays dispatched in slices of 1,000 (the last one shorter; the
     slices' buffers written and read again, the outputs read straight into their rows): the same
-    outputs bit for bit as in one dispatch."""
+    outputs bit for bit as in one dispatch; and the shading without its frames read back."""
     path = ROOT / "scenes" / "water-lily.toml"
     scene = bsrt.load(path)
     result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
@@ -248,6 +248,14 @@ def test_dispatch_slices_change_nothing(monkeypatch):
     assert gpu.dispatch_size(_context()) == 1000 and n > 4000 and origins.shape[0] > 1000
     sliced = everything()
     for a, b in zip(whole, sliced):
+        np.testing.assert_array_equal(a, b)
+    # without the frames (a caller with no mirrors, occlusion or AOVs): the same colours and counts
+    colour, shadow_rays, exhausted = np.empty((n, 3)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    gpu_shade.shade_hits_gpu(
+        _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16,
+        (colour, None, None, None, shadow_rays, exhausted),
+    )  # fmt: skip
+    for a, b in zip((colour, shadow_rays, exhausted), (whole[0], whole[4], whole[5])):
         np.testing.assert_array_equal(a, b)
     assert _context().error == "GL_NO_ERROR"
 

@@ -256,6 +256,7 @@ def trace_gpu(ctx: moderngl.Context, bvh, origins, directions, t_max, tolerance:
     return found
 
 
+SHADE_OUTPUTS = (((3,), np.float64),) * 3 + (((2,), np.float64), ((), np.int64), ((), np.int64))  # per hit
 LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
 LOOK_INT = ("material_of", "kind")
 
@@ -283,7 +284,9 @@ def shade_hits_gpu(
     light_arrays; background: (3,); eps: the exclusion half-width (scene
     units); tolerance, max_iterations: the shadow rays' solve (bvh.intersect's).
     out: (colour (K, 3), position (K, 3), normal (K, 3), radius (K, 2),
-    shadow_rays (K,) int64, exhausted (K,) int64), written here. The hits
+    shadow_rays (K,) int64, exhausted (K,) int64), written here; position,
+    normal and radius may be None where the caller needs no frames (then
+    they are not read back: 64 of the 100 bytes a hit). The hits
     with a shadow ray the shader leaves unsettled (anyhit.glsl's -3) are
     shaded again by the CPU kernel."""
     colour, position, normal, radius, shadow_rays, exhausted = out
@@ -337,8 +340,10 @@ def shade_hits_gpu(
                     gpu.run(ctx, shader, count)
                     ctx.memory_barrier()
                 at = 0
-                for array in (colour, position, normal, radius):  # out_reals' blocks, straight into the outputs
-                    at += gpu.read_rows(buffers[4], array[part], at).nbytes
+                for array, width in ((colour, 3), (position, 3), (normal, 3), (radius, 2)):  # out_reals' blocks
+                    if array is not None:  # straight into the outputs
+                        gpu.read_rows(buffers[4], array[part], at)
+                    at += count * width * 8
                 ints = gpu.read_array(buffers[5], (3, count), np.int32)  # out_ints' blocks
                 shadow_rays[part], exhausted[part], unsettled[part] = ints[0], ints[1], ints[2] != 0
                 interrupts.safe_point()
@@ -347,7 +352,7 @@ def shade_hits_gpu(
                 buffer.release()
     redo = np.flatnonzero(unsettled)
     if redo.size:
-        again = tuple(np.empty((redo.size,) + a.shape[1:], dtype=a.dtype) for a in out)
+        again = tuple(np.empty((redo.size,) + shape, dtype=kind) for shape, kind in SHADE_OUTPUTS)
         P, rays = bvh.patches, np.ascontiguousarray(directions, dtype=np.float64)
         run_chunks(
             shade_hits, redo.size, P.arrays, P.trims, bvh.arrays, hits.hit[redo], hits.patch[redo],
@@ -356,4 +361,5 @@ def shade_hits_gpu(
             bvh.padding + float(tolerance), ray_budget(max_iterations), bvh.packet_spread, *again,
         )  # fmt: skip
         for whole, part in zip(out, again):
-            whole[redo] = part
+            if whole is not None:
+                whole[redo] = part

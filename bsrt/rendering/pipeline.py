@@ -389,10 +389,15 @@ class _Shader:
         radius, shadow_rays, exhausted = np.empty((n, 2)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
         geometry = self.geometry
         bvh = geometry.bvh
+        # the frames are read back from the GPU only for what needs them: the AOVs, occlusion, mirrors
+        mirrored = depth < self.options.max_depth and (hits.hit & self.mirror[hits.surface]).any()
+        framed = frames is not None or mirrored or (depth == 0 and (self.options.ao or self.ground >= 0))
         for a in range(0, n, SECONDARY_CHUNK):  # progress points
             part = slice(a, min(n, a + SECONDARY_CHUNK))
             outputs = (colour[part], position[part], normal[part], radius[part], shadow_rays[part], exhausted[part])
             if self.gpu is not None:
+                if not framed:
+                    outputs = (outputs[0], None, None, None) + outputs[4:]
                 shade_hits_gpu(self.gpu, bvh, hits.take(part), directions[part], geometry.material, self.materials,
                                self.lights, self.background, 1e-6 * geometry.diagonal, float(self.tolerance),
                                SHADOW_ITERATIONS, outputs)  # fmt: skip
