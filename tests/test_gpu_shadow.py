@@ -218,6 +218,38 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
     assert np.abs(srgb_encode(on_gpu[0]).astype(int) - srgb_encode(cpu[0]).astype(int)).max() <= 1
 
 
+def test_geometry_intersect_on_the_gpu_is_the_cpus():
+    """Geometry.intersect(gpu=ctx), as a GPU render traces its mirror, occlusion and extra
+    anti-aliasing rays: camera rays through the column, not of unit length, give the CPU's
+    nearest hits (hit, surface, t, iterations) and any-hit answers, and the same count of rays
+    out of budget; a budget other than the shaders' is a ValueError."""
+    from bsrt.rendering.pipeline import Geometry
+
+    geometry = Geometry(bsrt.load(ROOT / "scenes" / "column.toml"))
+    rng = np.random.default_rng(5)
+    eye = np.array([[0.3, -6.0, 2.0]])
+    directions = np.column_stack([rng.uniform(-0.4, 0.4, 3000), np.full(3000, 1.0), rng.uniform(-0.5, 0.3, 3000)])
+    directions *= rng.uniform(0.5, 3.0, (3000, 1))  # intersect normalises them
+    tolerance = 1e-9 * geometry.diagonal
+    for any_hit, t_max in ((False, np.inf), (True, 6.5)):
+        before = geometry.out_of_budget
+        cpu = geometry.intersect(eye, directions, tolerance=tolerance, any_hit=any_hit, t_max=t_max)
+        spent = geometry.out_of_budget - before
+        on_gpu = geometry.intersect(eye, directions, tolerance=tolerance, any_hit=any_hit, t_max=t_max, gpu=_context())
+        assert geometry.out_of_budget - before == 2 * spent
+        np.testing.assert_array_equal(on_gpu.hit, cpu.hit)
+        assert 100 < cpu.hit.sum() < 2900
+        if not any_hit:  # as test_mirror_rays_find_the_cpus_nearest_hits holds them
+            for name in ("surface", "patch") + (("iterations",) if _same_steps() else ()):
+                np.testing.assert_array_equal(getattr(on_gpu, name), getattr(cpu, name), err_msg=name)
+            both = cpu.hit
+            assert (np.abs(on_gpu.t[both] - cpu.t[both]) <= 1e-12 * geometry.diagonal).all()
+            np.testing.assert_allclose(on_gpu.u[both], cpu.u[both], rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="budget"):
+        geometry.intersect(eye, directions[:3], tolerance=tolerance, budget=7, gpu=_context())
+    assert _context().error == "GL_NO_ERROR"
+
+
 def test_dispatch_slices_change_nothing(monkeypatch):
     """Shading, shadow rays and mirror rays dispatched in slices of 1,000 (the last one shorter; the
     slices' buffers written and read again, the outputs read straight into their rows): the same

@@ -242,18 +242,47 @@ def nearest_gpu(
     return hits
 
 
-def trace_gpu(ctx: moderngl.Context, bvh, origins, directions, t_max, tolerance: float, exclude, any_hit: bool) -> Hits:
-    """Secondary rays on ctx as bvh.intersect traces them from t = 0 (origins, directions: (N, 3);
-    t_max: (N,); exclude: bvh.intersect's): nearest hits (mirror rays, nearest_gpu), or with
-    any_hit (occlusion rays) the any-hit walk's answer (occluded_gpu): Hits (N,) with hit (blocked)
-    and iterations set, the rest as Hits.empty's."""
-    if not any_hit:
-        return nearest_gpu(ctx, bvh, origins, directions, 0.0, t_max, tolerance, exclude)
-    rays = Rays.from_arrays(origins, directions)  # unit, as intersect has them
-    blocked, _, iterations = occluded_gpu(ctx, bvh, rays.origin, rays.direction, t_max, tolerance, exclude)
-    found = Hits.empty(len(rays))
-    found.hit[:], found.iterations[:] = blocked, iterations
-    return found
+def trace_gpu(
+    ctx: moderngl.Context,
+    bvh,
+    origins,
+    directions,
+    t_min=0.0,
+    t_max=np.inf,
+    tolerance: float | None = None,
+    max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    any_hit: bool = False,
+    exclude=None,
+    budget: int | None = None,
+    out: Hits | None = None,
+) -> Hits:
+    """bvh.intersect's rays (the same arguments) on ctx by the shaders' walks: nearest hits by
+    nearest_gpu, any hits by occluded_gpu, whose answer is a ray's hit and iterations only (the
+    rest as Hits.empty's). The directions are normalised as intersect normalises them; the budget
+    is ray_budget(max_iterations), the shaders' (another is a ValueError)."""
+    if budget is not None and budget != ray_budget(max_iterations):
+        raise ValueError(
+            f"the GPU's walks take the budget of max_iterations, {ray_budget(max_iterations)}, not {budget}"
+        )
+    rays = Rays.from_arrays(origins, directions)
+    n = len(rays)
+    t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
+    if tolerance is None:
+        tolerance = 1e-9 * bvh.patches.scene_diagonal()
+    if any_hit:
+        if np.any(np.asarray(t_min) != 0.0):  # occluded's blockers lie at t > 0
+            raise ValueError("any-hit rays on the GPU start at t = 0")
+        blocked, _, iterations = occluded_gpu(
+            ctx, bvh, rays.origin, rays.direction, t_max, tolerance, exclude, max_iterations
+        )
+        found = Hits.empty(n)
+        found.hit[:], found.iterations[:] = blocked, iterations
+    else:
+        found = nearest_gpu(ctx, bvh, rays.origin, rays.direction, t_min, t_max, tolerance, exclude, max_iterations)
+    if out is None:
+        return found
+    out.put(slice(None), found)
+    return out
 
 
 SHADE_OUTPUTS = (((3,), np.float64),) * 3 + (((2,), np.float64), ((), np.int64), ((), np.int64))  # per hit

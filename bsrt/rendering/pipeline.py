@@ -12,7 +12,7 @@ whatever spp is.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -193,10 +193,14 @@ class Geometry:
             self._bvh = build_bvh(self.patches)
         return self._bvh
 
-    def intersect(self, origins, directions, **kwargs) -> Hits:
-        """bvh.intersect with this geometry's hierarchy (see there for the arguments)."""
+    def intersect(self, origins, directions, gpu=None, **kwargs) -> Hits:
+        """bvh.intersect with this geometry's hierarchy (see there for the arguments), the rays that
+        spent their budget counted in out_of_budget. gpu: a context (gpu.choose_device's) whose
+        shaders trace the rays instead (gpu_shade.trace_gpu: the same hits; an any-hit ray's
+        answer there is its hit and iterations only)."""
         budget = kwargs.pop("budget", None) or ray_budget(kwargs.get("max_iterations", DEFAULT_MAX_ITERATIONS))
-        hits = intersect(self.bvh, origins, directions, budget=budget, **kwargs)
+        trace = intersect if gpu is None else partial(trace_gpu, gpu)
+        hits = trace(self.bvh, origins, directions, budget=budget, **kwargs)
         self.out_of_budget += out_of_budget(hits, budget)
         return hits
 
@@ -324,7 +328,7 @@ def _adaptive(
     from bsrt.rendering.antialias import refine
 
     def trace(directions):
-        return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance)
+        return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance, gpu=shader.gpu)
 
     def shade(hits, directions):
         shader.begin_band(hits, (1.0, 1.0))
@@ -484,12 +488,7 @@ class _Shader:
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
                 o, d, far, ex = origins[part], directions[part], t_max[part], tuple(x[part] for x in exclude)
-                if self.gpu is not None:
-                    found = trace_gpu(self.gpu, self.geometry.bvh, o, d, far, float(self.tolerance), ex, any_hit)
-                    hits.put(part, found)
-                    self.geometry.out_of_budget += out_of_budget(found, ray_budget(DEFAULT_MAX_ITERATIONS))
-                else:
-                    kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit)
-                    self.geometry.intersect(o, d, out=hits.take(part), **kw)  # written in place
+                kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit, gpu=self.gpu)
+                self.geometry.intersect(o, d, out=hits.take(part), **kw)  # written in place
                 self._advance(part.stop - part.start)
         return hits
