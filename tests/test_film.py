@@ -11,7 +11,7 @@ import pytest
 from bsrt.kernels.film import SRGB_BINS, srgb_byte, srgb_byte_from, srgb_table
 from bsrt.kernels.jit import njit
 from bsrt.rendering import pipeline
-from bsrt.rendering.film import Film
+from bsrt.rendering.film import Film, srgb_bytes
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.image import srgb_decode, srgb_encode
 from bsrt.rendering.options import RenderOptions
@@ -49,6 +49,19 @@ def test_encoded_bytes_equal_srgb_encode_and_the_sums_are_divided_by_spp():
     got3, linear3 = _film_bytes(values[:1000], spp=3)
     assert np.array_equal(linear3[:, 0], (values[:1000] + values[:1000] + values[:1000]) / 3.0)
     assert np.array_equal(got3[:, 0], srgb_encode(linear3[:, 0]))
+
+
+def test_srgb_bytes_on_the_pool_are_srgb_encode():
+    """rendering/film.py's srgb_bytes (the adaptive anti-aliasing's encoder: kernels/film.py's
+    encode_values on the pool) gives image.srgb_encode's bytes, in its shape, on more values than
+    one slice, the curve's ends and non-finite values included."""
+    rng = np.random.default_rng(6)
+    values = np.concatenate([rng.uniform(-0.1, 1.1, 70_000), rng.uniform(0.0, 0.01, 20_000)])
+    values = np.concatenate([values, [0.0, 0.0031308, 1.0, -0.0, np.nan, np.inf, -np.inf]])
+    for shaped in (values, values[: 3 * 30_000].reshape(-1, 10, 3), values[::2]):
+        got = srgb_bytes(shaped)
+        assert got.dtype == np.uint8 and got.shape == shaped.shape
+        assert np.array_equal(got, srgb_encode(shaped))
 
 
 @njit(cache=False)

@@ -14,6 +14,7 @@ from bsrt.rendering.hard_pixels import (
     suspect_pixels,
 )
 from bsrt.rendering.hits import Hits
+from bsrt.rendering.screen import film_rays
 from bsrt.rendering.solve import Rays
 from bsrt.scene import parse_scene
 from bsrt.scene.camera import Camera, pixel_ray_arrays, pixel_rays
@@ -198,6 +199,22 @@ def test_pixel_rays_closed_form_centre_and_corner():
     corner = f - 0.8 * tx * r + (2.0 / 3.0) * ty * u
     np.testing.assert_allclose(d[0, 0], corner / np.linalg.norm(corner), atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(d, axis=2), 1.0, atol=1e-15)
+
+
+def test_film_rays_are_the_numpy_expression_bit_for_bit():
+    """screen.film_rays (kernels/prelim.py's film_rays_into on the pool) against the NumPy steps it
+    replaced, at positions inside and outside a 640 x 480 film, on more rays than one slice; the
+    pixel centres give pixel_rays' directions."""
+    rng = np.random.default_rng(9)
+    xy = rng.uniform(-5.0, 700.0, size=(20_000, 2))
+    r, u, f = CAMERA.basis()
+    tx, ty = CAMERA.half_extents(640, 480)
+    x = (2.0 * xy[:, 0] / 640 - 1.0) * tx
+    y = (1.0 - 2.0 * xy[:, 1] / 480) * ty
+    d = f[None, :] + x[:, None] * r[None, :] + y[:, None] * u[None, :]
+    np.testing.assert_array_equal(film_rays(CAMERA, 640, 480, xy), d / np.linalg.norm(d, axis=1)[:, None])
+    centres = np.stack(np.meshgrid(np.arange(5) + 0.5, np.arange(3) + 0.5), axis=-1).reshape(-1, 2)
+    np.testing.assert_allclose(film_rays(CAMERA, 5, 3, centres), pixel_rays(CAMERA, 5, 3), rtol=0, atol=1e-15)
 
 
 def test_normalise_rows_and_rays_from_arrays_are_numpy_bit_for_bit():

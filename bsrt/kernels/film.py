@@ -5,8 +5,8 @@ as a sample film of (W * columns) x (H * rows) in bands of sample rows
 (rendering/pipeline.py). ``add_samples`` adds a band's samples into the pixel
 rows they fall in, in the order NumPy's sum over the columns then
 ``np.add.at`` over the rows did (so the sums are the same to the bit);
-``encode_rows`` divides complete rows by spp and writes their 8-bit sRGB,
-looked up in ``srgb_table`` (the curve's 255 steps: 1.7 ns a value against
+``encode_rows`` divides complete rows by spp and writes their 8-bit sRGB
+(``encode_values`` any values' bytes), looked up in ``srgb_table`` (the curve's 255 steps: 1.7 ns a value against
 pow's 14, measured on one of a 2-core machine's cores).
 """
 
@@ -104,3 +104,11 @@ def encode_rows(start, stop, linear, base, spp, pixels, thresholds, first):
                 value = linear[r - base, x, c] / spp
                 linear[r - base, x, c] = value
                 pixels[r, x, c] = srgb_byte_from(value, thresholds, first)
+
+
+@njit(cache=True, nogil=True)
+def encode_values(start, stop, linear, out, thresholds, first):
+    """out[k] = the sRGB byte of linear[k] for k = start .. stop - 1: linear (N,) float64, out (N,)
+    uint8 (srgb_table's thresholds and first)."""
+    for k in range(start, stop):
+        out[k] = srgb_byte_from(linear[k], thresholds, first)

@@ -135,6 +135,21 @@ def pixel_rays_into(start, stop, forward, right, up, x, y, eye, directions, orig
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def film_rays_into(start, stop, xy, width, height, tx, ty, right, up, forward, directions):
+    """Unit directions (N, 3) float64 from the eye through film positions xy (N, 2) float64 (pixels
+    from the top-left corner) of a width x height film (tx, ty: the half field of view's tangents;
+    right, up, forward: the camera's basis, (3,) each): screen.film_rays' NumPy steps, in order."""
+    for k in range(start, stop):
+        x = (2.0 * xy[k, 0] / width - 1.0) * tx
+        y = (1.0 - 2.0 * xy[k, 1] / height) * ty
+        dx = forward[0] + x * right[0] + y * up[0]
+        dy = forward[1] + x * right[1] + y * up[1]
+        dz = forward[2] + x * right[2] + y * up[2]
+        n = np.sqrt(dx * dx + dy * dy + dz * dz)
+        directions[k, 0], directions[k, 1], directions[k, 2] = dx / n, dy / n, dz / n
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def normalise_rows(start, stop, d, out, origin, origin_out):
     """out[k] = d[k] / |d[k]| for rows k of d (N, 3) float64 (out may be d), and origin_out[k] =
     origin[k], or origin[0] for an origin (1, 3) shared by every ray (origin_out (N, 3))."""

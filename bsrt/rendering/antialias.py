@@ -54,7 +54,8 @@ import numpy as np
 
 from bsrt.kernels.antialias import SIDES, block_samples, mark_rows
 from bsrt.kernels.threads import run_chunks
-from bsrt.rendering.image import DECODED, srgb_encode
+from bsrt.rendering.film import srgb_bytes
+from bsrt.rendering.image import DECODED
 from bsrt.rendering.screen import film_rays
 
 CONTRAST = 16  # 8-bit sRGB levels
@@ -108,7 +109,7 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
         colour, hit, traced = (np.concatenate([d[k] for d in done]) for k in range(3))
         results.append((group, colour, hit, traced))
         if not second:  # the even pixels' samples, for the odd ones: (indices, colour, levels)
-            known = (group, colour, srgb_encode(colour))
+            known = (group, colour, srgb_bytes(colour))
     stats.add("adaptive_pixels", marked.size)
     stats.add("adaptive_full", sum(int(r[3].all(axis=1).sum()) for r in results))
     stats.add("adaptive_samples", sum(int(r[3].sum()) for r in results))
@@ -118,7 +119,7 @@ def refine(linear, pixels, coverage, grid, shade, trace, options, stats, chunk_s
             coverage.reshape(-1)[group] = hit.mean(axis=1)
         if linear is not None:
             linear.reshape(-1, 3)[group] = value
-        pixels.reshape(-1, 3)[group] = srgb_encode(value)
+        pixels.reshape(-1, 3)[group] = srgb_bytes(value)
 
 
 def _centres(linear, pixels, hits):

@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from bsrt.kernels.film import add_samples, encode_rows, srgb_table
+from bsrt.kernels.film import add_samples, encode_rows, encode_values, srgb_table
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.hits import Hits
 
@@ -136,6 +136,15 @@ class Film:
         self.iterations_sum += int(its[spent].sum(dtype=np.int64))
         self.iterations_count += int(np.count_nonzero(spent))
         self.iterations_max = max(self.iterations_max, int(its.max()) if its.size else 0)
+
+
+def srgb_bytes(linear: np.ndarray) -> np.ndarray:
+    """8-bit sRGB of linear RGB (any shape) on the pool, by the film's curve (kernels/film.py's
+    encode_values): image.srgb_encode's bytes."""
+    values = np.ascontiguousarray(linear, dtype=np.float64)
+    out = np.empty(values.shape, dtype=np.uint8)
+    run_chunks(encode_values, values.size, values.reshape(-1), out.reshape(-1), *_srgb(), min_chunk=1 << 15)
+    return out
 
 
 @functools.cache

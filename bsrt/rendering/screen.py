@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bsrt.kernels.threads import run_chunks
 from bsrt.scene.camera import Camera
 
 
@@ -30,9 +31,11 @@ def project(camera: Camera, width: int, height: int, points: np.ndarray):
 def film_rays(camera: Camera, width: int, height: int, xy: np.ndarray) -> np.ndarray:
     """xy: (N, 2) float64 film positions in pixels -> (N, 3) float64 unit directions from camera.eye
     (at pixel centres, exactly pixel_rays' directions up to rounding)."""
+    from bsrt.kernels.prelim import film_rays_into  # (numba: loaded when rays are made)
+
     r, u, f = camera.basis()
     tx, ty = camera.half_extents(width, height)
-    x = (2.0 * xy[:, 0] / width - 1.0) * tx
-    y = (1.0 - 2.0 * xy[:, 1] / height) * ty
-    d = f[None, :] + x[:, None] * r[None, :] + y[:, None] * u[None, :]
-    return d / np.linalg.norm(d, axis=1)[:, None]
+    xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
+    directions = np.empty((xy.shape[0], 3))
+    run_chunks(film_rays_into, xy.shape[0], xy, float(width), float(height), float(tx), float(ty), r, u, f, directions)
+    return directions
