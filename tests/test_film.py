@@ -64,6 +64,38 @@ def test_srgb_bytes_on_the_pool_are_srgb_encode():
         assert np.array_equal(got, srgb_encode(shaped))
 
 
+@pytest.mark.parametrize("keep", [True, False])
+def test_put_hits_copies_the_bands_records_and_counts_them(keep):
+    """Film.put_hits (kernels/film.py's put_records on the pool, in blocks of STAT_BLOCK rays): a
+    kept film holds every band's records, and either film counts the hits and the iterations of
+    the rays that spent any as NumPy does."""
+    from bsrt.kernels.film import STAT_BLOCK
+
+    rng = np.random.default_rng(11)
+    width, height = 300, 250
+    n = width * height
+    whole = Hits.blank(n)
+    whole.hit[:] = rng.random(n) < 0.6
+    for name in ("t", "u", "v", "residual"):
+        getattr(whole, name)[:] = np.where(whole.hit, rng.random(n), np.nan)
+    whole.surface[:] = np.where(whole.hit, rng.integers(0, 9, n), -1)
+    whole.patch[:] = np.where(whole.hit, rng.integers(0, 99, n), -1)
+    whole.iterations[:] = rng.integers(0, 40, n) * (rng.random(n) < 0.8)
+    film = Film(width, height, 1, 1, 100, keep)
+    bands = (0, 37 * width, 37 * width + STAT_BLOCK + 5 * width, n)  # a band longer than one block
+    for a, b in zip(bands[:-1], bands[1:]):
+        film.put_hits(a, whole.take(slice(a, b)))
+    its = whole.iterations
+    assert film.hit_count == int(whole.hit.sum())
+    assert film.iterations_sum == int(its[its > 0].sum()) and film.iterations_count == int((its > 0).sum())
+    assert film.iterations_max == int(its.max())
+    if keep:
+        for name in Hits.FIELDS:
+            np.testing.assert_array_equal(getattr(film.hits, name), getattr(whole, name), err_msg=name)
+    else:
+        assert film.hits is None
+
+
 @njit(cache=False)
 def _both_bytes(values, thresholds, first):
     """(N, 2) uint8: srgb_byte and srgb_byte_from of each value (both are compiled-only)."""

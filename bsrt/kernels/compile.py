@@ -60,7 +60,7 @@ ENTRY_KERNELS = (
     shading.mix_reflections,
     lighting.shade_hits,
     film.add_samples,
-    film.encode_rows,
+    film.put_records,
     film.encode_values,
     film.srgb_table,
     antialias.mark_rows,

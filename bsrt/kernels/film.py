@@ -4,10 +4,11 @@ A film of W x H pixels with spp = columns x rows samples per pixel is traced
 as a sample film of (W * columns) x (H * rows) in bands of sample rows
 (rendering/pipeline.py). ``add_samples`` adds a band's samples into the pixel
 rows they fall in, in the order NumPy's sum over the columns then
-``np.add.at`` over the rows did (so the sums are the same to the bit);
-``encode_rows`` divides complete rows by spp and writes their 8-bit sRGB
-(``encode_values`` any values' bytes), looked up in ``srgb_table`` (the curve's 255 steps: 1.7 ns a value against
-pow's 14, measured on one of a 2-core machine's cores).
+``np.add.at`` over the rows did (so the sums are the same to the bit), and
+divides the rows it completes by spp and writes their 8-bit sRGB in the same
+pass (``encode_values``: any values' bytes), looked up in ``srgb_table`` (the
+curve's 255 steps: 1.7 ns a value against pow's 14, measured on one of a
+2-core machine's cores).
 """
 
 from __future__ import annotations
@@ -68,13 +69,18 @@ def srgb_byte_from(c, thresholds, first):
 
 
 @njit(cache=True, nogil=True)
-def add_samples(start, stop, colour, first, last, rows, columns, width, linear, base):
-    """Add the samples of sample rows first..last-1 into pixel rows start..stop-1.
+def add_samples(start, stop, colour, first, last, rows, columns, width, linear, base, spp, pixels, thresholds, table):
+    """Add the samples of sample rows first..last-1 into pixel rows start..stop-1, and encode each
+    of those rows that they complete.
 
     colour: ((last - first) * width * columns, 3) float64, the band's samples
     row by row; a pixel row r holds sample rows r * rows .. r * rows + rows - 1,
     a pixel (r, x) the samples x * columns .. x * columns + columns - 1 of each.
-    linear: (R, width, 3) float64 sums, pixel row r at linear[r - base].
+    linear: (R, width, 3) float64 sums, pixel row r at linear[r - base]; a row's
+    first sample row starts its sums (0.0 + the samples: the bits of adding to
+    zeros), so they need no zeroing. A row complete after sample row last - 1 is
+    divided by spp in place and its sRGB bytes written into pixels[r] (H, W, 3)
+    uint8, by srgb_table's thresholds and first (table).
     """
     stride = width * columns
     for r in range(start, stop):
@@ -88,22 +94,20 @@ def add_samples(start, stop, colour, first, last, rows, columns, width, linear, 
                     a0 += colour[k + c, 0]
                     a1 += colour[k + c, 1]
                     a2 += colour[k + c, 2]
-                linear[r - base, x, 0] += a0
-                linear[r - base, x, 1] += a1
-                linear[r - base, x, 2] += a2
-
-
-@njit(cache=True, nogil=True)
-def encode_rows(start, stop, linear, base, spp, pixels, thresholds, first):
-    """Pixel rows start..stop-1 are complete: divide their sums linear[r - base] (R, W, 3) by spp
-    in place and write their sRGB bytes into pixels[r] (H, W, 3) uint8 (srgb_table's thresholds
-    and first)."""
-    for r in range(start, stop):
-        for x in range(linear.shape[1]):
-            for c in range(3):
-                value = linear[r - base, x, c] / spp
-                linear[r - base, x, c] = value
-                pixels[r, x, c] = srgb_byte_from(value, thresholds, first)
+                if s == r * rows:
+                    linear[r - base, x, 0] = 0.0 + a0
+                    linear[r - base, x, 1] = 0.0 + a1
+                    linear[r - base, x, 2] = 0.0 + a2
+                else:
+                    linear[r - base, x, 0] += a0
+                    linear[r - base, x, 1] += a1
+                    linear[r - base, x, 2] += a2
+        if (r + 1) * rows <= last:
+            for x in range(width):
+                for c in range(3):
+                    value = linear[r - base, x, c] / spp
+                    linear[r - base, x, c] = value
+                    pixels[r, x, c] = srgb_byte_from(value, thresholds, table)
 
 
 @njit(cache=True, nogil=True)
@@ -112,3 +116,33 @@ def encode_values(start, stop, linear, out, thresholds, first):
     uint8 (srgb_table's thresholds and first)."""
     for k in range(start, stop):
         out[k] = srgb_byte_from(linear[k], thresholds, first)
+
+
+STAT_BLOCK = 1 << 15  # rays per block of put_records' counts
+
+
+@njit(cache=True, nogil=True)
+def put_records(start, stop, n, at, copy, source, target, counts):
+    """Blocks start..stop-1 of STAT_BLOCK rays of a band's n pixel-centre records: copied into the
+    film's (when copy) at ray offset at, and counted per block.
+
+    source, target: Hits' fields in Hits.FIELDS' order (hit (N,) bool, t, surface (int64), patch
+    (int64), u, v, iterations (int32), residual), target's N the film's (the source's again when
+    not copy). counts: (B, 4) int64, per block: hits, iterations summed over the rays that spent
+    any, those rays, the most iterations of one ray."""
+    hit, t, surface, patch, u, v, iterations, residual = source
+    hit_to, t_to, surface_to, patch_to, u_to, v_to, iterations_to, residual_to = target
+    for b in range(start, stop):
+        hits = spent = total = most = 0
+        for k in range(b * STAT_BLOCK, min(n, (b + 1) * STAT_BLOCK)):
+            its = iterations[k]
+            hits += hit[k]
+            if its > 0:
+                spent += 1
+                total += its
+            most = max(most, its)
+            if copy:
+                j = at + k
+                hit_to[j], t_to[j], surface_to[j], patch_to[j] = hit[k], t[k], surface[k], patch[k]
+                u_to[j], v_to[j], iterations_to[j], residual_to[j] = u[k], v[k], its, residual[k]
+        counts[b, 0], counts[b, 1], counts[b, 2], counts[b, 3] = hits, total, spent, most

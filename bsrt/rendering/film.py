@@ -13,7 +13,7 @@ import functools
 
 import numpy as np
 
-from bsrt.kernels.film import add_samples, encode_rows, encode_values, srgb_table
+from bsrt.kernels.film import STAT_BLOCK, add_samples, encode_values, put_records, srgb_table
 from bsrt.kernels.threads import run_chunks
 from bsrt.rendering.hits import Hits
 
@@ -44,8 +44,9 @@ class Film:
             raise ValueError("a film keeps the shading's frames only with one sample a pixel")
         self.frames = (np.empty((width * height, 3)), np.empty((width * height, 3))) if frames else None
         self.pixels = np.zeros((height, width, 3), dtype=np.uint8)
-        # the pixel rows a band touches: band // rows + 2 (a band may start and end inside a row)
-        self._sums = np.zeros((height if keep else min(height, band // rows + 2), width, 3))
+        # the pixel rows a band touches: band // rows + 2 (a band may start and end inside a row); a
+        # row's first samples start its sums (kernels/film.py's add_samples): no zeroing
+        self._sums = np.empty((height if keep else min(height, band // rows + 2), width, 3))
         self._base = 0  # the pixel row of _sums[0]
         self._complete = 0  # pixel rows 0 .. _complete - 1 are final
         self.hits: Hits | None = None  # when kept, every pixel-centre ray's record (put_hits)
@@ -60,40 +61,15 @@ class Film:
         """Add the samples colour ((stop - first) * width * columns, 3) float64 of sample rows
         first..stop-1 (in order: bands come top to bottom); rows completed are encoded."""
         lo, hi = first // self.rows, (stop - 1) // self.rows + 1
-        run_chunks(
-            _add_rows,
-            hi - lo,
-            lo,
-            colour,
-            first,
-            stop,
-            self.rows,
-            self.columns,
-            self.width,
-            self._sums,
-            self._base,
-            min_chunk=ROWS_PER_TASK,
-        )
+        spp = float(self.rows * self.columns)
+        args = (colour, first, stop, self.rows, self.columns, self.width, self._sums, self._base, spp, self.pixels)
+        run_chunks(_add_rows, hi - lo, lo, *args, *_srgb(), min_chunk=ROWS_PER_TASK)
         done = stop // self.rows
-        if done <= self._complete:
-            return
-        run_chunks(
-            _encode_rows,
-            done - self._complete,
-            self._complete,
-            self._sums,
-            self._base,
-            float(self.rows * self.columns),
-            self.pixels,
-            *_srgb(),
-            min_chunk=ROWS_PER_TASK,
-        )
-        self._complete = done
-        if not self.keep:  # keep the partial row (if any) at the top, the rest zero
-            partial = hi - done
-            self._sums[:partial] = self._sums[done - self._base : hi - self._base]
-            self._sums[partial:] = 0.0
-            self._base = done
+        if done > self._complete:
+            self._complete = done
+            if not self.keep:  # keep the partial row (if any) at the top: its sums go on there
+                self._sums[: hi - done] = self._sums[done - self._base : hi - self._base]
+                self._base = done
 
     def count_hits(self, hit: np.ndarray, first: int, stop: int) -> None:
         """hit: ((stop - first) * width * columns,) bool, the samples of sample rows first..stop-1."""
@@ -122,6 +98,7 @@ class Film:
         """The pixel-centre rays start .. start + len(hits) - 1 found ``hits``. A film traced in one
         band keeps that band's records themselves (not a copy: 13 MB at 512 x 512); the caller
         must not change them after."""
+        target = hits  # counted only
         if self.keep:
             n = self.width * self.height
             if self.hits is None and start == 0 and len(hits) == n:
@@ -129,13 +106,16 @@ class Film:
             else:
                 if self.hits is None:
                     self.hits = Hits.blank(n)  # every record is put, band by band
-                self.hits.put(slice(start, start + len(hits)), hits)
-        its = hits.iterations
-        self.hit_count += int(np.count_nonzero(hits.hit))
-        spent = its > 0
-        self.iterations_sum += int(its[spent].sum(dtype=np.int64))
-        self.iterations_count += int(np.count_nonzero(spent))
-        self.iterations_max = max(self.iterations_max, int(its.max()) if its.size else 0)
+                target = self.hits
+        fields = lambda h: tuple(getattr(h, name) for name in Hits.FIELDS)  # noqa: E731
+        n = len(hits)
+        counts = np.zeros((-(-n // STAT_BLOCK), 4), dtype=np.int64)
+        run_chunks(put_records, counts.shape[0], n, start, target is not hits, fields(hits), fields(target), counts,
+                   min_chunk=1)  # fmt: skip
+        self.hit_count += int(counts[:, 0].sum())
+        self.iterations_sum += int(counts[:, 1].sum())
+        self.iterations_count += int(counts[:, 2].sum())
+        self.iterations_max = max(self.iterations_max, int(counts[:, 3].max(initial=0)))
 
 
 def srgb_bytes(linear: np.ndarray) -> np.ndarray:
@@ -155,7 +135,3 @@ def _srgb() -> tuple[np.ndarray, np.ndarray]:
 
 def _add_rows(start, stop, lo, *args):
     add_samples(lo + start, lo + stop, *args)
-
-
-def _encode_rows(start, stop, first, *args):
-    encode_rows(first + start, first + stop, *args)

@@ -160,9 +160,9 @@ class RenderResult:
 def encode_picture_8(result: RenderResult) -> np.ndarray:
     """The result's picture as 8-bit (H, W, 3|4) uint8, whatever its bit depth. Opaque, it is the
     film's pixels: every path that writes the linear image writes their sRGB bytes with it
-    (film.py's encode_rows, the adaptive samples, the edges: the same bytes as srgb_encode of the
-    linear image, tests/test_render.py), so they are not encoded again (1.2 s of one core at
-    2048 x 2048)."""
+    (kernels/film.py's add_samples, the adaptive samples, the edges: the same bytes as
+    srgb_encode of the linear image, tests/test_render.py), so they are not encoded again (1.2 s
+    of one core at 2048 x 2048)."""
     if result.linear is None or not result.options.transparent:  # (a streamed film: opaque and 8-bit)
         return result.pixels
     return result._encoded(8)
