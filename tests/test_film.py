@@ -28,7 +28,7 @@ def _film_bytes(values: np.ndarray, spp: int = 1) -> tuple[np.ndarray, np.ndarra
     n = values.shape[0]
     film = Film(n, 1, spp, 1, 1)  # spp columns, one row: spp samples per pixel side by side
     colour = np.repeat(np.repeat(values[:, None], spp, axis=0)[:, :, None], 3, axis=2).reshape(-1, 3)
-    film.add(colour, 0, 1)
+    film.add(colour, np.ones(colour.shape[0], dtype=bool), 0, 1)
     return film.pixels[0], film.linear[0]
 
 
@@ -131,10 +131,11 @@ def test_bands_ending_inside_pixel_rows_sum_every_sample_once_in_order(keep):
     width, height, columns, rows = 5, 7, 3, 2
     rng = np.random.default_rng(11)
     samples = rng.uniform(0.0, 1.0, (height * rows, width * columns, 3))  # the sample film
+    hit = rng.random((height * rows, width * columns)) < 0.7
     film = Film(width, height, columns, rows, band=3, keep=keep)
     for first in range(0, height * rows, 3):  # bands of 3 sample rows: every other one ends inside a pixel row
         stop = min(height * rows, first + 3)
-        film.add(samples[first:stop].reshape(-1, 3), first, stop)
+        film.add(samples[first:stop].reshape(-1, 3), hit[first:stop].reshape(-1), first, stop)
     expect = np.zeros((height, width, 3))
     for r in range(height):  # the reference order: a sample row's columns, then the rows, then / spp
         for s in range(r * rows, (r + 1) * rows):
@@ -150,6 +151,8 @@ def test_bands_ending_inside_pixel_rows_sum_every_sample_once_in_order(keep):
     else:
         assert film.linear is None and film.hits is None
         assert film._sums.shape[0] == 3  # the rows a band touches, not the film
+    # each pixel's samples that hit, counted as they were added
+    np.testing.assert_array_equal(film.hit_samples, hit.reshape(height, rows, width, columns).sum(axis=(1, 3)))
 
 
 def test_streamed_hit_counters_are_those_of_the_kept_hits():

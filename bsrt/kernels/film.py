@@ -69,13 +69,16 @@ def srgb_byte_from(c, thresholds, first):
 
 
 @njit(cache=True, nogil=True)
-def add_samples(start, stop, colour, first, last, rows, columns, width, linear, base, spp, pixels, thresholds, table):
-    """Add the samples of sample rows first..last-1 into pixel rows start..stop-1, and encode each
-    of those rows that they complete.
+def add_samples(
+    start, stop, colour, hit, first, last, rows, columns, width, linear, hits, base, spp, pixels, thresholds, table
+):
+    """Add the samples of sample rows first..last-1 into pixel rows start..stop-1, count those that
+    hit, and encode each of those rows that they complete.
 
     colour: ((last - first) * width * columns, 3) float64, the band's samples
-    row by row; a pixel row r holds sample rows r * rows .. r * rows + rows - 1,
+    row by row, hit: (the same,) bool; a pixel row r holds sample rows r * rows .. r * rows + rows - 1,
     a pixel (r, x) the samples x * columns .. x * columns + columns - 1 of each.
+    hits: (H, width) uint16, each pixel's samples that hit, added to.
     linear: (R, width, 3) float64 sums, pixel row r at linear[r - base]; a row's
     first sample row starts its sums (0.0 + the samples: the bits of adding to
     zeros), so they need no zeroing. A row complete after sample row last - 1 is
@@ -90,10 +93,13 @@ def add_samples(start, stop, colour, first, last, rows, columns, width, linear, 
             for x in range(width):
                 k = row + x * columns
                 a0, a1, a2 = colour[k, 0], colour[k, 1], colour[k, 2]
+                n = np.uint16(hit[k])
                 for c in range(1, columns):
                     a0 += colour[k + c, 0]
                     a1 += colour[k + c, 1]
                     a2 += colour[k + c, 2]
+                    n += np.uint16(hit[k + c])
+                hits[r, x] += n
                 if s == r * rows:
                     linear[r - base, x, 0] = 0.0 + a0
                     linear[r - base, x, 1] = 0.0 + a1

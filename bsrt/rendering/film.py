@@ -57,12 +57,15 @@ class Film:
     def linear(self) -> np.ndarray | None:
         return self._sums if self.keep else None
 
-    def add(self, colour: np.ndarray, first: int, stop: int) -> None:
+    def add(self, colour: np.ndarray, hit: np.ndarray, first: int, stop: int) -> None:
         """Add the samples colour ((stop - first) * width * columns, 3) float64 of sample rows
-        first..stop-1 (in order: bands come top to bottom); rows completed are encoded."""
+        first..stop-1 (in order: bands come top to bottom), and count those that hit (hit: (the
+        same,) bool); rows completed are encoded."""
         lo, hi = first // self.rows, (stop - 1) // self.rows + 1
         spp = float(self.rows * self.columns)
-        args = (colour, first, stop, self.rows, self.columns, self.width, self._sums, self._base, spp, self.pixels)
+        sums, base = self._sums, self._base
+        args = (colour, hit, first, stop, self.rows, self.columns, self.width, sums, self._hit_samples, base, spp)
+        args += (self.pixels,)
         run_chunks(_add_rows, hi - lo, lo, *args, *_srgb(), min_chunk=ROWS_PER_TASK)
         done = stop // self.rows
         if done > self._complete:
@@ -70,14 +73,6 @@ class Film:
             if not self.keep:  # keep the partial row (if any) at the top: its sums go on there
                 self._sums[: hi - done] = self._sums[done - self._base : hi - self._base]
                 self._base = done
-
-    def count_hits(self, hit: np.ndarray, first: int, stop: int) -> None:
-        """hit: ((stop - first) * width * columns,) bool, the samples of sample rows first..stop-1."""
-        per_row = hit.reshape(stop - first, self.width, self.columns).sum(axis=2, dtype=np.uint16)
-        if self.rows == 1:  # a sample row per pixel row (np.add.at, which sums repeated rows, is slow)
-            self._hit_samples[first:stop] += per_row
-        else:
-            np.add.at(self._hit_samples, np.arange(first, stop) // self.rows, per_row)
 
     @property
     def coverage(self) -> np.ndarray:

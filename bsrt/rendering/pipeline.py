@@ -288,8 +288,7 @@ def render(
         shader.begin_band(hits, (first / total, stop / total))
         with stats.timer("shade"):
             colour = shader.shade(hits, directions, frames=film.frame_rows(first, stop))
-            film.add(colour, first, stop)
-        film.count_hits(hits.hit, first, stop)
+            film.add(colour, hits.hit, first, stop)
         del colour, directions
         if spp == 1:
             film.put_hits(first * width, hits)
