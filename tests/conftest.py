@@ -209,6 +209,7 @@ SLOW: dict[str, float] = {
     "tests/test_gpu.py::test_gpu_on_a_context_without_opengl_4_5_is_one_error_exit_2": 3.2,
     "tests/test_gpu.py::test_an_unknown_device_is_one_error": 2.8,
     "tests/test_gpu.py::test_plane_hits_are_exact": 1.4,  # the first compute shader compiled
+    "tests/test_gpu_shadow.py::test_dispatch_slices_change_nothing": 1.4,
     "tests/test_gpu.py::test_batch_and_animate_refuse_gpu_without_opengl_4_5_before_any_item": 4.6,  # 2 cases
     "tests/test_preview.py::test_device_gpu_refines_to_the_cpu_render": 6.7,
     "tests/test_preview.py::test_device_gpu_without_opengl_4_5_exits_2_before_opening_a_window": 1.3,
