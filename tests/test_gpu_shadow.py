@@ -292,14 +292,19 @@ def test_dispatch_slices_change_nothing(monkeypatch):
     assert _context().error == "GL_NO_ERROR"
 
 
-@pytest.mark.parametrize("extra", [{}, {"ao": True, "ground": True}], ids=["mirrors", "ao-ground"])
+@pytest.mark.parametrize(
+    "extra",
+    [{}, {"ao": True, "ground": True}, {"ao": True, "ground": True, "adaptive_spp": 4}],
+    ids=["mirrors", "ao-ground", "ao-ground-adaptive"],
+)
 def test_a_gpu_render_shades_as_the_cpu(extra):
     """The column (a mirror among its materials) rendered with device = "gpu": the
     direct lighting, the mirror rays and the rays of ambient occlusion and the ground's
     contact shadow on the GPU (those sent by the CPU from its positions, normals and
     exclusion boxes): the same image within 1/255 (the same hits everywhere away from
-    silhouettes: test_gpu.py)."""
-    size = dict(width=48, height=48, spp=1, adaptive_spp=0, **extra)
+    silhouettes: test_gpu.py), with adaptive anti-aliasing too (its extra camera rays on
+    the CPU's walk: from the GPU's, t a few roundings apart, occlusion rays flipped)."""
+    size = {**dict(width=48, height=48, spp=1, adaptive_spp=0), **extra}
     path = ROOT / "scenes" / "column.toml"
     cpu = bsrt.render(path, device="cpu", **size)
     on_gpu = bsrt.render(path, device="gpu", **size)

@@ -326,8 +326,9 @@ def _adaptive(
     (centre_hits: (H, W), the film's samples that hit per pixel)."""
     from bsrt.rendering.antialias import refine
 
-    def trace(directions):
-        return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance, gpu=shader.gpu)
+    def trace(directions):  # on the CPU on either device: the GPU's nearest-hit walk may end on another
+        # piece's copy of a root, t a few roundings apart, and the hit's occlusion rays then differ
+        return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance)
 
     def shade(hits, directions):
         shader.begin_band(hits, (1.0, 1.0))
