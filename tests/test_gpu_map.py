@@ -108,7 +108,7 @@ def test_a_gpu_render_solves_the_map_in_place():
         "solve": "gpu",
         "repair": "cpu",
         "shade": "gpu",
-        "secondary": "gpu (mirrors, occlusion), cpu",
+        "secondary": "gpu (mirrors), cpu",
     }
     assert on_gpu.stats["devices"] == expected
     assert cpu.stats["devices"]["solve"] == "cpu"

@@ -8,8 +8,8 @@ the Newton iterations each took.
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
 per hierarchy beside the patch table (gpu.uploaded). ``shade_hits_gpu`` is
 kernels/lighting.py's shade_hits by ``shaders/shade.glsl``; ``nearest_gpu``
-the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``; ``trace_gpu``
-a render's mirror and occlusion rays by those two walks. The rays a
+the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``, which ``trace_gpu``
+takes bvh.intersect's arguments to. The rays a
 software renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's
 head) are traced, and their hits shaded, by those CPU kernels instead.
 """
@@ -256,29 +256,20 @@ def trace_gpu(
     budget: int | None = None,
     out: Hits | None = None,
 ) -> Hits:
-    """bvh.intersect's rays (the same arguments) on ctx by the shaders' walks: nearest hits by
-    nearest_gpu, any hits by occluded_gpu, whose answer is a ray's hit and iterations only (the
-    rest as Hits.empty's). The directions are normalised as intersect normalises them; the budget
-    is ray_budget(max_iterations), the shaders' (another is a ValueError)."""
+    """bvh.intersect's nearest hits (the same arguments) on ctx by nearest_gpu, the directions
+    normalised as intersect normalises them; the budget is ray_budget(max_iterations), the
+    shader's. any_hit, or another budget, is a ValueError (the rays a render sends to the GPU's
+    any-hit walk, its shadow rays, go through shade_hits_gpu)."""
+    if any_hit:
+        raise ValueError("trace_gpu traces nearest hits; any-hit rays go through occluded_gpu")
     if budget is not None and budget != ray_budget(max_iterations):
         raise ValueError(
-            f"the GPU's walks take the budget of max_iterations, {ray_budget(max_iterations)}, not {budget}"
+            f"the GPU's walk takes the budget of max_iterations, {ray_budget(max_iterations)}, not {budget}"
         )
     rays = Rays.from_arrays(origins, directions)
-    n = len(rays)
-    t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
     if tolerance is None:
         tolerance = 1e-9 * bvh.patches.scene_diagonal()
-    if any_hit:
-        if np.any(np.asarray(t_min) != 0.0):  # occluded's blockers lie at t > 0
-            raise ValueError("any-hit rays on the GPU start at t = 0")
-        blocked, _, iterations = occluded_gpu(
-            ctx, bvh, rays.origin, rays.direction, t_max, tolerance, exclude, max_iterations
-        )
-        found = Hits.empty(n)
-        found.hit[:], found.iterations[:] = blocked, iterations
-    else:
-        found = nearest_gpu(ctx, bvh, rays.origin, rays.direction, t_min, t_max, tolerance, exclude, max_iterations)
+    found = nearest_gpu(ctx, bvh, rays.origin, rays.direction, t_min, t_max, tolerance, exclude, max_iterations)
     if out is None:
         return found
     out.put(slice(None), found)

@@ -42,8 +42,10 @@ from bsrt.scene import Scene
 from bsrt.scene.camera import pixel_rays
 
 MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
-# --stats' devices of the secondary rays on the GPU path: their walks there, their set-up on the CPU
-GPU_SECONDARY = "gpu (mirrors, occlusion), cpu"
+# --stats' devices of the secondary rays on the GPU path: mirror rays' walks there; their set-up, the
+# occlusion rays (the GPU's any-hit walk answered one of 1.1 million otherwise: a blocker's t a few
+# roundings apart at the rays' reach, 2/255 on one pixel) and the anti-aliasing's camera rays on the CPU
+GPU_SECONDARY = "gpu (mirrors), cpu"
 SECONDARY_CHUNK = 1 << 19  # rays (hits shaded, mirror rays) per call: progress points (run_chunks takes signals)
 SHADOW_ITERATIONS = 16  # Newton iterations of a shadow ray on one piece (bvh.intersect's default)
 
@@ -196,8 +198,8 @@ class Geometry:
     def intersect(self, origins, directions, gpu=None, **kwargs) -> Hits:
         """bvh.intersect with this geometry's hierarchy (see there for the arguments), the rays that
         spent their budget counted in out_of_budget. gpu: a context (gpu.choose_device's) whose
-        shaders trace the rays instead (gpu_shade.trace_gpu: the same hits; an any-hit ray's
-        answer there is its hit and iterations only)."""
+        nearest-hit walk traces the rays instead (gpu_shade.trace_gpu: the same hits, t within a
+        few roundings; not any_hit)."""
         budget = kwargs.pop("budget", None) or ray_budget(kwargs.get("max_iterations", DEFAULT_MAX_ITERATIONS))
         trace = intersect if gpu is None else partial(trace_gpu, gpu)
         hits = trace(self.bvh, origins, directions, budget=budget, **kwargs)
@@ -326,8 +328,7 @@ def _adaptive(
     (centre_hits: (H, W), the film's samples that hit per pixel)."""
     from bsrt.rendering.antialias import refine
 
-    def trace(directions):  # on the CPU on either device: the GPU's nearest-hit walk may end on another
-        # piece's copy of a root, t a few roundings apart, and the hit's occlusion rays then differ
+    def trace(directions):  # on the CPU on either device (GPU_SECONDARY)
         return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance)
 
     def shade(hits, directions):
@@ -346,7 +347,7 @@ class _Shader:
 
     def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius, gpu_ctx):
         self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
-        self.gpu = gpu_ctx  # a context: the direct lighting, mirror and occlusion rays run there (gpu_shade.py)
+        self.gpu = gpu_ctx  # a context: the direct lighting and mirror rays run there (gpu_shade.py)
         stats.fields.setdefault("devices", {}).update(
             shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu" if gpu_ctx is None else GPU_SECONDARY
         )
@@ -488,7 +489,8 @@ class _Shader:
             for a in range(0, n, SECONDARY_CHUNK):
                 part = slice(a, min(n, a + SECONDARY_CHUNK))
                 o, d, far, ex = origins[part], directions[part], t_max[part], tuple(x[part] for x in exclude)
-                kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit, gpu=self.gpu)
+                gpu = None if any_hit else self.gpu  # GPU_SECONDARY says why
+                kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit, gpu=gpu)
                 self.geometry.intersect(o, d, out=hits.take(part), **kw)  # written in place
                 self._advance(part.stop - part.start)
         return hits
