@@ -302,6 +302,21 @@ def test_the_ground_plane_takes_a_contact_shadow_under_a_sphere(tmp_path):
     result.save(tmp_path / "ground.png")
 
 
+@pytest.mark.gl
+def test_the_ground_plane_hides_under_a_floor_of_the_models_own():
+    """scenes/column.toml has a floor at the model's lowest point: the ground plane lies
+    GROUND_GAP model radii under it, so every pixel that shows the model without the ground shows
+    the same surface with it (in the floor's plane the two alternated pixel by pixel)."""
+    scene = bsrt.load(MODELS.parents[2] / "scenes" / "column.toml", width=96, height=96)
+    alone = bsrt.render(scene, spp=1, adaptive_spp=0)
+    grounded = bsrt.render(scene, ground=True, spp=1, adaptive_spp=0)
+    model = alone.hits.hit
+    floor = alone.hits.surface == np.bincount(alone.hits.surface[model]).argmax()  # the most pixels: the floor
+    assert floor.sum() > 1000
+    np.testing.assert_array_equal(grounded.hits.surface[model], alone.hits.surface[model])
+    assert (grounded.hits.surface[~model] == len(scene.surfaces)).any()  # the ground beyond the model
+
+
 def test_a_point_lights_brightness_is_its_strength_at_the_models_centre(tmp_path):
     scene = tmp_path / "b.toml"
     scene.write_text(

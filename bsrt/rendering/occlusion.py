@@ -1,8 +1,8 @@
 """Ambient occlusion (``--ao``) and the ground plane (``--ground``), both with exact rays.
 
 * :func:`with_ground`: the scene with one more surface, a flat bilinear B-spline square under
-  the model (at the lowest point of what it shows along the camera's up, GROUND_SIZE model
-  radii across, a light grey material). It is traced, shadowed and mirrored like any other
+  the model (GROUND_GAP model radii under the lowest point of what it shows along the camera's
+  up, GROUND_SIZE model radii across, a light grey material). It is traced, shadowed and mirrored like any other
   surface, so the lights' shadows fall on it.
 * :func:`occlusion`: per hit point, the fraction of AO_RAYS cosine-weighted directions over its
   normal's hemisphere that leave without meeting a surface within AO_RANGE model radii
@@ -26,6 +26,7 @@ from bsrt.scene.model import Material, SceneSurface
 AO_RAYS = 16  # per hit point (per sample: with spp 4, 64 a pixel)
 AO_RANGE = 0.5  # model radii: occluders farther than this do not darken
 GROUND_SIZE = 24.0  # model radii across
+GROUND_GAP = 1e-4  # model radii under the model's lowest point: a floor of the model's own hides the ground there
 GROUND_MATERIAL = Material("ground", color=(0.8, 0.8, 0.8), specular=0.05, shininess=8.0)
 GROUND_NAME = "ground"
 
@@ -43,7 +44,7 @@ def with_ground(scene) -> tuple:
     x = np.cross(up, [1.0, 0.0, 0.0] if abs(up[0]) < 0.9 else [0.0, 1.0, 0.0])
     x /= np.linalg.norm(x)
     y = np.cross(up, x)
-    base = centre + up * float(np.min((points - centre) @ up))  # the model's lowest point along up
+    base = centre + up * (float(np.min((points - centre) @ up)) - GROUND_GAP * radius)  # under its lowest point
     half = GROUND_SIZE * radius / 2.0
     corners = [[base + sx * half * x + sy * half * y for sy in (-1.0, 1.0)] for sx in (-1.0, 1.0)]
     plane = make_surface((1, 1), [0.0, 0.0, 1.0, 1.0], [0.0, 0.0, 1.0, 1.0], np.array(corners))
