@@ -2,8 +2,8 @@
 
 * :func:`with_ground`: the scene with one more surface, a flat bilinear B-spline square under
   the model (GROUND_GAP model radii under the lowest point of what it shows along the camera's
-  up, GROUND_SIZE model radii across, a light grey material). It is traced, shadowed and mirrored like any other
-  surface, so the lights' shadows fall on it.
+  up, GROUND_SIZE model radii across, a light grey material). It is traced, shadowed and
+  mirrored like any other surface, so the lights' shadows fall on it.
 * :func:`occlusion`: per hit point, the fraction of AO_RAYS cosine-weighted directions over its
   normal's hemisphere that leave without meeting a surface within AO_RANGE model radii
   (any-hit rays through the hierarchy, the secondary rays of shadows; stratified, turned by a
