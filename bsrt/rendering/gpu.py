@@ -322,18 +322,8 @@ def decode_roots(reals: np.ndarray, ints: np.ndarray, items: np.ndarray) -> Root
     """The RootResult of items (M,) int64 (indices into N) from solve_core.glsl's root buffers
     (solve_into) read back: reals (N, 4) float64 (u, v, t, residual), ints (N, 4) int32
     (converged, patch, iterations, trimmed)."""
-    m = items.size
-    out = RootResult(
-        converged=np.empty(m, dtype=bool),
-        trimmed=np.empty(m, dtype=bool),
-        u=np.empty(m),
-        v=np.empty(m),
-        patch=np.empty(m, dtype=np.int64),
-        t=np.empty(m),
-        residual=np.empty(m),
-        iterations=np.empty(m, dtype=np.int32),
-    )
-    run_chunks(gather_roots, m, items, reals, ints, *(getattr(out, f.name) for f in dataclasses.fields(out)))
+    out = RootResult.empty(items.size)  # every field written by gather_roots
+    run_chunks(gather_roots, items.size, items, reals, ints, *(getattr(out, f.name) for f in dataclasses.fields(out)))
     return out
 
 

@@ -112,13 +112,7 @@ def decode_record(record: np.ndarray, mode: str, domain: np.ndarray, shape: tupl
     the bytes 0..255 of the 8-bit one) and the eye distance; domain (S, 4)
     float64. kernels/prelim.py's decode_merged, on every core: the same
     arrays as render_map's."""
-    out = PrelimMap(
-        np.empty(shape, dtype=np.int64),
-        np.empty(shape),
-        np.empty(shape),
-        np.empty(shape),
-        np.empty(shape + (3,), dtype=np.uint8),
-    )
+    out = PrelimMap.blank(shape)
     n = shape[0] * shape[1]
     flat = (out.surface.reshape(n), out.u.reshape(n), out.v.reshape(n), out.distance.reshape(n))
     run_chunks(

@@ -54,6 +54,17 @@ class PrelimMap:
     distance: np.ndarray
     picture: np.ndarray
 
+    @classmethod
+    def blank(cls, shape: tuple[int, int]) -> PrelimMap:
+        """A map of shape (H, W) left uninitialised (np.empty), for a decode that writes every pixel."""
+        return cls(
+            np.empty(shape, dtype=np.int64),
+            np.empty(shape),
+            np.empty(shape),
+            np.empty(shape),
+            np.empty(shape + (3,), dtype=np.uint8),
+        )
+
     def rows(self, first: int, stop: int) -> PrelimMap:
         """The map of film rows first..stop-1 (views, not copies)."""
         return PrelimMap(*(a[first:stop] for a in (self.surface, self.u, self.v, self.distance, self.picture)))
@@ -80,14 +91,7 @@ def render_map(
     with the off-centre projection of its own pixels.
     """
     first, stop = rows if rows is not None else (0, height)
-    shape = (stop - first, width)
-    out = PrelimMap(
-        np.empty(shape, dtype=np.int64),
-        np.empty(shape),
-        np.empty(shape),
-        np.empty(shape),
-        np.empty(shape + (3,), dtype=np.uint8),
-    )
+    out = PrelimMap.blank((stop - first, width))
     domain = np.ascontiguousarray(patches.domain, dtype=np.float64)
     with drawn_tiles(patches, camera, width, height, mode, ctx, rows, tile) as drawn:
         for passes, (r0, _), (c0, _) in drawn:
