@@ -22,8 +22,8 @@
 // after one turn, silently. A long walk (a water-lily shadow ray of 643 Newton
 // iterations) ran into it and missed its blocker, and a cut-short Newton loop
 // can also pass a false root for a blocker; occluded answers -3 wherever the
-// count ran out (as nearest.glsl does), and the host traces those rays on the
-// CPU (gpu_shade.py). A GPU has no such limit.
+// count ran out (as nearest_walk.glsl does), and the host traces those rays on the
+// CPU (gpu_shade.py, gpu_lighting.py). A GPU has no such limit.
 //
 // The hierarchy (rendering/bvh.py's BVHArrays, packed by
 // rendering/gpu_shade.py) lies in storage buffers 6 (float64) and 7 (int32),

@@ -3,11 +3,13 @@
 // dispatch per light, in order, each adding its term to the colour): the port of
 // bsrt/kernels/lighting.py's shade_hits (per hit: shading.surface_frame, the
 // exclusion box of its secondary rays, one any-hit shadow ray per light the
-// point faces through anyhit.glsl's occluded, shading.radiance). Mirror
-// bounces, ambient occlusion and the ground's contact shadow stay with the
-// caller (rendering/pipeline.py), which gets each hit's position, normal and
-// exclusion box from here. bsrt/rendering/gpu_shade.py's shade_hits_gpu
-// uploads the hits and dispatches it, once per light: with a loop over the
+// point faces through anyhit.glsl's occluded, shading.radiance). It shades each
+// level of the mirror chain (bsrt/rendering/gpu_lighting.py's shade_hits_gpu: the
+// camera rays' hits, then what their mirror rays see, bounce.glsl, and so on,
+// mixed by mix.glsl); a slot of a level that no mirror ray reached (hit -1) is
+// passed over. Ambient occlusion and the ground's contact shadow stay with the
+// caller (rendering/pipeline.py), which gets each first-level hit's position,
+// normal and exclusion box from here. Dispatched once per light: with a loop over the
 // lights around the walk's loops, Mesa 22's llvmpipe mixed up the invocations
 // of a SIMD group (anyhit.glsl). The one difference from the kernel: GLSL has
 // no float64 pow, so the specular power is taken by squaring for a whole
@@ -23,7 +25,7 @@
 layout(local_size_x = GROUP) in;  // #defined by bsrt/rendering/gpu.py
 
 layout(std430, binding = 2) readonly buffer HitReals { double hit_reals[]; };  // 5 per hit: u, v, ray direction (unit)
-layout(std430, binding = 3) readonly buffer HitInts { int hit_ints[]; };       // 3 per hit: hit, patch, surface
+layout(std430, binding = 3) readonly buffer HitInts { int hit_ints[]; };       // 3 per hit: hit (1, 0, -1), patch, surface
 // The materials and lights (offsets off_NAME): material_of (S,) ints; albedo (M, 3), specular (M,),
 // shininess (M,), light_position (L, 3), light_direction (L, 3), strength (L, 3), background (3,) reals;
 // kind (L,) ints (rendering/shade.py's light_arrays).
@@ -34,13 +36,14 @@ layout(std430, binding = 5) readonly buffer LookInts { int look_ints[]; };
 // the ray's origin), radius (2)
 layout(std430, binding = 8) buffer OutReals { double out_reals[]; };
 // Blocks as out_reals', 1 per hit, so far: shadow rays, out of budget, not settled (occluded's -3: the hit
-// is shaded again on the CPU)
+// is shaded again on the CPU), mirror rays (0 here: mix.glsl adds the chain's)
 layout(std430, binding = 9) buffer OutInts { int out_ints[]; };
+#include "slots.glsl"
 
 uniform int off_material_of, off_albedo, off_specular, off_shininess, off_kind;
 uniform int off_light_position, off_light_direction, off_strength, off_background;
 uniform int light;  // the light of this dispatch (one per dispatch, in order, adding to the colour; -1: none)
-uniform int hit_count;  // in this dispatch
+uniform int hit_count;  // slots in each block of the buffers
 uniform double eps;     // the exclusion box's half-width in scene units
 uniform double shadow_tol;
 uniform int shadow_iterations;
@@ -93,11 +96,13 @@ double power_of(double x, double y) {
 }
 
 void main() {
-    int i = int(gl_GlobalInvocationID.x);
-    if (i >= hit_count || gl_LocalInvocationIndex >= uint(GROUP)) return;  // (llvmpipe pads a workgroup to its SIMD width)
+    int i = dispatch_slot();
+    if (i < 0) return;
     double NaN = packDouble2x32(uvec2(0u, 0x7ff80000u));
     double INF = packDouble2x32(uvec2(0u, 0x7ff00000u));
     int n3 = 3 * hit_count;  // out_reals: colour at 3 i, position at n3 + 3 i, normal at 2 n3 + 3 i, radius at 3 n3 + 2 i
+    if (hit_ints[3 * i] < 0) return;  // no mirror ray reached this slot of the level (not listed in slots)
+    out_ints[3 * hit_count + i] = 0;
     if (hit_ints[3 * i] == 0) {
         dvec3 bg = look3(off_background, 0);
         out_reals[3 * i] = bg.x;

@@ -1,5 +1,6 @@
-"""Shadow and mirror rays on the GPU (bsrt/rendering/gpu_shade.py, shaders/anyhit.glsl) on a
-real GL context: Mesa's llvmpipe here and in CI, never skipped.
+"""Shadow and mirror rays and the lighting on the GPU (bsrt/rendering/gpu_shade.py,
+gpu_lighting.py, shaders/anyhit.glsl) on a real GL context: Mesa's llvmpipe here and in CI,
+never skipped.
 
 - a closed form: a square plane above a larger one, rays straight up from the
   lower one: blocked exactly under the square and below its height;
@@ -9,7 +10,9 @@ real GL context: Mesa's llvmpipe here and in CI, never skipped.
   included (the start's piece or quarter skipped where the ray crosses it at
   most once: crossings.py, ported to anyhit.glsl).
 - mirror rays (shaders/nearest.glsl, the nearest-hit walk) from the same hits:
-  the CPU's nearest hits, with the same Newton iterations.
+  the CPU's nearest hits, with the same Newton iterations;
+- the lighting (shade.glsl) and the mirror chain (bounce.glsl, mix.glsl) against
+  the CPU's shading, the hits a walk leaves unsettled on llvmpipe shaded there.
 
 Bit for bit on llvmpipe; on a GPU, whose compiler may fuse multiply-adds, within a few
 roundings (_same_steps).
@@ -25,7 +28,7 @@ import pytest
 import bsrt
 from bsrt.geometry.bspline import make_surface
 from bsrt.geometry.patches import PatchSet
-from bsrt.rendering import gl, gpu, gpu_shade
+from bsrt.rendering import gl, gpu, gpu_lighting, gpu_shade
 from bsrt.rendering.bvh import build_bvh
 from bsrt.rendering.shade import facing_frames, light_arrays
 from bsrt.scene.camera import pixel_rays
@@ -205,7 +208,7 @@ def test_the_lighting_shader_agrees_with_the_kernel(path, size):
         float(tolerance), 16, DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), bvh.packet_spread,
         *cpu,
     )  # fmt: skip
-    gpu_shade.shade_hits_gpu(
+    gpu_lighting.shade_hits_gpu(
         _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, on_gpu
     )
     assert _context().error == "GL_NO_ERROR"
@@ -251,9 +254,10 @@ def test_geometry_intersect_on_the_gpu_is_the_cpus():
 
 
 def test_dispatch_slices_change_nothing(monkeypatch):
-    """Shading, shadow rays and mirror rays dispatched in slices of 1,000 (the last one shorter; the
-    slices' buffers written and read again, the outputs read straight into their rows): the same
-    outputs bit for bit as in one dispatch; and the shading without its frames read back."""
+    """Shading (direct, and with the mirror chain), shadow rays and mirror rays dispatched in slices
+    of 1,000 (the last one shorter; the slices' buffers written and read again, the outputs read
+    straight into their rows): the same outputs bit for bit as in one dispatch, the same hits left
+    to the CPU; and the shading without its frames read back."""
     path = ROOT / "scenes" / "water-lily.toml"
     scene = bsrt.load(path)
     result = bsrt.render(scene, width=64, height=64, spp=1, adaptive_spp=0, device="cpu")
@@ -262,18 +266,27 @@ def test_dispatch_slices_change_nothing(monkeypatch):
     materials, lights, background = _look(scene, result.options)
     tolerance, eps, n = result.options.tolerance * geometry.diagonal, 1e-6 * geometry.diagonal, len(hits)
     origins, rays, t_max, exclusion = next(_shadow_rays(geometry, hits, directions, scene.lights))
+    reflectance = np.array([m.reflectance for m in scene.materials])[geometry.material]
 
     def everything():
         out = tuple(np.empty(s) for s in ((n, 3), (n, 3), (n, 3), (n, 2))) + (
             np.empty(n, dtype=np.int64),
             np.empty(n, dtype=np.int64),
         )
-        gpu_shade.shade_hits_gpu(
+        gpu_lighting.shade_hits_gpu(
             _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16, out
         )
+        chain, reflections, again = tuple(np.empty_like(a) for a in out), np.empty(n, dtype=np.int64), []
+        gpu_lighting.shade_hits_gpu(
+            _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16,
+            chain, reflectance=reflectance, max_depth=3, reflections=reflections, redo=again.append,
+        )  # fmt: skip
         shadow = gpu_shade.occluded_gpu(_context(), bvh, origins, rays, t_max, tolerance, exclusion)
         mirror = gpu_shade.nearest_gpu(_context(), bvh, origins, rays, 0.0, np.inf, tolerance, exclusion)
-        return out + shadow + tuple(getattr(mirror, f) for f in ("hit", "t", "u", "v", "patch", "iterations"))
+        mirrored = (reflections,) + tuple(np.delete(a, np.concatenate([[], *again]).astype(int), 0) for a in chain)
+        return (
+            out + mirrored + shadow + tuple(getattr(mirror, f) for f in ("hit", "t", "u", "v", "patch", "iterations"))
+        )
 
     whole = everything()
     monkeypatch.setattr(gpu, "SLICE", 1000)
@@ -281,9 +294,10 @@ def test_dispatch_slices_change_nothing(monkeypatch):
     sliced = everything()
     for a, b in zip(whole, sliced):
         np.testing.assert_array_equal(a, b)
+    assert whole[6].sum() > 1000  # the water sent mirror rays
     # without the frames (a caller with no mirrors, occlusion or AOVs): the same colours and counts
     colour, shadow_rays, exhausted = np.empty((n, 3)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-    gpu_shade.shade_hits_gpu(
+    gpu_lighting.shade_hits_gpu(
         _context(), bvh, hits, directions, geometry.material, materials, lights, background, eps, tolerance, 16,
         (colour, None, None, None, shadow_rays, exhausted),
     )  # fmt: skip
@@ -303,7 +317,7 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     contact shadow on the CPU from its positions, normals and exclusion boxes: the same
     image within 1/255 (the same hits everywhere away from silhouettes: test_gpu.py), with
     adaptive anti-aliasing too (its extra camera rays on the CPU's walk: pipeline.py's
-    GPU_SECONDARY says why)."""
+    shade.GPU_SECONDARY says why)."""
     size = {**dict(width=48, height=48, spp=1, adaptive_spp=0), **extra}
     path = ROOT / "scenes" / "column.toml"
     cpu = bsrt.render(path, device="cpu", **size)
@@ -315,17 +329,20 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     assert cpu_rays > 0 and (gpu_rays == cpu_rays if _same_steps() else abs(gpu_rays - cpu_rays) <= 0.01 * cpu_rays)
     np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
     apart = np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max(axis=-1)
-    if _same_steps():
+    if _same_steps():  # the mirror chain's colours mixed as the CPU's (the specular power a few ulps apart)
+        np.testing.assert_allclose(on_gpu.linear, cpu.linear, rtol=1e-10, atol=1e-14)
         assert apart.max() <= 1
     else:  # a last bit apart can turn a mirror ray grazing a reflected silhouette (H200: 1 pixel of 2,304)
         assert (apart > 1).sum() <= 1 + apart.size // 1000
 
 
-def _strips_under_a_light():
+def _strips_under_a_light(mirror_floor: bool = False):
     """20 flat bicubic strips in the plane x = 0.5 (y in [-1, 1], z in [0.1 j, 0.1 j + 0.05]), a
     floor patch at z = -0.01 round the origin, a point light straight above it at z = 100, a
     camera looking down at the floor from the side: the floor's shadow ray runs up the z axis,
-    0.5 from every strip, and meets none."""
+    0.5 from every strip, and meets none. mirror_floor: the floor reflects (half), an ambient
+    light replaces the point light (no shadow rays) and the camera looks down from higher up:
+    the floor's mirror rays rise through the strips' plane."""
     knots = [0, 0, 0, 0, 1, 1, 1, 1]
     strips = [
         {
@@ -345,10 +362,22 @@ def _strips_under_a_light():
     return parse_scene(
         {
             "film": {"width": 8, "height": 8},
-            "camera": {"eye": [-3.0, 0.0, 0.5], "look_at": [0.0, 0.0, -0.01], "up": [0.0, 0.0, 1.0], "fov": 30.0},
-            "material": [{"name": "grey", "color": [0.6, 0.6, 0.6]}],
-            "light": [{"kind": "point", "position": [0.0, 0.0, 100.0], "intensity": 10000.0}],
-            "surface": [dict(surface, material="grey") for surface in [floor, *strips]],
+            "camera": {
+                "eye": [-1.0, 0.0, 1.2] if mirror_floor else [-3.0, 0.0, 0.5],
+                "look_at": [0.0, 0.0, -0.01],
+                "up": [0.0, 0.0, 1.0],
+                "fov": 30.0,
+            },
+            "material": [
+                {"name": "grey", "color": [0.6, 0.6, 0.6]},
+                {"name": "floor", "color": [0.6, 0.6, 0.6], "reflectance": 0.5 if mirror_floor else 0.0},
+            ],
+            "light": [
+                {"kind": "ambient", "intensity": 0.5}
+                if mirror_floor
+                else {"kind": "point", "position": [0.0, 0.0, 100.0], "intensity": 10000.0}
+            ],
+            "surface": [dict(floor, material="floor")] + [dict(strip, material="grey") for strip in strips],
         }
     )
 
@@ -369,12 +398,12 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
     from bsrt.rendering.pipeline import Geometry
 
     retraced, reshaded = [], []
-    spy_intersect, spy_run_chunks = gpu_shade.intersect, gpu_shade.run_chunks
+    spy_intersect, spy_run_chunks = gpu_shade.intersect, gpu_lighting.run_chunks
     monkeypatch.setattr(
         gpu_shade, "intersect", lambda bvh, o, *a, **k: retraced.append(len(o)) or spy_intersect(bvh, o, *a, **k)
     )
     monkeypatch.setattr(
-        gpu_shade, "run_chunks", lambda f, n, *a, **k: reshaded.append(n) or spy_run_chunks(f, n, *a, **k)
+        gpu_lighting, "run_chunks", lambda f, n, *a, **k: reshaded.append(n) or spy_run_chunks(f, n, *a, **k)
     )
     scene = _strips_under_a_light()
     options = RenderOptions.resolve(scene)
@@ -404,13 +433,47 @@ def test_a_walk_past_llvmpipes_loop_limit_is_finished_on_the_cpu(monkeypatch):
         hits.u, hits.v, camera_rays, geometry.material, *materials, *lights, background, eps, float(tolerance), 16,
         DEFAULT_RETRY_DEPTH, bvh.padding + float(tolerance), ray_budget(16), bvh.packet_spread, *want,
     )  # fmt: skip
-    gpu_shade.shade_hits_gpu(
+    gpu_lighting.shade_hits_gpu(
         _context(), bvh, hits, camera_rays, geometry.material, materials, lights, background, eps, tolerance, 16, got
     )
     assert reshaded == limited  # the hit whose shadow ray the shader left unsettled, shaded by the CPU kernel
     assert want[5][0] == 1  # its shadow ray spent its budget: lit
     for a, b in zip(want, got):
         _agree(b, a, scale=geometry.diagonal)
+
+
+def test_a_mirror_chain_past_llvmpipes_loop_limit_is_shaded_on_the_cpu(monkeypatch):
+    """The strips over a mirror floor (lit by an ambient light only: no shadow rays), their boxes
+    padded so that every mirror ray from the floor solves every strip: on llvmpipe those walks run
+    into the loop limiter, and the pixels whose mirror chain the GPU left unsettled are shaded
+    again, whole, on the CPU (rendering/shade.py's Shader._shade_cpu; on a GPU none are). The render
+    on the GPU path gives the CPU path's colours (to a few roundings: the specular power) and the
+    same counts of mirror rays and rays out of budget."""
+    from bsrt.rendering import pipeline, shade
+    from bsrt.rendering.options import RenderOptions
+    from bsrt.rendering.pipeline import Geometry
+
+    scene = _strips_under_a_light(mirror_floor=True)
+    results, again = {}, []
+    spy = shade.Shader._shade_cpu
+    for device in ("cpu", "gpu"):
+        geometry = Geometry(scene)
+        geometry._bvh = build_bvh(geometry.patches, padding=1.0)
+        options = RenderOptions.resolve(scene, width=12, height=12, adaptive_spp=0, device=device)
+        if device == "gpu":
+            monkeypatch.setattr(
+                shade.Shader, "_shade_cpu", lambda self, hits, *a: again.append(len(hits)) or spy(self, hits, *a)
+            )
+        results[device] = pipeline.render(scene, options, geometry=geometry)
+    cpu, on_gpu = results["cpu"], results["gpu"]
+    floor = cpu.hits.hit & (cpu.hits.surface == 0)
+    assert floor.sum() >= 4 and cpu.stats["reflection_rays"] == floor.sum() and cpu.stats["shadow_rays"] == 0
+    for key in ("reflection_rays", "out_of_budget", "shadow_rays", "hits"):
+        assert on_gpu.stats[key] == cpu.stats[key], key
+    with _context() as ctx:
+        software = not gl.capabilities(ctx).hardware
+    assert (len(again) > 0) == software  # the depth-0 re-shadings (their mirror rays recurse: more calls)
+    np.testing.assert_allclose(on_gpu.linear, cpu.linear, rtol=1e-12, atol=1e-15)
 
 
 @pytest.mark.parametrize("path", SOURCES, ids=lambda p: p.stem)

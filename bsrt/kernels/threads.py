@@ -20,7 +20,7 @@ more threads the more a slice costs them all. A 512x512 map's slices had
 shrunk to 64 items, 30 slices a call; on 16 cores a 2048x2048 render made
 31,000 slices and ran no faster than on 8 (an H200 machine's 16 cores,
 2026-11-26: the floor per two threads and fewer shading calls,
-pipeline.SECONDARY_CHUNK, took it to 8,000 slices and 2.5 -> 1.2 s).
+shade.SECONDARY_CHUNK, took it to 8,000 slices and 2.5 -> 1.2 s).
 
 The calling thread waits in steps of POLL_SECONDS and takes
 a waiting signal between them (``interrupts.safe_point``); then no further

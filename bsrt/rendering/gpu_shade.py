@@ -1,4 +1,4 @@
-"""Shadow rays on the GPU: the hierarchy in storage buffers and the any-hit walk as a compute shader.
+"""Shadow and mirror rays on the GPU: the hierarchy in storage buffers, its walks as compute shaders.
 
 ``occluded_gpu`` answers, for shadow rays given as arrays, what the CPU's
 any-hit walk (kernels/lighting.py's occluded; bvh.intersect with any_hit)
@@ -6,18 +6,18 @@ answers: blocked or not, which rays spent their budget (taken as lit), and
 the Newton iterations each took.
 ``shaders/shadow.glsl`` runs ``shaders/anyhit.glsl``, a port of that walk
 in float64, on the hierarchy (rendering/bvh.py's BVHArrays) uploaded once
-per hierarchy beside the patch table (gpu.uploaded). ``shade_hits_gpu`` is
-kernels/lighting.py's shade_hits by ``shaders/shade.glsl``; ``nearest_gpu``
-the nearest hits of mirror rays (bvh.intersect) by ``shaders/nearest.glsl``, which ``trace_gpu``
-takes bvh.intersect's arguments to. The rays a
-software renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's
-head) are traced, and their hits shaded, by those CPU kernels instead.
+per hierarchy beside the patch table (gpu.uploaded). ``nearest_gpu`` gives
+the nearest hits of rays given as arrays (bvh.intersect) by ``shaders/nearest.glsl``
+(the walk of nearest_walk.glsl), which ``trace_gpu`` takes bvh.intersect's
+arguments to. ``hierarchy_shader`` compiles and binds a shader that walks
+the hierarchy (the lighting's too: gpu_lighting.py). The rays a software
+renderer leaves unsettled (llvmpipe's loop limiter: anyhit.glsl's head) are
+traced by the CPU's walk instead.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from types import SimpleNamespace
 
 import moderngl
 import numpy as np
@@ -25,9 +25,7 @@ import numpy as np
 from bsrt import interrupts
 from bsrt.kernels.crossings import ROUNDING
 from bsrt.kernels.hierarchy import BVHArrays
-from bsrt.kernels.lighting import shade_hits
 from bsrt.kernels.shading import LIGHT_KINDS, POLE_STEPS
-from bsrt.kernels.threads import run_chunks
 from bsrt.kernels.traverse import GRAZING_COSINE, RECT_SLACK, STACK
 from bsrt.rendering import gl, gpu
 from bsrt.rendering.bvh import DEFAULT_MAX_ITERATIONS, DEFAULT_RETRY_DEPTH, intersect, ray_budget
@@ -259,7 +257,7 @@ def trace_gpu(
     """bvh.intersect's nearest hits (the same arguments) on ctx by nearest_gpu, the directions
     normalised as intersect normalises them; the budget is ray_budget(max_iterations), the
     shader's. any_hit, or another budget, is a ValueError (the rays a render sends to the GPU's
-    any-hit walk, its shadow rays, go through shade_hits_gpu)."""
+    any-hit walk, its shadow rays, go through gpu_lighting.shade_hits_gpu)."""
     if any_hit:
         raise ValueError("trace_gpu traces nearest hits; any-hit rays go through occluded_gpu")
     if budget is not None and budget != ray_budget(max_iterations):
@@ -274,112 +272,3 @@ def trace_gpu(
         return found
     out.put(slice(None), found)
     return out
-
-
-SHADE_OUTPUTS = (((3,), np.float64),) * 3 + (((2,), np.float64), ((), np.int64), ((), np.int64))  # per hit
-LOOK_REAL = ("albedo", "specular", "shininess", "light_position", "light_direction", "strength", "background")
-LOOK_INT = ("material_of", "kind")
-
-
-def shade_hits_gpu(
-    ctx: moderngl.Context,
-    bvh,
-    hits,
-    directions,
-    material_of,
-    materials,
-    lights,
-    background,
-    eps: float,
-    tolerance: float,
-    max_iterations: int,
-    out,
-) -> None:
-    """kernels/lighting.py's shade_hits for K hits on ctx (OpenGL 4.5 with
-    float64), by shaders/shade.glsl: the same arguments and outputs.
-
-    hits: Hits (K,) (hit, patch, surface, u, v used); directions: (K, 3)
-    unit ray directions; material_of: (S,) int64; materials: (albedo (M, 3),
-    specular (M,), shininess (M,)); lights: rendering/shade.py's
-    light_arrays; background: (3,); eps: the exclusion half-width (scene
-    units); tolerance, max_iterations: the shadow rays' solve (bvh.intersect's).
-    out: (colour (K, 3), position (K, 3), normal (K, 3), radius (K, 2),
-    shadow_rays (K,) int64, exhausted (K,) int64), written here; position,
-    normal and radius may be None where the caller needs no frames (then
-    they are not read back: 64 of the 100 bytes a hit). The hits
-    with a shadow ray the shader leaves unsettled (anyhit.glsl's -3) are
-    shaded again by the CPU kernel."""
-    colour, position, normal, radius, shadow_rays, exhausted = out
-    n = len(hits)
-    if n == 0:
-        return
-    kind = lights[0]
-    look = SimpleNamespace(
-        material_of=material_of,
-        albedo=materials[0],
-        specular=materials[1],
-        shininess=materials[2],
-        kind=kind,
-        light_position=lights[1],
-        light_direction=lights[2],
-        strength=lights[3],
-        background=background,
-    )
-    look_reals, look_ints, look_offsets = pack_tables([(look, "", LOOK_REAL, LOOK_INT)], {})
-    hit_reals = np.column_stack([hits.u, hits.v, np.asarray(directions, dtype=np.float64).reshape(-1, 3)])
-    hit_ints = np.column_stack([hits.hit, hits.patch, hits.surface]).astype(np.int32)
-    unsettled = np.zeros(n, dtype=bool)
-    step = min(n, gpu.dispatch_size(ctx))
-    with ctx:
-        shader = hierarchy_shader(ctx, "shade", bvh)
-        set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
-        for key, offset in look_offsets.items():
-            set_uniform(shader, f"off_{key}", offset)
-        set_uniform(shader, "eps", float(eps))
-        buffers = []
-        try:  # the tables, then one slice's hits and outputs, written and read again for each slice
-            for make in (
-                lambda: ctx.buffer(look_reals),
-                lambda: ctx.buffer(look_ints),
-                lambda: ctx.buffer(reserve=step * 5 * 8),
-                lambda: ctx.buffer(reserve=step * 3 * 4),
-                lambda: ctx.buffer(reserve=step * 11 * 8),
-                lambda: ctx.buffer(reserve=step * 3 * 4),
-            ):
-                buffers.append(make())
-            for buffer, binding in zip(buffers, (4, 5, 2, 3, 8, 9)):
-                buffer.bind_to_storage_buffer(binding)
-            for first in range(0, n, step):
-                part = slice(first, min(n, first + step))
-                count = part.stop - part.start
-                buffers[2].write(hit_reals[part])
-                buffers[3].write(hit_ints[part])
-                set_uniform(shader, "hit_count", count)
-                for light in range(kind.shape[0]) if kind.shape[0] else (-1,):  # no light: colour 0 (a sum over none)
-                    set_uniform(shader, "light", light)
-                    gpu.run(ctx, shader, count)
-                    ctx.memory_barrier()
-                at = 0
-                for array, width in ((colour, 3), (position, 3), (normal, 3), (radius, 2)):  # out_reals' blocks
-                    if array is not None:  # straight into the outputs
-                        gpu.read_rows(buffers[4], array[part], at)
-                    at += count * width * 8
-                ints = gpu.read_array(buffers[5], (3, count), np.int32)  # out_ints' blocks
-                shadow_rays[part], exhausted[part], unsettled[part] = ints[0], ints[1], ints[2] != 0
-                interrupts.safe_point()
-        finally:
-            for buffer in buffers:
-                buffer.release()
-    redo = np.flatnonzero(unsettled)
-    if redo.size:
-        again = tuple(np.empty((redo.size,) + shape, dtype=kind) for shape, kind in SHADE_OUTPUTS)
-        P, rays = bvh.patches, np.ascontiguousarray(directions, dtype=np.float64)
-        run_chunks(
-            shade_hits, redo.size, P.arrays, P.trims, bvh.arrays, hits.hit[redo], hits.patch[redo],
-            hits.surface[redo], hits.u[redo], hits.v[redo], rays[redo], material_of, *materials, *lights,
-            background, eps, float(tolerance), max_iterations, DEFAULT_RETRY_DEPTH,
-            bvh.padding + float(tolerance), ray_budget(max_iterations), bvh.packet_spread, *again,
-        )  # fmt: skip
-        for whole, part in zip(out, again):
-            if whole is not None:
-                whole[redo] = part

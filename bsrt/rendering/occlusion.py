@@ -53,17 +53,19 @@ def with_ground(scene) -> tuple:
     return replace(scene, materials=materials, surfaces=scene.surfaces + (surface,)), radius
 
 
-def hemisphere_directions(normal: np.ndarray, rays: int = AO_RAYS) -> np.ndarray:
+def hemisphere_directions(normal: np.ndarray, rays: int = AO_RAYS, number=None) -> np.ndarray:
     """(K, rays, 3) unit directions, cosine-weighted over each unit normal's (K, 3) hemisphere:
     a stratified rows x columns grid of the unit square mapped by Malley's method, turned
-    about the normal by a fixed angle per point (the golden ratio's multiples)."""
+    about the normal by a fixed angle per point (the golden ratio's multiples of its number:
+    number (K,) int, default 0..K-1)."""
     k = normal.shape[0]
     columns = int(np.sqrt(rays))
     rows = rays // columns
     a = (np.arange(rays) % columns + 0.5) / columns
     b = (np.arange(rays) // columns % rows + 0.5) / rows
     r, phi = np.sqrt(a), 2.0 * np.pi * b
-    turn = (np.arange(k) * 0.6180339887498949 % 1.0) * 2.0 * np.pi
+    number = np.arange(k) if number is None else np.asarray(number)
+    turn = (number * 0.6180339887498949 % 1.0) * 2.0 * np.pi
     angle = phi[None, :] + turn[:, None]  # (K, rays)
     lx, ly, lz = r[None, :] * np.cos(angle), r[None, :] * np.sin(angle), np.sqrt(np.maximum(0.0, 1.0 - a))[None, :]
     helper = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
@@ -73,15 +75,16 @@ def hemisphere_directions(normal: np.ndarray, rays: int = AO_RAYS) -> np.ndarray
     return lx[..., None] * t[:, None, :] + ly[..., None] * s[:, None, :] + lz[..., None] * normal[:, None, :]
 
 
-def occlusion(trace, position: np.ndarray, normal: np.ndarray, exclude, reach: float) -> np.ndarray:
+def occlusion(trace, position: np.ndarray, normal: np.ndarray, exclude, reach: float, number=None) -> np.ndarray:
     """(K,) float64 openness in [0, 1] of K points (position, unit normal: (K, 3)): the fraction of
     hemisphere_directions whose any-hit ray meets nothing within ``reach`` (scene units).
     trace(origins, directions, exclude, t_max, any_hit) is the shader's secondary tracer;
-    exclude: the points' own parameter boxes (tuples of (K,) arrays), repeated per ray."""
+    exclude: the points' own parameter boxes (tuples of (K,) arrays), repeated per ray;
+    number: (K,) int, each point's number in its render call (its directions' turn), default 0..K-1."""
     k = position.shape[0]
     if not k:
         return np.ones(0)
-    directions = hemisphere_directions(normal).reshape(-1, 3)
+    directions = hemisphere_directions(normal, number=number).reshape(-1, 3)
     origins = np.repeat(position, AO_RAYS, axis=0)
     repeated = tuple(np.repeat(a, AO_RAYS) for a in exclude)
     blocked = trace(origins, directions, repeated, reach, True).hit.reshape(k, AO_RAYS)

@@ -17,37 +17,26 @@ from functools import cached_property, partial
 import numpy as np
 
 from bsrt.geometry.patches import PatchSet
-from bsrt.kernels.lighting import shade_hits
-from bsrt.kernels.shading import mirror_rays, mix_reflections
-from bsrt.kernels.threads import run_chunks
-from bsrt.kernels.traverse import Exclusion
 from bsrt.rendering import gpu
 from bsrt.rendering.bvh import (
     DEFAULT_MAX_ITERATIONS,
-    DEFAULT_RETRY_DEPTH,
     build_bvh,
     intersect,
     out_of_budget,
     ray_budget,
 )
 from bsrt.rendering.film import Film
-from bsrt.rendering.gpu_shade import shade_hits_gpu, trace_gpu
+from bsrt.rendering.gpu_shade import trace_gpu
 from bsrt.rendering.hits import Hits
 from bsrt.rendering.options import RenderOptions
 from bsrt.rendering.prelim import PrelimMap
-from bsrt.rendering.shade import facing_frames, light_arrays
+from bsrt.rendering.shade import Shader, facing_frames
 from bsrt.rendering.stats import Stats
 from bsrt.rendering.trace import make_primary_tracer
 from bsrt.scene import Scene
 from bsrt.scene.camera import pixel_rays
 
 MAX_BAND_SAMPLES = 1 << 19  # samples traced at once: bounds the memory of primary and secondary rays
-# --stats' devices of the secondary rays on the GPU path: mirror rays' walks there; their set-up, the
-# occlusion rays (the GPU's any-hit walk answered one of 1.1 million otherwise: a blocker's t a few
-# roundings apart at the rays' reach, 2/255 on one pixel) and the anti-aliasing's camera rays on the CPU
-GPU_SECONDARY = "gpu (mirrors), cpu"
-SECONDARY_CHUNK = 1 << 19  # rays (hits shaded, mirror rays) per call: progress points (run_chunks takes signals)
-SHADOW_ITERATIONS = 16  # Newton iterations of a shadow ray on one piece (bvh.intersect's default)
 
 
 @dataclass(eq=False)
@@ -274,7 +263,7 @@ def render(
         _ = geometry.bvh  # built here, not inside the first stage that needs it
     spent_before = geometry.out_of_budget
     tracer = make_primary_tracer(opts, geometry, stats, report, ctx)
-    shader = _Shader(scene, opts, geometry, stats, report, radius, gpu.choose_device(opts.device, ctx)[1])
+    shader = Shader(scene, opts, geometry, stats, report, radius, gpu.choose_device(opts.device, ctx)[1])
     cols, rows = sample_grid(spp)
     sample_w, sample_h = width * cols, height * rows
     band = max(1, MAX_BAND_SAMPLES // sample_w)  # sample rows; a band may end inside a pixel row
@@ -328,7 +317,7 @@ def _adaptive(
     (centre_hits: (H, W), the film's samples that hit per pixel)."""
     from bsrt.rendering.antialias import refine
 
-    def trace(directions):  # on the CPU on either device (GPU_SECONDARY)
+    def trace(directions):  # on the CPU on either device (shade.GPU_SECONDARY)
         return geometry.intersect(opts.camera.eye[None, :], directions, tolerance=tracer.tolerance)
 
     def shade(hits, directions):
@@ -338,159 +327,3 @@ def _adaptive(
 
     grid = sample_grid(opts.adaptive_spp)
     refine(linear, pixels, coverage, grid, shade, trace, opts, stats, MAX_BAND_SAMPLES, centre_hits)
-
-
-class _Shader:
-    """Colour along rays: Blinn-Phong with shadow rays to every point and
-    directional light (one compiled pass per slice of hits: kernels/lighting.py),
-    and mirror reflection up to options.max_depth bounces."""
-
-    def __init__(self, scene: Scene, options: RenderOptions, geometry: Geometry, stats: Stats, report, radius, gpu_ctx):
-        self.scene, self.options, self.geometry, self.stats, self.report = scene, options, geometry, stats, report
-        self.gpu = gpu_ctx  # a context: the direct lighting and mirror rays run there (gpu_shade.py)
-        stats.fields.setdefault("devices", {}).update(
-            shade="cpu" if gpu_ctx is None else "gpu", secondary="cpu" if gpu_ctx is None else GPU_SECONDARY
-        )
-        grounded = options.ground and scene.surfaces and scene.surfaces[-1].name == "ground" and radius is not None
-        self.ground = len(scene.surfaces) - 1 if grounded else -1  # the ground plane's surface index
-        self.reach = 0.5 * (geometry.diagonal / 2.0 if radius is None else radius)  # AO_RANGE model radii
-        self.tolerance = options.tolerance * geometry.diagonal
-        self.reflectance = np.array([m.reflectance for m in scene.materials])
-        self.surface_reflectance = self.reflectance[geometry.material]  # (S,) per surface
-        self.mirror = self.surface_reflectance > 0
-        mats = scene.materials
-        self.materials = (
-            np.array([m.color for m in mats], dtype=np.float64).reshape(-1, 3),
-            np.array([m.specular for m in mats], dtype=np.float64),
-            np.array([m.shininess for m in mats], dtype=np.float64),
-        )
-        self.lights = light_arrays(scene.lights)
-        self.background = np.array(options.background, dtype=np.float64).reshape(3)
-        self.span, self.expected, self.traced, self.shown = (0.0, 1.0), 1, 0, 0.0
-        self.casting = sum(light.kind != "ambient" for light in scene.lights)
-        stats.add("shadow_rays", 0)
-        stats.add("reflection_rays", 0)
-
-    def begin_band(self, hits: Hits, span: tuple[float, float]) -> None:
-        """Progress of the band's shading is reported within span (fractions of the render),
-        against an estimate of its secondary rays (one shadow ray per hit and light, and a bounce where mirrors are)."""
-        mirrors = 2 if np.any(self.reflectance > 0) and self.options.max_depth > 0 else 1
-        self.span, self.traced = span, 0
-        self.expected = max(1, int(hits.hit.sum()) * max(self.casting, 1) * mirrors)
-
-    def _advance(self, rays: int) -> None:
-        lo, hi = self.span
-        self.traced += rays
-        self.shown = max(self.shown, lo + (hi - lo) * min(0.99, self.traced / self.expected))
-        self.report("shade", self.shown)
-
-    def shade(self, hits: Hits, directions: np.ndarray, depth: int = 0, frames=None):
-        """Linear RGB (K, 3) seen along each ray (ending at ``hits``); directions: (K, 3) unit.
-        frames: (position, normal) (K, 3) arrays the hits' frames are written into (else made here)."""
-        n = len(hits)
-        directions = np.ascontiguousarray(directions, dtype=np.float64)
-        position, normal = frames if frames is not None else (np.empty((n, 3)), np.empty((n, 3)))
-        colour = np.empty((n, 3))
-        radius, shadow_rays, exhausted = np.empty((n, 2)), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
-        geometry = self.geometry
-        bvh = geometry.bvh
-        # the frames are read back from the GPU only for what needs them: the AOVs, occlusion, mirrors
-        mirrored = depth < self.options.max_depth and (hits.hit & self.mirror[hits.surface]).any()
-        framed = frames is not None or mirrored or (depth == 0 and (self.options.ao or self.ground >= 0))
-        for a in range(0, n, SECONDARY_CHUNK):  # progress points
-            part = slice(a, min(n, a + SECONDARY_CHUNK))
-            outputs = (colour[part], position[part], normal[part], radius[part], shadow_rays[part], exhausted[part])
-            if self.gpu is not None:
-                if not framed:
-                    outputs = (outputs[0], None, None, None) + outputs[4:]
-                shade_hits_gpu(self.gpu, bvh, hits.take(part), directions[part], geometry.material, self.materials,
-                               self.lights, self.background, 1e-6 * geometry.diagonal, float(self.tolerance),
-                               SHADOW_ITERATIONS, outputs)  # fmt: skip
-            else:
-                run_chunks(
-                    shade_hits,
-                    part.stop - part.start,
-                    geometry.patches.arrays,
-                    geometry.patches.trims,
-                    bvh.arrays,
-                    hits.hit[part],
-                    hits.patch[part],
-                    hits.surface[part],
-                    hits.u[part],
-                    hits.v[part],
-                    directions[part],
-                    geometry.material,
-                    *self.materials,
-                    *self.lights,
-                    self.background,
-                    1e-6 * geometry.diagonal,
-                    float(self.tolerance),
-                    SHADOW_ITERATIONS,
-                    DEFAULT_RETRY_DEPTH,
-                    bvh.padding + float(self.tolerance),
-                    ray_budget(SHADOW_ITERATIONS),
-                    bvh.packet_spread,
-                    *outputs,
-                    min_chunk=256,
-                )
-            geometry.out_of_budget += int(exhausted[part].sum())  # lit, as bvh.py's "Budget" says
-            rays = int(shadow_rays[part].sum())
-            self.stats.add("shadow_rays", rays)
-            self._advance(rays)
-        hit = np.flatnonzero(hits.hit)
-        if hit.size and depth == 0 and (self.options.ao or self.ground >= 0):
-            surface = hits.surface[hit]
-            exclude = (surface, hits.u[hit], hits.v[hit], radius[hit, 0], radius[hit, 1])
-            self._occlude(colour, hit, surface, position[hit], normal[hit], geometry.material[surface], exclude)
-        if not hit.size or depth >= self.options.max_depth:
-            return colour
-        mirror = np.flatnonzero(hits.hit & self.mirror[hits.surface])  # a miss's surface -1 is masked
-        if mirror.size:
-            m = mirror.size
-            origins, mirrored = np.empty((m, 3)), np.empty((m, 3))
-            exclude = Exclusion(np.empty(m, dtype=np.int64), *(np.empty(m) for _ in range(4)))
-            run_chunks(mirror_rays, m, mirror, directions, normal, position, hits.surface, hits.u, hits.v, radius,
-                       origins, mirrored, exclude)  # fmt: skip
-            self.stats.add("reflection_rays", m)
-            seen = self._trace(origins, mirrored, exclude)
-            reflected = self.shade(seen, mirrored, depth + 1)
-            run_chunks(mix_reflections, m, mirror, self.surface_reflectance[hits.surface[mirror]], reflected, colour)
-        return colour
-
-    def _occlude(self, colour, hit, surface, pos, nrm, material, exclude) -> None:
-        """Ambient occlusion (options.ao: the ambient lights' part of each hit's colour times its
-        openness) and the ground's contact shadow (its colour times its openness), in place."""
-        from bsrt.rendering.occlusion import AO_RAYS, occlusion
-
-        on_ground = surface == self.ground
-        which = np.arange(hit.size) if self.options.ao else np.flatnonzero(on_ground)
-        if not which.size:
-            return
-        self.stats.add("ao_rays", which.size * AO_RAYS)
-        openness = occlusion(self._trace, pos[which], nrm[which], tuple(a[which] for a in exclude), self.reach)
-        ground = on_ground[which]
-        if self.options.ao:
-            ambient = sum(
-                (np.array(light.color) * light.intensity for light in self.scene.lights if light.kind == "ambient"),
-                np.zeros(3),
-            )
-            albedo = np.array([m.color for m in self.scene.materials])[material[which]]
-            lost = (1.0 - openness)[:, None] * albedo * ambient
-            colour[hit[which[~ground]]] -= lost[~ground]
-        colour[hit[which[ground]]] *= openness[ground][:, None]
-
-    def _trace(self, origins, directions, exclude, t_max=np.inf, any_hit=False) -> Hits:
-        """Mirror, occlusion and edge rays through the hierarchy (nearest hits, or any hit before
-        t_max), in chunks (progress, cancellation)."""
-        n = directions.shape[0]
-        hits = Hits.blank(n)  # every record written below
-        t_max = np.broadcast_to(np.asarray(t_max, dtype=np.float64), (n,))
-        with self.stats.timer("secondary"):
-            for a in range(0, n, SECONDARY_CHUNK):
-                part = slice(a, min(n, a + SECONDARY_CHUNK))
-                o, d, far, ex = origins[part], directions[part], t_max[part], tuple(x[part] for x in exclude)
-                gpu = None if any_hit else self.gpu  # GPU_SECONDARY says why
-                kw = dict(t_min=0.0, t_max=far, tolerance=self.tolerance, exclude=ex, any_hit=any_hit, gpu=gpu)
-                self.geometry.intersect(o, d, out=hits.take(part), **kw)  # written in place
-                self._advance(part.stop - part.start)
-        return hits
