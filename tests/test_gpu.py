@@ -159,6 +159,34 @@ IGES_TRIMMED = [
 ]
 
 
+def test_buffers_are_kept_between_calls_one_set_a_family():
+    """gpu.kept_buffers: a call that fits the kept set gets it again (items rounded up to a power of
+    two, at least 1,024); a larger call replaces it (the smaller set released); sets of other
+    families, and other objects gl.keep keeps (the map's framebuffers: one a family too), stay."""
+
+    class Kept:
+        released = False
+
+        def release(self):
+            self.released = True
+
+    ctx = _context()
+    with ctx:
+        framebuffers = gl.keep(ctx, ("bsrt_test_passes",), Kept)
+        first = gpu.kept_buffers(ctx, "bsrt_test", 1000, (8, 4))
+        assert [b.size for b in first] == [8192, 4096]
+        assert gpu.kept_buffers(ctx, "bsrt_test", 600, (8, 4)) is first
+        other = gpu.kept_buffers(ctx, "bsrt_test_other", 10, (4,))
+        bigger = gpu.kept_buffers(ctx, "bsrt_test", 5000, (8, 4))
+        assert [b.size for b in bigger] == [8 * 8192, 4 * 8192]
+        assert all(type(b.mglo).__name__ == "InvalidObject" for b in first)  # released
+        assert gpu.kept_buffers(ctx, "bsrt_test", 1000, (8, 4)) is bigger  # it holds them
+        assert gpu.kept_buffers(ctx, "bsrt_test_other", 10, (4,)) is other
+        assert not framebuffers.released and gl.keep(ctx, ("bsrt_test_passes",), Kept) is framebuffers
+        for key in [k for k in ctx.extra["bsrt_kept"] if k[0].startswith("bsrt_test")]:
+            ctx.extra["bsrt_kept"].pop(key).release()
+
+
 @pytest.mark.parametrize("path", IGES_TRIMMED, ids=lambda p: p.stem)
 def test_the_float64_trim_test_agrees_with_the_kernels(path):
     """shaders/trim64.glsl against kernels/trim.py's point_kept on random (u, v)

@@ -316,18 +316,19 @@ def program(ctx: moderngl.Context, name: str, defines: tuple[str, ...] = (), com
 
 def keep(ctx: moderngl.Context, key, make, limit: int = 1):
     """make() once per key, kept on ctx for later calls (framebuffers reused
-    by renders of one size); the least recently used beyond limit keys is
-    released before a new one is made. The object needs a release() method;
-    release_cached releases them all."""
+    by renders of one size, buffers by calls of one size); key: a tuple whose
+    first item names its family, of which the least recently used beyond
+    limit keys is released before a new one is made. The object needs a
+    release() method; release_cached releases them all."""
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     kept = ctx.extra.setdefault("bsrt_kept", {})
     if key in kept:
         kept[key] = kept.pop(key)  # now the most recently used
         return kept[key]
-    while kept and len(kept) >= limit:
+    while (family := [k for k in kept if k[0] == key[0]]) and len(family) >= limit:
         bind_default_framebuffer(ctx)  # the one to release may be bound
-        kept.pop(next(iter(kept))).release()
+        kept.pop(family[0]).release()
     kept[key] = made = make()
     return made
 

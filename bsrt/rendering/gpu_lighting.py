@@ -38,24 +38,19 @@ SLOT_BYTES = 4  # a slot's entry in a list of the level's slots (Slots)
 BOUNCE_BYTES = 4 * 4  # a slot's bounce (bounce.glsl's BounceInts)
 
 
-class _Level:
-    """One level of the mirror chain's buffers on ctx, for ``step`` slots: hits (reals, ints), outputs
-    (reals, ints), the lists of the slots its dispatches run over and, below the first, the bounce
-    that led to it. slots: the slots shaded (a mirror ray reached them; None: every slot, the first
-    level); mirrors: those whose hit reflects (bounce.glsl's)."""
+LEVEL_BYTES = HIT_BYTES + OUT_BYTES + (SLOT_BYTES, SLOT_BYTES)  # a slot of a level, buffer by buffer
 
-    def __init__(self, ctx, step: int, below: bool):
-        self.buffers = []
-        try:
-            for size in HIT_BYTES + OUT_BYTES + (SLOT_BYTES, SLOT_BYTES) + ((BOUNCE_BYTES,) if below else ()):
-                self.buffers.append(ctx.buffer(reserve=step * size))
-        except BaseException:
-            self.release()
-            raise
-        self.hit_reals, self.hit_ints, self.out_reals, self.out_ints, self.slot_list, self.mirror_list = self.buffers[
-            :6
-        ]
-        self.bounce = self.buffers[6] if below else None
+
+class _Level:
+    """One level of the mirror chain's buffers: hits (reals, ints), outputs (reals, ints), the lists
+    of the slots its dispatches run over and, below the first, the bounce that led to it (buffers:
+    in that order, LEVEL_BYTES and BOUNCE_BYTES a slot). slots: the slots shaded (a mirror ray
+    reached them; None: every slot, the first level); mirrors: those whose hit reflects (bounce.glsl's)."""
+
+    def __init__(self, buffers: list):
+        self.hit_reals, self.hit_ints, self.out_reals, self.out_ints = buffers[:4]
+        self.slot_list, self.mirror_list = buffers[4:6]
+        self.bounce = buffers[6] if len(buffers) > 6 else None
         self.slots, self.mirrors = None, np.zeros(0, dtype=np.int32)
 
     def list_slots(self, slots: np.ndarray, mirrors: np.ndarray) -> None:
@@ -74,9 +69,17 @@ class _Level:
         (self.mirror_list if mirrors else self.slot_list).bind_to_storage_buffer(13)
         set_uniform(program, "use_slots", int(mirrors or self.slots is not None))
 
-    def release(self) -> None:
-        for buffer in self.buffers:
-            buffer.release()
+
+def _chain(ctx, slots: int, levels: int) -> list[_Level]:
+    """The mirror chain's levels for at least ``slots`` slots, their buffers kept on ctx between
+    calls (gpu.kept_buffers)."""
+    sizes = LEVEL_BYTES + (LEVEL_BYTES + (BOUNCE_BYTES,)) * (levels - 1)
+    buffers = gpu.kept_buffers(ctx, "bsrt_lighting", slots, sizes)
+    first, chain = len(LEVEL_BYTES), [_Level(buffers[: len(LEVEL_BYTES)])]
+    for _ in range(levels - 1):
+        chain.append(_Level(buffers[first : first + len(LEVEL_BYTES) + 1]))
+        first += len(LEVEL_BYTES) + 1
+    return chain
 
 
 def shade_hits_gpu(
@@ -177,12 +180,11 @@ def shade_hits_gpu(
         if mix is not None:
             set_uniform(mix, "off_reflectance", look_offsets["reflectance"])
         set_uniform(shade, "eps", float(eps))
-        tables, chain = [], []
+        chain = _chain(ctx, step, levels)
+        tables = []
         try:  # the tables, then one slice's levels, written and read again for each slice
             tables.append(ctx.buffer(look_reals))
             tables.append(ctx.buffer(look_ints))
-            for depth in range(levels):
-                chain.append(_Level(ctx, step, below=depth > 0))
             for first in range(0, n, step):
                 part = slice(first, min(n, first + step))
                 count = part.stop - part.start
@@ -218,8 +220,6 @@ def shade_hits_gpu(
         finally:
             for buffer in tables:
                 buffer.release()
-            for level in chain:
-                level.release()
     again = np.flatnonzero(unsettled)
     if again.size and redo is not None:
         redo(again)

@@ -61,45 +61,34 @@ def map_roots_gpu(
     directions = np.ascontiguousarray(directions, dtype=np.float64)
     if directions.shape != (n, 3):
         raise ValueError(f"directions: expected ({n}, 3), got {directions.shape}")
-    buffers = []
     with drawn_tiles(patches, camera, width, height, mode, ctx, rows) as drawn:  # ctx current from here
-        try:
-            for make in (
-                lambda: ctx.buffer(directions),
-                lambda: ctx.buffer(reserve=max(n, 1) * 16),
-                lambda: ctx.buffer(reserve=max(n, 1) * 32),
-                lambda: ctx.buffer(reserve=max(n, 1) * 16),
+        # the rays' directions, then the merged map, the roots' reals and ints (kept between bands)
+        buffers = gpu.kept_buffers(ctx, "bsrt_map_solve", n, (24, 16, 32, 16))
+        buffers[0].write(directions)
+        shader = solver(ctx, "map_solve", patches, seeded_kernel_id(method), tolerance, max_iterations, stop_on_growth)
+        set_uniform(shader, "eye", tuple(float(x) for x in camera.eye))
+        set_uniform(shader, "float_map", int(mode == "float"))
+        set_uniform(shader, "band_width", width)
+        for passes, (r0, _), (c0, _) in drawn:
+            for binding, buffer in enumerate(buffers, start=2):
+                buffer.bind_to_storage_buffer(binding)
+            for unit, texture in enumerate(
+                (passes.tri.color, passes.tri.eye_distance, passes.line.color, passes.line.eye_distance)
             ):
-                buffers.append(make())
-            shader = solver(
-                ctx, "map_solve", patches, seeded_kernel_id(method), tolerance, max_iterations, stop_on_growth
-            )
-            set_uniform(shader, "eye", tuple(float(x) for x in camera.eye))
-            set_uniform(shader, "float_map", int(mode == "float"))
-            set_uniform(shader, "band_width", width)
-            for passes, (r0, _), (c0, _) in drawn:
-                for binding, buffer in enumerate(buffers, start=2):
-                    buffer.bind_to_storage_buffer(binding)
-                for unit, texture in enumerate(
-                    (passes.tri.color, passes.tri.eye_distance, passes.line.color, passes.line.eye_distance)
-                ):
-                    texture.use(location=unit)
-                set_uniform(shader, "row0", r0 - first)
-                set_uniform(shader, "col0", c0)
-                texels = passes.tri.size[0] * passes.tri.size[1]
-                step = gpu.dispatch_size(ctx)
-                for start in range(0, texels, step):  # a signal is taken between dispatches
-                    count = min(step, texels - start)
-                    set_uniform(shader, "first_texel", start)
-                    set_uniform(shader, "texel_count", count)
-                    gpu.run(ctx, shader, count)
-                    interrupts.safe_point()
-                ctx.memory_barrier()  # the textures are drawn again for the next tile; the buffers are read
-            record = gpu.read_array(buffers[1], (n, 4), np.float32)
-            reals, ints = gpu.read_array(buffers[2], (n, 4), np.float64), gpu.read_array(buffers[3], (n, 4), np.int32)
-        finally:
-            for buffer in buffers:
-                buffer.release()
+                texture.use(location=unit)
+            set_uniform(shader, "row0", r0 - first)
+            set_uniform(shader, "col0", c0)
+            texels = passes.tri.size[0] * passes.tri.size[1]
+            step = gpu.dispatch_size(ctx)
+            for start in range(0, texels, step):  # a signal is taken between dispatches
+                count = min(step, texels - start)
+                set_uniform(shader, "first_texel", start)
+                set_uniform(shader, "texel_count", count)
+                gpu.run(ctx, shader, count)
+                interrupts.safe_point()
+            ctx.memory_barrier()  # the textures are drawn again for the next tile; the buffers are read
+        record = gpu.read_array(buffers[1], (n, 4), np.float32)
+        reals, ints = gpu.read_array(buffers[2], (n, 4), np.float64), gpu.read_array(buffers[3], (n, 4), np.int32)
     prelim = decode_record(record, mode, patches.domain, (stop - first, width))
     covered = np.flatnonzero(prelim.surface.ravel() >= 0)
     return prelim, covered, gpu.decode_roots(reals, ints, covered)
