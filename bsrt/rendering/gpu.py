@@ -240,9 +240,9 @@ class KeptBuffers:
 def kept_buffers(ctx: moderngl.Context, family: str, items: int, bytes_per_item: tuple[int, ...]) -> list:
     """Storage buffers for at least ``items`` items, bytes_per_item[k] bytes an item in buffer k, kept
     on ctx for the next call of the same family (gl.keep; one set a family): a call of a size the kept
-    set holds reuses it, a larger one replaces it (its items rounded up to a power of two). Creating
-    the buffers of a lighting call or a band's solve each time cost llvmpipe 0.5 ms a buffer, 19 ms
-    in a 384x384 render. Their contents are what the last call left."""
+    set holds reuses it, a larger one replaces it (its items rounded up to a power of two). Every
+    compute shader's per-call buffers come from here: created each time, they cost llvmpipe 0.5 ms
+    a buffer, 19 ms of a 384x384 render. Their contents are what the last call left."""
     capacity = 1 << max(10, (max(items, 1) - 1).bit_length())
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
@@ -334,20 +334,14 @@ def _solve_slice(ctx, shader, rays: Rays, ray, surface, u, v, part: slice, out: 
     items[:, 6] = u[part]
     items[:, 7] = v[part]
     set_uniform(shader, "item_count", n)
-    buffers = []
-    try:
-        buffers.append(ctx.buffer(items))
-        buffers.append(ctx.buffer(np.ascontiguousarray(surface[part], dtype=np.int32)))
-        buffers.append(ctx.buffer(reserve=n * 4 * 8))
-        buffers.append(ctx.buffer(reserve=n * 4 * 4))
-        for binding, buffer in enumerate(buffers, start=2):
-            buffer.bind_to_storage_buffer(binding)
-        run(ctx, shader, n)
-        reals, ints = read_array(buffers[2], (n, 4), np.float64), read_array(buffers[3], (n, 4), np.int32)
-        roots = decode_roots(reals, ints, np.arange(n))
-    finally:
-        for buffer in buffers:
-            buffer.release()
+    buffers = kept_buffers(ctx, "bsrt_solve", n, (8 * 8, 4, 4 * 8, 4 * 4))  # items, surfaces, root reals, ints
+    buffers[0].write(items)
+    buffers[1].write(np.ascontiguousarray(surface[part], dtype=np.int32))
+    for binding, buffer in enumerate(buffers, start=2):
+        buffer.bind_to_storage_buffer(binding)
+    run(ctx, shader, n)
+    reals, ints = read_array(buffers[2], (n, 4), np.float64), read_array(buffers[3], (n, 4), np.int32)
+    roots = decode_roots(reals, ints, np.arange(n))
     for field in dataclasses.fields(RootResult):
         getattr(out, field.name)[part] = getattr(roots, field.name)
 

@@ -130,21 +130,16 @@ def occluded_gpu(
         shader = hierarchy_shader(ctx, "shadow", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
         step = gpu.dispatch_size(ctx)
+        buffers = gpu.kept_buffers(ctx, "bsrt_shadow", min(n, step), (12 * 8, 2 * 4))  # rays, answers
         for first in range(0, n, step):
             count = min(step, n - first)
-            buffers = []
-            try:
-                buffers.append(ctx.buffer(rays[first : first + count]))
-                buffers.append(ctx.buffer(reserve=8 * count))
-                buffers[0].bind_to_storage_buffer(2)
-                buffers[1].bind_to_storage_buffer(3)
-                set_uniform(shader, "ray_count", count)
-                gpu.run(ctx, shader, count)
-                ctx.memory_barrier()
-                gpu.read_rows(buffers[1], answer[first : first + count])
-            finally:
-                for buffer in buffers:
-                    buffer.release()
+            buffers[0].write(rays[first : first + count])
+            buffers[0].bind_to_storage_buffer(2)
+            buffers[1].bind_to_storage_buffer(3)
+            set_uniform(shader, "ray_count", count)
+            gpu.run(ctx, shader, count)
+            ctx.memory_barrier()
+            gpu.read_rows(buffers[1], answer[first : first + count])
             interrupts.safe_point()
     redo = np.flatnonzero(answer[:, 0] == -3)
     if redo.size:
@@ -198,24 +193,18 @@ def nearest_gpu(
         shader = hierarchy_shader(ctx, "nearest", bvh)
         set_shadow_uniforms(shader, bvh, tolerance, max_iterations)
         step = gpu.dispatch_size(ctx)
+        buffers = gpu.kept_buffers(ctx, "bsrt_nearest", min(n, step), (13 * 8, 4 * 8, 3 * 4))  # rays, hits
         for first in range(0, n, step):
             part = slice(first, min(n, first + step))
             count = part.stop - part.start
-            buffers = []
-            try:
-                buffers.append(ctx.buffer(rays[part]))
-                buffers.append(ctx.buffer(reserve=32 * count))
-                buffers.append(ctx.buffer(reserve=12 * count))
-                for binding, buffer in enumerate(buffers, start=2):
-                    buffer.bind_to_storage_buffer(binding)
-                set_uniform(shader, "ray_count", count)
-                gpu.run(ctx, shader, count)
-                ctx.memory_barrier()
-                gpu.read_rows(buffers[1], reals[part])
-                gpu.read_rows(buffers[2], ints[part])
-            finally:
-                for buffer in buffers:
-                    buffer.release()
+            buffers[0].write(rays[part])
+            for binding, buffer in enumerate(buffers, start=2):
+                buffer.bind_to_storage_buffer(binding)
+            set_uniform(shader, "ray_count", count)
+            gpu.run(ctx, shader, count)
+            ctx.memory_barrier()
+            gpu.read_rows(buffers[1], reals[part])
+            gpu.read_rows(buffers[2], ints[part])
             interrupts.safe_point()
     hit = np.flatnonzero(ints[:, 0] == 1)
     hits.hit[hit] = True
