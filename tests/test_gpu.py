@@ -160,8 +160,8 @@ IGES_TRIMMED = [
 
 
 def test_buffers_are_kept_between_calls_one_set_a_family():
-    """gpu.kept_buffers: a call that fits the kept set gets it again (items rounded up to a power of
-    two, at least 1,024); a larger call replaces it (the smaller set released); sets of other
+    """gpu.kept_buffers: a call that fits the kept set gets it again (items rounded up to an eighth
+    of a power of two, at least 1,024); a larger call replaces it (the smaller set released); sets of other
     families, and other objects gl.keep keeps (the map's framebuffers: one a family too), stay."""
 
     class Kept:
@@ -178,7 +178,7 @@ def test_buffers_are_kept_between_calls_one_set_a_family():
         assert gpu.kept_buffers(ctx, "bsrt_test", 600, (8, 4)) is first
         other = gpu.kept_buffers(ctx, "bsrt_test_other", 10, (4,))
         bigger = gpu.kept_buffers(ctx, "bsrt_test", 5000, (8, 4))
-        assert [b.size for b in bigger] == [8 * 8192, 4 * 8192]
+        assert [b.size for b in bigger] == [8 * 5120, 4 * 5120]  # 5,000 rounded up to 5 x 1,024
         assert all(type(b.mglo).__name__ == "InvalidObject" for b in first)  # released
         assert gpu.kept_buffers(ctx, "bsrt_test", 1000, (8, 4)) is bigger  # it holds them
         assert gpu.kept_buffers(ctx, "bsrt_test_other", 10, (4,)) is other

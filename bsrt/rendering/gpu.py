@@ -240,10 +240,13 @@ class KeptBuffers:
 def kept_buffers(ctx: moderngl.Context, family: str, items: int, bytes_per_item: tuple[int, ...]) -> list:
     """Storage buffers for at least ``items`` items, bytes_per_item[k] bytes an item in buffer k, kept
     on ctx for the next call of the same family (gl.keep; one set a family): a call of a size the kept
-    set holds reuses it, a larger one replaces it (its items rounded up to a power of two). Every
-    compute shader's per-call buffers come from here: created each time, they cost llvmpipe 0.5 ms
-    a buffer, 19 ms of a 384x384 render. Their contents are what the last call left."""
-    capacity = 1 << max(10, (max(items, 1) - 1).bit_length())
+    set holds reuses it, a larger one replaces it (its items rounded up to an eighth of a power of
+    two: at most 1/8 unused, at least 1,024). Every compute shader's per-call buffers come from here:
+    created each time, they cost llvmpipe 0.5 ms a buffer, 19 ms of a 384x384 render. Their
+    contents are what the last call left; gl.release_cached releases them with the context's
+    other kept objects."""
+    grain = 1 << max(7, (max(items, 1) - 1).bit_length() - 3)
+    capacity = max(1024, -(-items // grain) * grain)
     if not isinstance(ctx.extra, dict):
         ctx.extra = {}
     kept = [k for k in ctx.extra.get("bsrt_kept", {}) if k[0] == family and k[2] == bytes_per_item]
