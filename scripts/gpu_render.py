@@ -5,6 +5,7 @@ process, the scene's geometry kept between renders as the preview keeps it.
 
     python scripts/gpu_render.py [scenes/column.toml model.igs ...] [--size 512 | --width W --height H]
                                  [--repeat 3] [--spp N] [--adaptive-spp N] [--devices cpu,gpu] [--json FILE]
+                                 [--dispatches]
 
 Prints the GL renderer, the cores and the load average, then one row per
 scene and device: the median wall and CPU seconds of the render (the first
@@ -16,6 +17,9 @@ neighbours with the same hit and surface on the CPU) whose hit or surface
 differs, the largest |dt| over pixels both hit in units of the scene's
 diagonal, and the largest 8-bit image difference there and anywhere. On
 llvmpipe the GPU figures are the shaders run on the CPU cores by Mesa's LLVM.
+--dispatches waits for each compute dispatch to finish (glFinish) and splits
+each render's wall into the seconds in dispatches and the rest, the host's
+(the GPU's work then no longer overlaps the host's: a split, not a speed).
 """
 
 from __future__ import annotations
@@ -38,6 +42,25 @@ from bsrt.rendering.hits import away_from_silhouettes  # noqa: E402
 from bsrt.rendering.options import RenderOptions  # noqa: E402
 from bsrt.rendering.pipeline import Geometry, render  # noqa: E402
 from bsrt.scene.loading import load_input  # noqa: E402
+
+DISPATCHED = [0.0]  # seconds in compute dispatches so far (--dispatches)
+
+
+def time_dispatches() -> None:
+    """Make every compute dispatch wait for its end (glFinish) and add its seconds to DISPATCHED."""
+    import moderngl
+
+    run = moderngl.ComputeShader.run
+
+    def timed(self, *args, **kwargs):
+        clock = time.perf_counter()
+        try:
+            return run(self, *args, **kwargs)
+        finally:
+            self.ctx.finish()
+            DISPATCHED[0] += time.perf_counter() - clock
+
+    moderngl.ComputeShader.run = timed
 
 
 def agreement(cpu, gpu, shape, diagonal) -> dict:
@@ -69,13 +92,15 @@ def compare(path, width, height, repeat, devices, extra) -> dict:
     for run in range(repeat + 1):
         for device in devices:
             options = RenderOptions.resolve(scene, width=width, height=height, device=device, **extra)
-            clock, processor = time.perf_counter(), time.process_time()
+            clock, processor, dispatched = time.perf_counter(), time.process_time(), DISPATCHED[0]
             result = render(scene, options, geometry=geometry)
             if run:
                 wall[device].append(time.perf_counter() - clock)
                 cpu[device].append(time.process_time() - processor)
                 for stage, seconds in result.stats["seconds"].items():
                     stages[device].setdefault(stage, []).append(seconds)
+                stages[device].setdefault("dispatches", []).append(DISPATCHED[0] - dispatched)
+                stages[device].setdefault("host", []).append(wall[device][-1] - (DISPATCHED[0] - dispatched))
             results[device] = result
     row = {"scene": Path(path).stem, "width": width, "height": height}
     for device in devices:
@@ -103,7 +128,12 @@ def main(argv=None) -> int:
     parser.add_argument("--adaptive-spp", type=int, help="adaptive anti-aliasing's samples (default: the scene's)")
     parser.add_argument("--devices", default="cpu,gpu", help="comma-separated, interleaved in this order")
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
+    parser.add_argument(
+        "--dispatches", action="store_true", help="split the wall into compute dispatches (each waited for) and host"
+    )
     args = parser.parse_args(argv)
+    if args.dispatches:
+        time_dispatches()
     width, height = args.width or args.size, args.height or args.size
     devices = tuple(args.devices.split(","))
     extra = {k: v for k, v in (("spp", args.spp), ("adaptive_spp", args.adaptive_spp)) if v is not None}
