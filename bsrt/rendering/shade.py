@@ -180,11 +180,11 @@ class Shader:
         """Shadow rays (per hit), rays out of budget (lit, as bvh.py's "Budget" says) and mirror rays
         into the stats, and the progress."""
         self.geometry.out_of_budget += int(exhausted.sum())
-        rays = int(shadow_rays.sum())
+        rays, bounces = int(shadow_rays.sum()), 0 if reflections is None else int(reflections.sum())
         self.stats.add("shadow_rays", rays)
         if reflections is not None:
-            self.stats.add("reflection_rays", int(reflections.sum()))
-        self._advance(rays)
+            self.stats.add("reflection_rays", bounces)
+        self._advance(rays + bounces)
 
     def _shade_cpu(self, hits: Hits, directions: np.ndarray, depth: int, frames, numbers):
         """shade on the CPU kernels at this mirror depth, recursing into the mirror rays. numbers: the
