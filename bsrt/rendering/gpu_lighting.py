@@ -243,6 +243,7 @@ def _shade_level(ctx, shade, tables, level: _Level, count: int, lights: int) -> 
         set_uniform(shade, "light", light)
         gpu.run(ctx, shade, level.items(count))
         ctx.memory_barrier()
+        interrupts.safe_point()  # between dispatches: a waiting signal is taken
 
 
 def _bounce(ctx, bounce, tables, level: _Level, below: _Level, count: int) -> bool:
@@ -262,6 +263,7 @@ def _bounce(ctx, bounce, tables, level: _Level, below: _Level, count: int) -> bo
     set_uniform(bounce, "item_count", level.mirrors.size)
     gpu.run(ctx, bounce, level.mirrors.size)
     ctx.memory_barrier()
+    interrupts.safe_point()
     blocks = gpu.read_array(below.bounce, (4, count), np.int32)  # (the listed slots' are written)
     listed = level.mirrors
     sent = listed[blocks[0, listed] != 0]
