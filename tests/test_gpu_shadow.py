@@ -308,16 +308,22 @@ def test_dispatch_slices_change_nothing(monkeypatch):
 
 @pytest.mark.parametrize(
     "extra",
-    [{}, {"ao": True, "ground": True}, {"ao": True, "ground": True, "adaptive_spp": 4}],
-    ids=["mirrors", "ao-ground", "ao-ground-adaptive"],
+    [
+        {},
+        {"max_depth": 1},
+        {"max_depth": 0},
+        {"ao": True, "ground": True},
+        {"ao": True, "ground": True, "adaptive_spp": 4},
+    ],
+    ids=["mirrors", "one-bounce", "no-bounce", "ao-ground", "ao-ground-adaptive"],
 )
 def test_a_gpu_render_shades_as_the_cpu(extra):
     """The column (a mirror among its materials) rendered with device = "gpu": the
-    direct lighting and the mirror rays on the GPU, ambient occlusion and the ground's
-    contact shadow on the CPU from its positions, normals and exclusion boxes: the same
-    image within 1/255 (the same hits everywhere away from silhouettes: test_gpu.py), with
-    adaptive anti-aliasing too (its extra camera rays on the CPU's walk: pipeline.py's
-    shade.GPU_SECONDARY says why)."""
+    direct lighting and the mirror chain on the GPU (3 bounces, 1, none), ambient occlusion
+    and the ground's contact shadow on the CPU from its positions, normals and exclusion
+    boxes: the same image within 1/255 (the same hits everywhere away from silhouettes:
+    test_gpu.py) and the same counts, with adaptive anti-aliasing too (its extra camera rays
+    on the CPU's walk: shade.GPU_SECONDARY says why)."""
     size = {**dict(width=48, height=48, spp=1, adaptive_spp=0), **extra}
     path = ROOT / "scenes" / "column.toml"
     cpu = bsrt.render(path, device="cpu", **size)
@@ -326,7 +332,8 @@ def test_a_gpu_render_shades_as_the_cpu(extra):
     assert on_gpu.stats["devices"]["secondary"] == "gpu (mirrors), cpu" and cpu.stats["devices"]["secondary"] == "cpu"
     assert on_gpu.stats["shadow_rays"] == cpu.stats["shadow_rays"] > 1000
     gpu_rays, cpu_rays = on_gpu.stats["reflection_rays"], cpu.stats["reflection_rays"]
-    assert cpu_rays > 0 and (gpu_rays == cpu_rays if _same_steps() else abs(gpu_rays - cpu_rays) <= 0.01 * cpu_rays)
+    assert (cpu_rays > 0) == (extra.get("max_depth") != 0)
+    assert gpu_rays == cpu_rays if _same_steps() else abs(gpu_rays - cpu_rays) <= 0.01 * cpu_rays
     np.testing.assert_array_equal(on_gpu.hits.hit, cpu.hits.hit)
     apart = np.abs(on_gpu.pixels.astype(int) - cpu.pixels.astype(int)).max(axis=-1)
     if _same_steps():  # the mirror chain's colours mixed as the CPU's (the specular power a few ulps apart)
