@@ -36,8 +36,6 @@ HIT_BYTES = (5 * 8, 3 * 4)  # a slot of a level's hits (shade.glsl's HitReals, H
 OUT_BYTES = (11 * 8, 4 * 4)  # a slot of a level's outputs (OutReals, OutInts)
 SLOT_BYTES = 4  # a slot's entry in a list of the level's slots (Slots)
 BOUNCE_BYTES = 4 * 4  # a slot's bounce (bounce.glsl's BounceInts)
-
-
 LEVEL_BYTES = HIT_BYTES + OUT_BYTES + (SLOT_BYTES, SLOT_BYTES)  # a slot of a level, buffer by buffer
 
 
