@@ -454,8 +454,9 @@ def test_a_mirror_chain_past_llvmpipes_loop_limit_is_shaded_on_the_cpu(monkeypat
     padded so that every mirror ray from the floor solves every strip: on llvmpipe those walks run
     into the loop limiter, and the pixels whose mirror chain the GPU left unsettled are shaded
     again, whole, on the CPU (rendering/shade.py's Shader._shade_cpu; on a GPU none are). The render
-    on the GPU path gives the CPU path's colours (to a few roundings: the specular power) and the
-    same counts of mirror rays and rays out of budget."""
+    on the GPU path, with ambient occlusion (traced between the GPU's first level and the bounce,
+    and again for the pixels shaded again: counted once), gives the CPU path's colours (to a few
+    roundings: the specular power) and the same counts of mirror, occlusion and out-of-budget rays."""
     from bsrt.rendering import pipeline, shade
     from bsrt.rendering.options import RenderOptions
     from bsrt.rendering.pipeline import Geometry
@@ -466,16 +467,19 @@ def test_a_mirror_chain_past_llvmpipes_loop_limit_is_shaded_on_the_cpu(monkeypat
     for device in ("cpu", "gpu"):
         geometry = Geometry(scene)
         geometry._bvh = build_bvh(geometry.patches, padding=1.0)
-        options = RenderOptions.resolve(scene, width=12, height=12, adaptive_spp=0, device=device)
+        options = RenderOptions.resolve(scene, width=12, height=12, adaptive_spp=0, ao=True, device=device)
         if device == "gpu":
             monkeypatch.setattr(
-                shade.Shader, "_shade_cpu", lambda self, hits, *a: again.append(len(hits)) or spy(self, hits, *a)
+                shade.Shader,
+                "_shade_cpu",
+                lambda self, hits, *a, **k: again.append(len(hits)) or spy(self, hits, *a, **k),
             )
         results[device] = pipeline.render(scene, options, geometry=geometry)
     cpu, on_gpu = results["cpu"], results["gpu"]
     floor = cpu.hits.hit & (cpu.hits.surface == 0)
     assert floor.sum() >= 4 and cpu.stats["reflection_rays"] == floor.sum() and cpu.stats["shadow_rays"] == 0
-    for key in ("reflection_rays", "out_of_budget", "shadow_rays", "hits"):
+    assert cpu.stats["ao_rays"] >= 16 * floor.sum()
+    for key in ("reflection_rays", "out_of_budget", "shadow_rays", "ao_rays", "hits"):
         assert on_gpu.stats[key] == cpu.stats[key], key
     with _context() as ctx:
         software = not gl.capabilities(ctx).hardware

@@ -160,7 +160,7 @@ class Shader:
                 sub, rows = chunk.take(again), a + again
                 framed = None if frames is None else (np.empty((again.size, 3)), np.empty((again.size, 3)))
                 colour[rows] = self._shade_cpu(
-                    sub, directions[rows], 0, framed, None if numbers is None else numbers[rows]
+                    sub, directions[rows], 0, framed, None if numbers is None else numbers[rows], counted=True
                 )
                 if framed is not None:
                     position[rows], normal[rows] = framed
@@ -186,9 +186,10 @@ class Shader:
             self.stats.add("reflection_rays", bounces)
         self._advance(rays + bounces)
 
-    def _shade_cpu(self, hits: Hits, directions: np.ndarray, depth: int, frames, numbers):
+    def _shade_cpu(self, hits: Hits, directions: np.ndarray, depth: int, frames, numbers, counted: bool = False):
         """shade on the CPU kernels at this mirror depth, recursing into the mirror rays. numbers: the
-        hits' occlusion numbers (_occlusion_numbers; depth 0 only)."""
+        hits' occlusion numbers (_occlusion_numbers; depth 0 only). counted: their occlusion rays were
+        traced and counted already (the GPU path's first level, the same rays): not counted again."""
         n = len(hits)
         position, normal = frames if frames is not None else (np.empty((n, 3)), np.empty((n, 3)))
         colour = np.empty((n, 3))
@@ -226,7 +227,10 @@ class Shader:
             )
             self._count(shadow_rays[part], exhausted[part])
         if numbers is not None and depth == 0:
+            before = self.geometry.out_of_budget, self.stats.counts.get("ao_rays", 0)
             self._occlude(colour, hits, position, normal, radius, numbers)
+            if counted:
+                self.geometry.out_of_budget, self.stats.counts["ao_rays"] = before
         mirror = np.flatnonzero(hits.hit & self.mirror[hits.surface]) if depth < self.options.max_depth else []
         if len(mirror):
             m = len(mirror)
